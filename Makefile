@@ -1,0 +1,42 @@
+# Two commands do everything on a fresh machine (see README.md):
+#   make demo   - builds the venv, generates the sample scene, culls it, benchmarks it
+#   make test   - builds the venv and runs the whole test suite
+PY ?= python3.11
+VENV := .venv
+VPY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed-v1
+
+.PHONY: venv demo test test-numpy2 lint extension clean
+
+$(STAMP): pyproject.toml
+	$(PY) -m venv $(VENV)
+	$(VPY) -m pip install -q --upgrade pip
+	$(VPY) -m pip install -q -e '.[dev]' 'numpy>=1.26,<2' 'bpy==5.0.1'
+	touch $(STAMP)
+
+venv: $(STAMP)
+
+demo: $(STAMP)
+	$(VPY) -m core demo
+
+test: $(STAMP)
+	$(VPY) -m pytest -q
+
+# The engine alone on Python 3.13 with numpy 2.x (no bpy): the other numpy Blender may bundle.
+VENV2 := .venv-numpy2
+$(VENV2)/.installed-v1: pyproject.toml
+	PYENV_VERSION=3.13.0 python3.13 -m venv $(VENV2)
+	$(VENV2)/bin/python -m pip install -q -e '.[dev]' 'numpy>=2'
+	touch $@
+
+test-numpy2: $(VENV2)/.installed-v1
+	$(VENV2)/bin/python -m pytest -q -m 'not blender'
+
+lint: $(STAMP)
+	$(VPY) -m ruff check core occ_addon tests sample_scenes
+
+extension: $(STAMP)
+	$(VPY) tools/build_extension.py
+
+clean:
+	rm -rf $(VENV) dist .cache

@@ -1,0 +1,195 @@
+"""Cameras: the contract's look-at / perspective / orthographic matrices in float64.
+
+Conventions (stated once): OpenGL.  Column vectors, ``clip = P @ V @ world``;
+the camera looks down its -Z axis; normalised device coordinates span [-1, 1]
+on every axis; pixel ``(i, j)`` of a ``W x H`` target is sampled at its centre
+``((i + 0.5) / W * 2 - 1, (j + 0.5) / H * 2 - 1)`` with row 0 at the bottom.
+
+The engine never multiplies world positions by ``V`` directly: it works in
+camera-relative coordinates (``world - eye``, float64) with
+:meth:`Camera.relative_view_projection`, so scenes far from the origin keep
+their precision when values are later rounded to float32.
+"""
+
+import json
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import OccError
+
+CAMERA_KEYS = ("eye", "target", "up", "fov_y_deg", "aspect", "near", "far", "ortho_height")
+
+
+def _finite(value, name, shape=None):
+    a = np.asarray(value, dtype=np.float64)
+    if shape is not None and a.shape != shape:
+        raise OccError(f"camera {name} must have shape {shape}, got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise OccError(f"camera {name} must be finite, got {a.tolist()}")
+    return a
+
+
+def look_at(eye, target, up):
+    """gluLookAt as a ``(4, 4) float64`` view matrix."""
+    eye = _finite(eye, "eye", (3,))
+    f = _finite(target, "target", (3,)) - eye
+    up = _finite(up, "up", (3,))
+    fn = np.linalg.norm(f)
+    scale = max(np.abs(eye).max(), 1.0)
+    if fn <= 1e-12 * scale:
+        raise OccError(f"camera eye and target coincide at {eye.tolist()}")
+    f = f / fn
+    s = np.cross(f, up)
+    sn = np.linalg.norm(s)
+    if sn <= 1e-9 * max(np.linalg.norm(up), 1e-300):
+        raise OccError(f"camera up {up.tolist()} is parallel to the view direction")
+    s = s / sn
+    u = np.cross(s, f)
+    v = np.eye(4)
+    v[0, :3], v[1, :3], v[2, :3] = s, u, -f
+    v[:3, 3] = -v[:3, :3] @ eye
+    return v
+
+
+def perspective(fov_y_deg, aspect, near, far):
+    """gluPerspective as a ``(4, 4) float64`` projection matrix."""
+    fov_y_deg, aspect, near, far = (float(_finite(x, n)) for x, n in
+                                    ((fov_y_deg, "fov_y_deg"), (aspect, "aspect"),
+                                     (near, "near"), (far, "far")))
+    if not 0.0 < fov_y_deg < 180.0:
+        raise OccError(f"camera fov_y_deg must be in (0, 180), got {fov_y_deg}")
+    if aspect <= 0.0:
+        raise OccError(f"camera aspect must be > 0, got {aspect}")
+    if near <= 0.0:
+        raise OccError(f"a perspective camera needs near > 0, got near={near}")
+    if far <= near:
+        raise OccError(f"camera far must be > near, got near={near}, far={far}")
+    f = 1.0 / math.tan(math.radians(fov_y_deg) / 2.0)
+    p = np.zeros((4, 4))
+    p[0, 0] = f / aspect
+    p[1, 1] = f
+    p[2, 2] = (far + near) / (near - far)
+    p[2, 3] = 2.0 * far * near / (near - far)
+    p[3, 2] = -1.0
+    return p
+
+
+def orthographic(height, aspect, near, far):
+    """glOrtho of a ``height * aspect`` by ``height`` view as ``(4, 4) float64``."""
+    height, aspect, near, far = (float(_finite(x, n)) for x, n in
+                                 ((height, "ortho_height"), (aspect, "aspect"),
+                                  (near, "near"), (far, "far")))
+    if height <= 0.0 or aspect <= 0.0:
+        raise OccError(f"camera ortho_height and aspect must be > 0, got {height}, {aspect}")
+    if far <= near:
+        raise OccError(f"camera far must be > near, got near={near}, far={far}")
+    w = height * aspect
+    p = np.eye(4)
+    p[0, 0] = 2.0 / w
+    p[1, 1] = 2.0 / height
+    p[2, 2] = -2.0 / (far - near)
+    p[2, 3] = -(far + near) / (far - near)
+    return p
+
+
+@dataclass(frozen=True, eq=False)
+class Camera:
+    """A view and a projection, ``(4, 4) float64`` each, plus the eye they imply."""
+
+    view: np.ndarray
+    projection: np.ndarray
+
+    def __post_init__(self):
+        view = _finite(self.view, "view matrix", (4, 4))
+        proj = _finite(self.projection, "projection matrix", (4, 4))
+        if abs(np.linalg.det(view[:3, :3])) < 1e-12:
+            raise OccError("camera view matrix is singular")
+        object.__setattr__(self, "view", view)
+        object.__setattr__(self, "projection", proj)
+
+    @classmethod
+    def look_at(cls, eye, target, up=(0.0, 0.0, 1.0), fov_y_deg=60.0, aspect=1.5,
+                near=0.1, far=1000.0, ortho_height=None):
+        """The contract's camera: gluLookAt with gluPerspective or glOrtho."""
+        if ortho_height is None:
+            proj = perspective(fov_y_deg, aspect, near, far)
+        else:
+            proj = orthographic(ortho_height, aspect, near, far)
+        return cls(look_at(eye, target, up), proj)
+
+    @classmethod
+    def from_matrices(cls, view, projection):
+        """From a view and a projection matrix (e.g. Blender's region_3d matrices)."""
+        return cls(np.array(view, dtype=np.float64), np.array(projection, dtype=np.float64))
+
+    @classmethod
+    def from_dict(cls, d):
+        """From one camera of the camera JSON contract."""
+        if not isinstance(d, dict):
+            raise OccError(f"a camera must be a JSON object, got {type(d).__name__}")
+        unknown = set(d) - set(CAMERA_KEYS)
+        if unknown:
+            raise OccError(f"unknown camera keys {sorted(unknown)}; expected {list(CAMERA_KEYS)}")
+        for key in ("eye", "target"):
+            if key not in d:
+                raise OccError(f"camera needs '{key}'")
+        try:
+            return cls.look_at(d["eye"], d["target"], d.get("up", (0.0, 0.0, 1.0)),
+                               d.get("fov_y_deg", 60.0), d.get("aspect", 1.5),
+                               d.get("near", 0.1), d.get("far", 1000.0),
+                               d.get("ortho_height"))
+        except (TypeError, ValueError) as e:
+            raise OccError(f"camera values must be numbers: {e}") from None
+
+    @property
+    def is_orthographic(self):
+        """True when the projection has no perspective divide (w row is 0 0 0 1)."""
+        return bool(np.allclose(self.projection[3], (0.0, 0.0, 0.0, 1.0)))
+
+    @property
+    def eye(self):
+        """Eye position in world space, ``(3,) float64``."""
+        r = self.view[:3, :3]
+        return -np.linalg.solve(r, self.view[:3, 3])
+
+    @property
+    def direction(self):
+        """Unit view direction in world space, ``(3,) float64``."""
+        d = -np.linalg.inv(self.view[:3, :3])[:, 2]
+        return d / np.linalg.norm(d)
+
+    def relative_view_projection(self):
+        """``P @ V @ T(eye)``: maps camera-relative positions (world - eye) to clip space."""
+        v = self.view.copy()
+        v[:3, 3] = 0.0
+        # V @ T(eye) keeps the rotation and drops the translation exactly: V's
+        # translation is -R @ eye by construction, so the sum cancels.
+        return self.projection @ v
+
+    def view_projection(self):
+        """``P @ V`` in float64 (for world-space use, e.g. tests)."""
+        return self.projection @ self.view
+
+
+def load_cameras(path):
+    """Read a camera JSON file: one camera, or ``{"frames": [camera, ...]}`` -> list of Camera."""
+    try:
+        with open(path, encoding="utf-8") as f:
+            data = json.load(f)
+    except OSError as e:
+        raise OccError(f"cannot read camera file {path}: {e.strerror}") from None
+    except json.JSONDecodeError as e:
+        raise OccError(f"camera file {path} is not valid JSON: {e}") from None
+    return cameras_from_json(data)
+
+
+def cameras_from_json(data):
+    """One camera dict or ``{"frames": [...]}`` -> list of Camera."""
+    if isinstance(data, dict) and "frames" in data:
+        frames = data["frames"]
+        if not isinstance(frames, list) or not frames:
+            raise OccError("camera 'frames' must be a non-empty list")
+        return [Camera.from_dict(f) for f in frames]
+    return [Camera.from_dict(data)]

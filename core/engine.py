@@ -1,0 +1,144 @@
+"""The engine's face: a :class:`Culler` holds a scene on the GPU and culls it from cameras.
+
+    culler = Culler(scene, resolution=(640, 360), strategy="om_multi")
+    result = culler.cull(camera)           # CullResult: state (n,) uint8, stats dict
+    truth = culler.truth(camera)           # (n,) bool, exact at this resolution
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .bounds import MAX, MIN
+from .errors import OccError
+from .hierarchy import build_from_tree
+from .occupancy import DEFAULT_TILES
+from .strategies import DEFAULT_STRATEGY, make_strategy
+from .traversal import STAT_KEYS, Frame, Visibility
+
+DEFAULT_RESOLUTION = (640, 360)
+MAX_RESOLUTION = 8192          # per side; beyond this llvmpipe and most GPUs refuse targets
+
+
+@dataclass
+class CullResult:
+    """Three states per object, the counters of the pass and its occupancy map."""
+
+    state: np.ndarray
+    stats: dict
+    occupancy: np.ndarray
+
+    @property
+    def visible(self):
+        """``(n,) bool``: objects not culled."""
+        return self.state == Visibility.VISIBLE
+
+
+def parse_resolution(text):
+    """``"WxH"`` -> ``(W, H)`` with a clear error."""
+    try:
+        w, h = (int(x) for x in str(text).lower().split("x"))
+    except ValueError:
+        raise OccError(f"resolution must look like 640x360, got '{text}'") from None
+    return check_resolution((w, h))
+
+
+def check_resolution(resolution):
+    w, h = (int(x) for x in resolution)
+    if not (1 <= w <= MAX_RESOLUTION and 1 <= h <= MAX_RESOLUTION):
+        raise OccError(f"resolution must be between 1x1 and {MAX_RESOLUTION}x{MAX_RESOLUTION}, "
+                       f"got {w}x{h}")
+    return w, h
+
+
+class Culler:
+    """A scene uploaded once, culled from any number of cameras.
+
+    resolution: query resolution ``(W, H)``; strategy: a name of
+    :data:`core.strategies.STRATEGIES`; tiles: occupancy-map size in tiles;
+    visible_threshold: samples a box must pass to count as visible (0 keeps
+    culling exact at the query resolution; more is aggressive); chunk: nodes per
+    front-to-back step of the occupancy-map stage; max_children: widest inner node.
+    """
+
+    def __init__(self, scene, resolution=DEFAULT_RESOLUTION, strategy=DEFAULT_STRATEGY,
+                 tiles=DEFAULT_TILES, visible_threshold=0, chunk=16, max_tests=8,
+                 max_children=8, ctx=None):
+        from .gl import GLRenderer       # the GPU backend is the only moderngl user
+
+        self.scene = scene
+        self.resolution = check_resolution(resolution)
+        self.strategy_name = strategy
+        self.strategy = make_strategy(strategy, max_tests)
+        self.tiles = int(tiles)
+        self.visible_threshold = int(visible_threshold)
+        self.chunk = max(1, int(chunk))
+        bounds = scene.bounds
+        self.hierarchy = build_from_tree(bounds, scene.tree_parent, scene.tree_object, max_children)
+        if len(scene):
+            ext = bounds[:, MAX].max(axis=0) - bounds[:, MIN].min(axis=0)
+            self.scene_size = float(max(np.abs(bounds).max(), ext.max()))
+        else:
+            self.scene_size = 1.0
+        self.renderer = GLRenderer(scene, *self.resolution, ctx=ctx)
+
+    def __len__(self):
+        return len(self.scene)
+
+    def set_strategy(self, name, max_tests=8):
+        """Switch strategy without re-uploading the scene."""
+        self.strategy = make_strategy(name, max_tests)
+        self.strategy_name = name
+
+    def set_matrices(self, indices, matrices):
+        """Objects moved: new world matrices ``(k, 4, 4)`` for ``indices``; refits the hierarchy."""
+        idx = np.asarray(indices, dtype=np.int64).reshape(-1)
+        m = np.asarray(matrices, dtype=np.float64).reshape(-1, 4, 4)
+        if len(idx) != len(m):
+            raise OccError(f"{len(idx)} indices but {len(m)} matrices")
+        if not np.all(np.isfinite(m)):
+            raise OccError("new world matrices contain NaN or infinite values")
+        self.scene.matrices[idx] = m
+        self.renderer.set_matrices(idx, m)
+        if self.hierarchy is not None:
+            self.hierarchy.refit(self.scene.bounds)
+
+    def truth(self, camera):
+        """Exact visible set at the query resolution from an object-ID buffer, ``(n,) bool``."""
+        return self.renderer.visible_truth(camera)
+
+    def cull(self, camera, truth=None):
+        """One culling pass from ``camera``; ``truth`` is needed by the oracle only."""
+        n = len(self.scene)
+        if self.hierarchy is None:
+            return CullResult(np.zeros(0, dtype=np.uint8), {**dict.fromkeys(STAT_KEYS, 0),
+                              **self._counts(np.zeros(0, np.uint8))}, np.zeros((0, 0), bool))
+        if self.strategy_name == "oracle" and truth is None:
+            truth = self.truth(camera)
+        frame = Frame(self.hierarchy, self.renderer, camera, self.tiles, self.visible_threshold,
+                      self.scene_size)
+        self.strategy(frame, chunk=self.chunk, truth=truth)
+        stats = frame.finish()
+        stats.update(self._counts(frame.state))
+        assert len(frame.state) == n
+        return CullResult(frame.state, stats, frame.om.grid.copy())
+
+    def _counts(self, state):
+        tri = self.scene.triangle_counts
+        return {
+            "objects": int(len(state)),
+            "visible": int((state == Visibility.VISIBLE).sum()),
+            "occluded": int((state == Visibility.OCCLUDED).sum()),
+            "view_culled": int((state == Visibility.VIEW_CULLED).sum()),
+            "triangles_total": int(tri.sum()),
+            "triangles_visible": int(tri[state == Visibility.VISIBLE].sum()),
+        }
+
+    def close(self):
+        self.renderer.release()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()

@@ -1,0 +1,174 @@
+"""Screen rectangles of boxes and the occupancy map of Staneker et al. (2003).
+
+The occupancy map is a small bitfield over the screen -- by default 512 words
+of 32 bits, i.e. 16,384 tiles, laid out to the viewport's aspect -- holding
+which tiles something was already drawn over.  A node whose rectangle still
+has an empty tile would almost surely answer "visible" to a query, so the
+query is skipped.  The map only ever decides whether to *ask*; no object is
+culled on its word, so it cannot make the culling wrong, only slower.
+
+Pixel convention: pixel ``(i, j)`` has its centre at ``(i + 0.5, j + 0.5)`` in
+window coordinates, row 0 at the bottom.  Rectangles are inclusive index ranges
+``(x0, y0, x1, y1)`` rounded outward: every pixel centre the box's projection
+could cover is inside.
+"""
+
+import math
+
+import numpy as np
+
+from .bounds import corners
+from .frustum import planes_from_matrix
+from .tolerance import tol
+
+X0, Y0, X1, Y1 = range(4)
+DEFAULT_TILES = 512 * 32
+
+
+def project_rects(boxes, clip_matrix, width, height):
+    """Pixel rectangles of boxes, rounded outward.
+
+    boxes: ``(n, 2, 3)`` in the space ``clip_matrix`` maps to clip space
+    (camera-relative for the engine).  Returns ``(rects (n, 4) int64,
+    crosses_near (n,) bool)``.  A box within the near guard of the near plane
+    (or containing the eye) gets the full screen and ``crosses_near = True``:
+    it is visible without a query (conservative rule).
+    """
+    c = corners(boxes)                                               # (n, 8, 3)
+    n = len(c)
+    near = planes_from_matrix(clip_matrix)[4]
+    scale = np.abs(c).reshape(n, 24).max(axis=1, initial=0.0) + 1e-300
+    dist = c @ near[:3] + near[3]                                    # (n, 8)
+    # Conservative: a corner at or in front of the near plane (within a guard
+    # relative to the box's magnitude) means the box reaches the eye's side.
+    crosses = np.any(dist <= tol.near_guard_rel * scale[:, None], axis=1)
+    clip = c @ clip_matrix[:3, :3].T + clip_matrix[:3, 3]            # x, y, z
+    w = c @ clip_matrix[3, :3] + clip_matrix[3, 3]
+    w = np.where(crosses[:, None], 1.0, w)                           # never divide by w <= 0
+    px = (clip[..., 0] / w + 1.0) * (0.5 * width)
+    py = (clip[..., 1] / w + 1.0) * (0.5 * height)
+    rects = np.empty((n, 4), dtype=np.int64)
+    # Outward: a centre i + 0.5 in [min, max] gives i in [floor(min - .5), ceil(max - .5)].
+    rects[:, X0] = np.floor(px.min(axis=1) - 0.5)
+    rects[:, Y0] = np.floor(py.min(axis=1) - 0.5)
+    rects[:, X1] = np.ceil(px.max(axis=1) - 0.5)
+    rects[:, Y1] = np.ceil(py.max(axis=1) - 0.5)
+    rects[crosses] = (0, 0, width - 1, height - 1)
+    rects[:, X0] = np.clip(rects[:, X0], 0, width - 1)
+    rects[:, X1] = np.clip(rects[:, X1], 0, width - 1)
+    rects[:, Y0] = np.clip(rects[:, Y0], 0, height - 1)
+    rects[:, Y1] = np.clip(rects[:, Y1], 0, height - 1)
+    return rects, crosses
+
+
+def tile_grid(width, height, tiles=DEFAULT_TILES):
+    """Tile columns and rows for a ``width x height`` viewport: about ``tiles`` tiles
+    shaped to the aspect, never smaller than a pixel."""
+    if width <= 0 or height <= 0:
+        raise ValueError(f"viewport must be at least 1x1, got {width}x{height}")
+    aspect = width / height
+    ty = max(1, min(height, int(math.floor(math.sqrt(tiles / aspect)))))
+    tx = max(1, min(width, int(tiles // ty)))
+    return tx, ty
+
+
+class OccupancyMap:
+    """A ``rows x cols`` bitfield of screen tiles over a ``width x height`` viewport.
+
+    All operations take ``(n, 4)`` pixel rectangles and work on all of them at
+    once (a 2-D difference array to set, a summed-area table to test).
+    """
+
+    def __init__(self, width, height, tiles=DEFAULT_TILES):
+        self.width, self.height = int(width), int(height)
+        self.cols, self.rows = tile_grid(self.width, self.height, tiles)
+        self.grid = np.zeros((self.rows, self.cols), dtype=bool)
+        self._sat = None
+
+    def tile_rects(self, rects):
+        """Pixel rectangles ``(n, 4)`` -> inclusive tile rectangles ``(n, 4)``."""
+        r = np.asarray(rects, dtype=np.int64).reshape(-1, 4)
+        t = np.empty_like(r)
+        t[:, [X0, X1]] = r[:, [X0, X1]] * self.cols // self.width
+        t[:, [Y0, Y1]] = r[:, [Y0, Y1]] * self.rows // self.height
+        return t
+
+    def clear(self):
+        self.grid[:] = False
+        self._sat = None
+
+    def set(self, rects):
+        """Mark the tiles under every pixel rectangle ``(n, 4)``."""
+        t = self.tile_rects(rects)
+        if not len(t):
+            return
+        d = np.zeros((self.rows + 1, self.cols + 1), dtype=np.int32)
+        np.add.at(d, (t[:, Y0], t[:, X0]), 1)
+        np.add.at(d, (t[:, Y0], t[:, X1] + 1), -1)
+        np.add.at(d, (t[:, Y1] + 1, t[:, X0]), -1)
+        np.add.at(d, (t[:, Y1] + 1, t[:, X1] + 1), 1)
+        self.grid |= np.cumsum(np.cumsum(d, axis=0), axis=1)[:-1, :-1] > 0
+        self._sat = None
+
+    def _counts(self, rects):
+        if self._sat is None:
+            s = np.zeros((self.rows + 1, self.cols + 1), dtype=np.int32)
+            s[1:, 1:] = np.cumsum(np.cumsum(self.grid, axis=0, dtype=np.int32), axis=1)
+            self._sat = s
+        t = self.tile_rects(rects)
+        s = self._sat
+        count = (s[t[:, Y1] + 1, t[:, X1] + 1] - s[t[:, Y0], t[:, X1] + 1]
+                 - s[t[:, Y1] + 1, t[:, X0]] + s[t[:, Y0], t[:, X0]])
+        area = (t[:, X1] - t[:, X0] + 1) * (t[:, Y1] - t[:, Y0] + 1)
+        return count, area
+
+    def any_empty(self, rects):
+        """``(n,) bool``: the rectangle has at least one unset tile."""
+        count, area = self._counts(rects)
+        return count < area
+
+    def all_covered(self, rects):
+        """``(n,) bool``: every tile of the rectangle is set."""
+        count, area = self._counts(rects)
+        return count == area
+
+    def any_set(self, rects):
+        """``(n,) bool``: at least one tile of the rectangle is set."""
+        return self._counts(rects)[0] > 0
+
+    def words(self):
+        """The bitfield as the paper stores it: ``uint32`` words, row-major, bit 0 first."""
+        bits = np.packbits(self.grid.ravel(), bitorder="little")
+        pad = (-len(bits)) % 4
+        return np.concatenate([bits, np.zeros(pad, np.uint8)]).view("<u4")
+
+    def picture(self, scale=4):
+        """A debug image ``(rows * scale, cols * scale) uint8``, top row first, 255 = set."""
+        img = np.where(self.grid[::-1], 255, 40).astype(np.uint8)
+        return np.kron(img, np.ones((scale, scale), dtype=np.uint8))
+
+
+def non_overlapping_first(tile_rects):
+    """Greedy arrangement of one multiple query: in order, take a rectangle when it
+    overlaps no rectangle taken before it (Staneker et al. 2004, one cleared
+    occupancy map per test list).  Vectorised as a fixpoint over the pairwise
+    overlap matrix; returns ``(k,) bool`` of the taken ones.
+    """
+    t = np.asarray(tile_rects)
+    k = len(t)
+    if k == 0:
+        return np.zeros(0, dtype=bool)
+    ov = ((t[:, None, X0] <= t[None, :, X1]) & (t[None, :, X0] <= t[:, None, X1])
+          & (t[:, None, Y0] <= t[None, :, Y1]) & (t[None, :, Y0] <= t[:, None, Y1]))
+    ov &= np.tri(k, k, -1, dtype=bool)       # ov[i, j]: j comes before i and overlaps it
+    taken = np.zeros(k, dtype=bool)
+    dropped = np.zeros(k, dtype=bool)
+    while True:
+        undecided = ~(taken | dropped)
+        if not undecided.any():
+            return taken
+        # taken: every earlier overlapping rectangle is dropped
+        new_taken = undecided & ~np.any(ov & ~dropped[None], axis=1)
+        new_dropped = undecided & np.any(ov & (taken | new_taken)[None], axis=1) & ~new_taken
+        taken |= new_taken
+        dropped |= new_dropped

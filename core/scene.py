@@ -1,0 +1,179 @@
+"""Scenes as plain arrays: objects, their (possibly shared) meshes, world matrices
+and the scene tree.
+
+An *object* is a scene-graph node that carries triangles; its name is the node
+name.  Meshes are stored once and referenced by ``mesh_of``, so a mesh placed a
+thousand times is uploaded once.  The tree (``tree_parent``, ``tree_object``)
+is the scene's own grouping -- glTF nodes, Blender collections -- and is the
+skeleton the hierarchy builder starts from.
+"""
+
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .bounds import transform_boxes
+from .errors import OccError
+
+
+def _mesh_arrays(vertices, faces, label):
+    v = np.ascontiguousarray(vertices, dtype=np.float64)
+    f = np.ascontiguousarray(faces)
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise OccError(f"{label}: vertices must be (v, 3), got {v.shape}")
+    if f.size == 0:
+        f = np.zeros((0, 3), dtype=np.int64)
+    if f.ndim != 2 or f.shape[1] != 3:
+        raise OccError(f"{label}: faces must be (f, 3), got {f.shape}")
+    f = f.astype(np.int64, copy=False)
+    if not np.all(np.isfinite(v)):
+        raise OccError(f"{label}: vertices contain NaN or infinite values")
+    if len(f) and (f.min() < 0 or f.max() >= len(v)):
+        raise OccError(f"{label}: face indices out of range 0..{len(v) - 1}")
+    return v, f
+
+
+@dataclass(eq=False)
+class Scene:
+    """Objects of a scene as arrays.
+
+    names: n object names; meshes: unique meshes ``(vertices (v, 3) float64,
+    faces (f, 3) int64)``; mesh_of: ``(n,) int64`` mesh of each object;
+    matrices: ``(n, 4, 4) float64`` world matrices; tree_parent / tree_object:
+    ``(t,) int64`` parent tree node (-1 for roots) and carried object (-1 for a
+    pure group) of each tree node, every object at most once.
+    """
+
+    names: list
+    meshes: list
+    mesh_of: np.ndarray
+    matrices: np.ndarray
+    tree_parent: np.ndarray
+    tree_object: np.ndarray
+    mesh_bounds: np.ndarray = field(init=False)
+
+    def __post_init__(self):
+        n = len(self.names)
+        self.mesh_of = np.asarray(self.mesh_of, dtype=np.int64).reshape(-1)
+        self.matrices = np.asarray(self.matrices, dtype=np.float64).reshape(-1, 4, 4) if n else np.zeros((0, 4, 4))
+        if len(self.mesh_of) != n or len(self.matrices) != n:
+            raise OccError(f"{n} names but {len(self.mesh_of)} mesh indices and "
+                           f"{len(self.matrices)} matrices")
+        if n and (self.mesh_of.min() < 0 or self.mesh_of.max() >= len(self.meshes)):
+            raise OccError(f"mesh_of must index the {len(self.meshes)} meshes")
+        bad = ~np.all(np.isfinite(self.matrices), axis=(1, 2))
+        if bad.any():
+            raise OccError(f"object '{self.names[int(np.argmax(bad))]}' has a NaN or infinite "
+                           f"world matrix ({int(bad.sum())} such objects)")
+        self.meshes = [_mesh_arrays(v, f, f"mesh {i}") for i, (v, f) in enumerate(self.meshes)]
+        mb = np.zeros((len(self.meshes), 2, 3))
+        for i, (v, _) in enumerate(self.meshes):      # once per unique mesh
+            if len(v):
+                mb[i] = v.min(axis=0), v.max(axis=0)
+        self.mesh_bounds = mb
+        self.tree_parent = np.asarray(self.tree_parent, dtype=np.int64).reshape(-1)
+        self.tree_object = np.asarray(self.tree_object, dtype=np.int64).reshape(-1)
+        t = len(self.tree_parent)
+        if len(self.tree_object) != t:
+            raise OccError("tree_parent and tree_object must have the same length")
+        if t and (self.tree_parent.min() < -1 or self.tree_parent.max() >= t):
+            raise OccError("tree_parent must hold tree node indices or -1")
+        carried = self.tree_object[self.tree_object >= 0]
+        if len(carried) and (carried.max() >= n or len(np.unique(carried)) != len(carried)):
+            raise OccError("tree_object must name each object at most once")
+
+    @classmethod
+    def from_arrays(cls, names, meshes, mesh_of, matrices, tree_parent=None, tree_object=None):
+        """Build a scene from arrays; without a tree, every object is a root."""
+        names = [str(s) for s in names]
+        if tree_parent is None:
+            tree_parent = np.full(len(names), -1, dtype=np.int64)
+            tree_object = np.arange(len(names), dtype=np.int64)
+        elif tree_object is None:
+            raise OccError("tree_parent given without tree_object")
+        return cls(names, list(meshes), mesh_of, matrices, tree_parent, tree_object)
+
+    def __len__(self):
+        return len(self.names)
+
+    @property
+    def triangle_counts(self):
+        """Triangles of each object, ``(n,) int64``."""
+        per_mesh = np.array([len(f) for _, f in self.meshes], dtype=np.int64)
+        return per_mesh[self.mesh_of] if len(self.meshes) else np.zeros(0, dtype=np.int64)
+
+    @property
+    def bounds(self):
+        """World boxes of the objects, ``(n, 2, 3) float64``."""
+        if not len(self):
+            return np.zeros((0, 2, 3))
+        return transform_boxes(self.mesh_bounds[self.mesh_of], self.matrices)
+
+    @property
+    def parent(self):
+        """Parent object of each object in the tree (nearest carrying ancestor), -1 if none."""
+        out = np.full(len(self), -1, dtype=np.int64)
+        owner = self.tree_object
+        # Walk up from every tree node at once, one level per step.
+        node_of_obj = np.full(len(self), -1, dtype=np.int64)
+        carried = owner >= 0
+        node_of_obj[owner[carried]] = np.flatnonzero(carried)
+        todo = np.flatnonzero(node_of_obj >= 0)
+        cur = self.tree_parent[node_of_obj[todo]]
+        while len(todo):
+            alive = cur >= 0
+            todo, cur = todo[alive], cur[alive]
+            hit = owner[cur] >= 0
+            out[todo[hit]] = owner[cur[hit]]
+            todo, cur = todo[~hit], self.tree_parent[cur[~hit]]
+        return out
+
+
+def load_scene(path):
+    """Load anything trimesh reads as a Scene (glTF/GLB, OBJ, PLY, ...)."""
+    try:
+        import trimesh
+    except ImportError:
+        raise OccError("reading scene files needs trimesh: pip install trimesh") from None
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise OccError(f"scene file not found: {path}")
+    try:
+        loaded = trimesh.load(path, force="scene")
+    except Exception as e:  # trimesh raises many types for malformed files
+        raise OccError(f"cannot read scene file {path}: {type(e).__name__}: {e}") from None
+    return scene_from_trimesh(loaded)
+
+
+def scene_from_trimesh(tm_scene):
+    """Convert a ``trimesh.Scene`` into a :class:`Scene` (shared geometry stays shared)."""
+    import trimesh
+
+    graph = tm_scene.graph
+    base = graph.base_frame
+    geometry_nodes = set(graph.nodes_geometry)
+    parents = graph.transforms.parents
+    nodes = [n for n in graph.nodes if n != base]
+    index = {n: i for i, n in enumerate(nodes)}
+    mesh_index, meshes = {}, []
+    names, mesh_of, matrices = [], [], []
+    tree_object = np.full(len(nodes), -1, dtype=np.int64)
+    for i, node in enumerate(nodes):
+        if node not in geometry_nodes:
+            continue
+        matrix, geom_name = graph[node]
+        geom = tm_scene.geometry.get(geom_name)
+        if not isinstance(geom, trimesh.Trimesh) or len(geom.faces) == 0:
+            continue
+        if geom_name not in mesh_index:
+            mesh_index[geom_name] = len(meshes)
+            meshes.append((np.asarray(geom.vertices, dtype=np.float64),
+                           np.asarray(geom.faces, dtype=np.int64)))
+        tree_object[i] = len(names)
+        names.append(str(node))
+        mesh_of.append(mesh_index[geom_name])
+        matrices.append(np.asarray(matrix, dtype=np.float64))
+    tree_parent = np.array([index.get(parents.get(n), -1) for n in nodes], dtype=np.int64)
+    return Scene(names, meshes, np.array(mesh_of, dtype=np.int64),
+                 np.array(matrices).reshape(-1, 4, 4), tree_parent, tree_object)

@@ -1,0 +1,181 @@
+"""Traversal strategies.  Each takes a :class:`core.traversal.Frame`, draws what it
+finds visible into the frame's depth buffer, marks what it proves occluded, and
+leaves its counters in ``frame.stats``.
+
+Correctness is the same for all of them and does not depend on the occupancy
+map: an object is culled only when it is outside the frustum or when an
+occlusion query of a box around it (or around a group containing it) passed no
+more than ``threshold`` samples against real geometry already drawn.  Drawing
+less before a query can only make it say "visible" more often.
+
+- ``vfc``      hierarchical frustum culling, draws everything inside.
+- ``stopwait`` front to back, one query per node, waiting for each answer.
+- ``om``       Staneker et al. 2003: leaves front to back; the occupancy map skips
+               queries in still-empty screen regions; the rest go into at most
+               ``OM_MAX_BATCHES`` occupancy-map-arranged multiple queries.
+- ``om_multi`` Staneker et al. 2004: hierarchical.  Stage 1 draws or opens what the
+               occupancy map proves visible and defers the rest; stage 2 fills test
+               lists through one cleared occupancy map (no two boxes of a list
+               overlap on screen) and issues each as one multiple query, at most
+               ``max_tests`` rounds, ``max_tests(f + 1) = 0.7 m(f)``; stage 3 queries
+               all that remain.
+- ``oracle``   draws exactly the ground-truth set, no queries: the physical limit.
+"""
+
+import heapq
+import math
+
+import numpy as np
+
+from .errors import OccError
+from .occupancy import X0, X1, Y0, Y1, non_overlapping_first
+from .traversal import Visibility
+
+OM_MAX_BATCHES = 5
+MAX_TEST_CANDIDATES = 512      # bounds the pairwise overlap matrix of one test list
+
+
+def vfc(frame, **_):
+    leaves = np.flatnonzero(frame.in_frustum & frame.h.is_leaf)
+    frame.draw_leaves(leaves)
+
+
+def oracle(frame, truth=None, **_):
+    if truth is None:
+        raise OccError("the oracle strategy needs the ground-truth visible set")
+    h = frame.h
+    leaves = np.flatnonzero(frame.in_frustum & h.is_leaf)
+    seen = truth[h.leaf_object[leaves]]
+    frame.draw_leaves(frame.sort_near(leaves[seen]))
+    frame.state[h.leaf_object[leaves[~seen]]] = Visibility.OCCLUDED
+
+
+def stopwait(frame, **_):
+    """One query per node, answer awaited before the next (the baseline to beat)."""
+    h = frame.h
+    if not frame.in_frustum[0]:
+        return
+    heap = [(frame.dist[0], 0)]
+    while heap:                        # per node by design: this is the slow baseline
+        _, node = heapq.heappop(heap)
+        one = np.array([node])
+        if not frame.crosses[node]:
+            if not frame.query(one)[0]:
+                frame.occlude(one)
+                continue
+        else:
+            frame.stats["near_visible"] += 1
+        if h.is_leaf[node]:
+            frame.draw_leaves(one)
+        else:
+            for c in frame.children_in_frustum(one):
+                heapq.heappush(heap, (frame.dist[c], int(c)))
+
+
+def _stage1(frame, front, chunk):
+    """Occupancy-driven descent: front to back in chunks of ``chunk`` nodes; a node
+    whose rectangle still has an empty tile (or that crosses the near plane) is
+    drawn (leaf) or opened (inner) without a query, the others are returned
+    (pending), nearest first."""
+    pending = []
+    while len(front):
+        front = frame.sort_near(front)
+        head, front = front[:chunk], front[chunk:]
+        crosses = frame.crosses[head]
+        empty = frame.om.any_empty(frame.rects[head])
+        frame.stats["near_visible"] += int(crosses.sum())
+        frame.stats["queries_skipped"] += int((empty & ~crosses).sum())
+        leaf = frame.h.is_leaf[head]
+        # Within a chunk, a node whose tiles all lie under one nearer leaf that is
+        # drawn in this chunk would find them occupied: defer it too.
+        proven = crosses | (empty & ~_under_nearer(frame.om.tile_rects(frame.rects[head]),
+                                                   empty & leaf))
+        frame.draw_leaves(head[proven & leaf])
+        front = np.concatenate([front, frame.children_in_frustum(head[proven & ~leaf])])
+        pending.append(head[~proven])
+    return np.concatenate(pending) if pending else np.zeros(0, dtype=np.int64)
+
+
+def _under_nearer(tiles, drawn):
+    """``(k,) bool``: rectangle i lies inside rectangle j for some earlier j with ``drawn[j]``."""
+    t = tiles
+    inside = ((t[None, :, X0] <= t[:, None, X0]) & (t[:, None, X1] <= t[None, :, X1])
+              & (t[None, :, Y0] <= t[:, None, Y0]) & (t[:, None, Y1] <= t[None, :, Y1]))
+    inside &= np.tri(len(t), len(t), -1, dtype=bool) & drawn[None, :]
+    return inside.any(axis=1)
+
+
+def _test_list(frame, pending):
+    """Split sorted ``pending`` into (test list, rest): greedy, no two overlapping."""
+    cand = pending[:MAX_TEST_CANDIDATES]
+    taken = _non_overlapping(frame, cand)
+    return cand[taken], np.concatenate([cand[~taken], pending[MAX_TEST_CANDIDATES:]])
+
+
+def _non_overlapping(frame, nodes):
+    return non_overlapping_first(frame.om.tile_rects(frame.rects[nodes]))
+
+
+def _resolve(frame, nodes, visible):
+    """Act on query answers: occlude the hidden, draw visible leaves, open visible
+    inner nodes; returns the opened children."""
+    frame.occlude(nodes[~visible])
+    vis = nodes[visible]
+    leaf = frame.h.is_leaf[vis]
+    frame.draw_leaves(vis[leaf])
+    return frame.children_in_frustum(vis[~leaf])
+
+
+def om(frame, chunk=16, **_):
+    """Staneker et al. 2003 over the leaves of the frustum."""
+    leaves = np.flatnonzero(frame.in_frustum & frame.h.is_leaf)
+    pending = _stage1(frame, leaves, chunk)
+    for batch in range(OM_MAX_BATCHES):
+        if not len(pending):
+            break
+        pending = frame.sort_near(pending)
+        if batch == OM_MAX_BATCHES - 1:
+            test, pending = pending, pending[:0]
+        else:
+            test, pending = _test_list(frame, pending)
+        _resolve(frame, test, frame.query(test))
+
+
+class OmMulti:
+    """Staneker et al. 2004; keeps ``max_tests`` across frames (the 0.7 m rule)."""
+
+    def __init__(self, max_tests=8):
+        self.max_tests = max(1, int(max_tests))
+
+    def __call__(self, frame, chunk=16, **_):
+        if not frame.in_frustum[0]:
+            return
+        pending = _stage1(frame, np.zeros(1, dtype=np.int64), chunk)
+        rounds = 0
+        # Stage 2: occupancy-map-arranged multiple queries.
+        while len(pending) and rounds < self.max_tests:
+            pending = frame.sort_near(pending)
+            test, pending = _test_list(frame, pending)
+            opened = _resolve(frame, test, frame.query(test))
+            pending = np.concatenate([pending, _stage1(frame, opened, chunk)])
+            rounds += 1
+        # Stage 3: everything that remains, brute force, level by level.
+        while len(pending):
+            opened = _resolve(frame, pending, frame.query(pending))
+            pending = _stage1(frame, opened, chunk)
+            rounds += 1
+        self.max_tests = max(1, math.ceil(0.7 * rounds)) if rounds else self.max_tests
+
+
+STRATEGIES = ("vfc", "stopwait", "om", "om_multi", "oracle")
+DEFAULT_STRATEGY = "om_multi"
+
+
+def make_strategy(name, max_tests=8):
+    """A callable ``strategy(frame, **options)`` for a strategy name."""
+    table = {"vfc": vfc, "stopwait": stopwait, "om": om, "oracle": oracle}
+    if name == "om_multi":
+        return OmMulti(max_tests)
+    if name not in table:
+        raise OccError(f"unknown strategy '{name}'; choose one of {', '.join(STRATEGIES)}")
+    return table[name]
