@@ -108,12 +108,9 @@ def build_parser():
     t.add_argument("--json", action="store_true")
     t.set_defaults(func=cmd_truth)
 
-    try:
-        from . import bench
-    except ImportError:
-        bench = None
-    if bench is not None:
-        bench.add_commands(sub)
+    from . import bench, tradeoff
+    bench.add_commands(sub)
+    tradeoff.add_commands(sub)
     return p
 
 

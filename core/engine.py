@@ -12,7 +12,7 @@ import numpy as np
 from .bounds import MAX, MIN
 from .errors import OccError
 from .hierarchy import build_from_tree
-from .occupancy import DEFAULT_TILES
+from .settings import CullOptions
 from .strategies import DEFAULT_STRATEGY, make_strategy
 from .traversal import STAT_KEYS, Frame, Visibility
 
@@ -55,25 +55,24 @@ class Culler:
     """A scene uploaded once, culled from any number of cameras.
 
     resolution: query resolution ``(W, H)``; strategy: a name of
-    :data:`core.strategies.STRATEGIES`; tiles: occupancy-map size in tiles;
-    visible_threshold: samples a box must pass to count as visible (0 keeps
-    culling exact at the query resolution; more is aggressive); chunk: nodes per
-    front-to-back step of the occupancy-map stage; max_children: widest inner node.
+    :data:`core.strategies.STRATEGIES`; options: :class:`core.settings.CullOptions`
+    (occupancy tiles, visible threshold, pixel guard, chunk); max_tests: first
+    frame's stage-2 rounds of om_multi; max_children: widest inner node;
+    exact_bounds: object boxes from transformed vertices instead of transformed
+    mesh boxes (tighter for rotated objects, slower to build).
     """
 
     def __init__(self, scene, resolution=DEFAULT_RESOLUTION, strategy=DEFAULT_STRATEGY,
-                 tiles=DEFAULT_TILES, visible_threshold=0, chunk=16, max_tests=8,
-                 max_children=8, ctx=None):
-        from .gl import GLRenderer       # the GPU backend is the only moderngl user
+                 options=None, max_tests=8, max_children=8, exact_bounds=False, ctx=None):
+        from .gl import GLRenderer  # the GPU backend is the only moderngl user
 
         self.scene = scene
         self.resolution = check_resolution(resolution)
         self.strategy_name = strategy
         self.strategy = make_strategy(strategy, max_tests)
-        self.tiles = int(tiles)
-        self.visible_threshold = int(visible_threshold)
-        self.chunk = max(1, int(chunk))
-        bounds = scene.bounds
+        self.options = options or CullOptions()
+        self.exact_bounds = exact_bounds
+        bounds = scene.exact_bounds() if exact_bounds else scene.bounds
         self.hierarchy = build_from_tree(bounds, scene.tree_parent, scene.tree_object, max_children)
         if len(scene):
             ext = bounds[:, MAX].max(axis=0) - bounds[:, MIN].min(axis=0)
@@ -101,7 +100,7 @@ class Culler:
         self.scene.matrices[idx] = m
         self.renderer.set_matrices(idx, m)
         if self.hierarchy is not None:
-            self.hierarchy.refit(self.scene.bounds)
+            self.hierarchy.refit(self.scene.exact_bounds() if self.exact_bounds else self.scene.bounds)
 
     def truth(self, camera):
         """Exact visible set at the query resolution from an object-ID buffer, ``(n,) bool``."""
@@ -115,9 +114,8 @@ class Culler:
                               **self._counts(np.zeros(0, np.uint8))}, np.zeros((0, 0), bool))
         if self.strategy_name == "oracle" and truth is None:
             truth = self.truth(camera)
-        frame = Frame(self.hierarchy, self.renderer, camera, self.tiles, self.visible_threshold,
-                      self.scene_size)
-        self.strategy(frame, chunk=self.chunk, truth=truth)
+        frame = Frame(self.hierarchy, self.renderer, camera, self.options, self.scene_size)
+        self.strategy(frame, chunk=self.options.chunk, truth=truth)
         stats = frame.finish()
         stats.update(self._counts(frame.state))
         assert len(frame.state) == n

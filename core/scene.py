@@ -110,6 +110,20 @@ class Scene:
             return np.zeros((0, 2, 3))
         return transform_boxes(self.mesh_bounds[self.mesh_of], self.matrices)
 
+    def exact_bounds(self):
+        """World boxes from the transformed vertices, ``(n, 2, 3) float64``.
+
+        Tighter than :attr:`bounds` for rotated objects; costs one pass over every
+        object's vertices (done once, in bulk per object).
+        """
+        out = np.zeros((len(self), 2, 3))
+        for i, (mesh, m) in enumerate(zip(self.mesh_of, self.matrices, strict=True)):
+            v = self.meshes[mesh][0]
+            if len(v):
+                w = v @ m[:3, :3].T + m[:3, 3]
+                out[i] = w.min(axis=0), w.max(axis=0)
+        return out
+
     @property
     def parent(self):
         """Parent object of each object in the tree (nearest carrying ancestor), -1 if none."""

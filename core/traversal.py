@@ -34,18 +34,18 @@ class Frame:
     computed once per frame, for the nodes inside the frustum only.
     """
 
-    def __init__(self, hierarchy, renderer, camera, occupancy_tiles, visible_threshold,
-                 scene_size):
+    def __init__(self, hierarchy, renderer, camera, options, scene_size):
         self.h = hierarchy
         self.r = renderer
         self.camera = camera
-        self.threshold = int(visible_threshold)
+        self.options = options
+        self.threshold = int(options.visible_threshold)
         self.stats = dict.fromkeys(STAT_KEYS, 0)
         self.t_query = self.t_draw = 0.0
         self.t0 = time.perf_counter()
         n_obj = renderer.n
         self.state = np.full(n_obj, Visibility.VIEW_CULLED, dtype=np.uint8)
-        self.om = OccupancyMap(renderer.width, renderer.height, occupancy_tiles)
+        self.om = OccupancyMap(renderer.width, renderer.height, options.tiles)
         renderer.begin_frame(camera)
         self.clip = renderer.clip
         eye = renderer.eye
@@ -62,6 +62,11 @@ class Frame:
         b = self.boxes
         nearest = np.maximum(np.maximum(b[:, MIN], -b[:, MAX]), 0.0)
         self.dist = np.linalg.norm(nearest, axis=1)
+        # World size of one query pixel per unit of distance (perspective) or
+        # absolute (orthographic), the larger of the two axes.
+        p = camera.projection
+        px = 2.0 / min(abs(p[0, 0]) * renderer.width, abs(p[1, 1]) * renderer.height)
+        self.pixel_world = (px, not camera.is_orthographic)
 
     def _frustum_cull(self, planes):
         """Hierarchical view-frustum culling with plane masking, one level at a time."""
@@ -112,9 +117,14 @@ class Frame:
         if not len(nodes):
             return np.zeros(0, dtype=bool)
         b = self.boxes[nodes]
-        grow = (tol.box_grow_rel * (np.abs(b).reshape(len(b), 6).max(axis=1)
-                                    + (b[:, MAX] - b[:, MIN]).max(axis=1))
+        far = np.abs(b).reshape(len(b), 6).max(axis=1)
+        grow = (tol.box_grow_rel * (far + (b[:, MAX] - b[:, MIN]).max(axis=1))
                 + tol.box_grow_scene * self.scene_size)
+        if self.options.pixel_guard > 0.0:
+            # Conservative: one query pixel measured at the box's farthest point
+            # (sqrt(3) * max |coordinate| bounds the farthest corner's distance).
+            px, perspective = self.pixel_world
+            grow = grow + self.options.pixel_guard * px * (np.sqrt(3.0) * far if perspective else 1.0)
         grown = b + np.array([-1.0, 1.0])[None, :, None] * grow[:, None, None]
         t = time.perf_counter()
         samples = self.r.query(grown)
