@@ -63,8 +63,14 @@ def segment_union(boxes, starts, counts):
     """
     b = check_boxes(boxes)
     starts = np.asarray(starts, dtype=np.intp)
-    lo = np.minimum.reduceat(b[:, MIN], starts, axis=0)
-    hi = np.maximum.reduceat(b[:, MAX], starts, axis=0)
+    counts = np.asarray(counts, dtype=np.intp)
+    if not len(starts):
+        return np.zeros((0, 2, 3))
+    # reduceat over [start, end) pairs; a dummy last row keeps every end in range
+    padded = np.concatenate([b, b[:1]])
+    edges = np.column_stack([starts, starts + counts]).ravel()
+    lo = np.minimum.reduceat(padded[:, MIN], edges, axis=0)[::2]
+    hi = np.maximum.reduceat(padded[:, MAX], edges, axis=0)[::2]
     return np.stack([lo, hi], axis=1)
 
 

@@ -11,7 +11,7 @@ import numpy as np
 
 from .bounds import MAX, MIN
 from .errors import OccError
-from .hierarchy import build_from_tree
+from .hierarchy import build_hierarchy
 from .settings import CullOptions
 from .strategies import DEFAULT_STRATEGY, make_strategy
 from .traversal import STAT_KEYS, Frame, Visibility
@@ -51,6 +51,21 @@ def check_resolution(resolution):
     return w, h
 
 
+def make_units(scene, builder="tree", chunk_triangles=None, chunk_min_triangles=None):
+    """Draw units of a scene: whole objects, or chunks of meshes heavier than
+    ``chunk_min_triangles`` (default 4 x chunk_triangles), built with ``builder``
+    (pHBVO inside meshes when the builder is "tree")."""
+    from .units import chunked, whole_objects
+    if not chunk_triangles:
+        return whole_objects(scene)
+    from .subdivision import build_tree
+    leaf = int(chunk_triangles)
+    minimum = int(chunk_min_triangles or 4 * leaf)
+    inner = "pHBVO" if builder == "tree" else builder
+    return chunked(scene, lambda m, tris: tris >= minimum,
+                   lambda boxes: build_tree(boxes, inner, leaf_size=leaf, max_children=4, pull_up=True))
+
+
 class Culler:
     """A scene uploaded once, culled from any number of cameras.
 
@@ -59,11 +74,16 @@ class Culler:
     (occupancy tiles, visible threshold, pixel guard, chunk); max_tests: first
     frame's stage-2 rounds of om_multi; max_children: widest inner node;
     exact_bounds: object boxes from transformed vertices instead of transformed
-    mesh boxes (tighter for rotated objects, slower to build).
+    mesh boxes (tighter for rotated objects, slower to build); hierarchy: "tree"
+    (the scene's own tree above objects) or a builder of
+    :data:`core.subdivision.BUILDERS` (above objects, and inside chunked meshes);
+    chunk_triangles: cut meshes of more than ``chunk_min_triangles`` triangles
+    into chunks of about this many triangles (None: never).
     """
 
     def __init__(self, scene, resolution=DEFAULT_RESOLUTION, strategy=DEFAULT_STRATEGY,
-                 options=None, max_tests=8, max_children=8, exact_bounds=False, ctx=None):
+                 options=None, max_tests=8, max_children=8, exact_bounds=False,
+                 hierarchy="tree", chunk_triangles=None, chunk_min_triangles=None, ctx=None):
         from .gl import GLRenderer  # the GPU backend is the only moderngl user
 
         self.scene = scene
@@ -72,14 +92,22 @@ class Culler:
         self.strategy = make_strategy(strategy, max_tests)
         self.options = options or CullOptions()
         self.exact_bounds = exact_bounds
-        bounds = scene.exact_bounds() if exact_bounds else scene.bounds
-        self.hierarchy = build_from_tree(bounds, scene.tree_parent, scene.tree_object, max_children)
+        self.builder = hierarchy
+        self.units = make_units(scene, hierarchy, chunk_triangles, chunk_min_triangles)
+        bounds = scene.bounds
         if len(scene):
             ext = bounds[:, MAX].max(axis=0) - bounds[:, MIN].min(axis=0)
             self.scene_size = float(max(np.abs(bounds).max(), ext.max()))
         else:
             self.scene_size = 1.0
-        self.renderer = GLRenderer(scene, *self.resolution, ctx=ctx)
+        object_tree = None
+        if hierarchy != "tree" and len(scene):
+            from .subdivision import build_tree
+            object_tree = build_tree(bounds, hierarchy, leaf_size=1, max_children=max(2, max_children),
+                                     pull_up=False)
+        self.hierarchy = build_hierarchy(self.unit_bounds(), self.units.of_object, scene.tree_parent,
+                                         scene.tree_object, max_children, self.units.trees, object_tree)
+        self.renderer = GLRenderer(scene, *self.resolution, ctx=ctx, units=self.units)
 
     def __len__(self):
         return len(self.scene)
@@ -100,7 +128,15 @@ class Culler:
         self.scene.matrices[idx] = m
         self.renderer.set_matrices(idx, m)
         if self.hierarchy is not None:
-            self.hierarchy.refit(self.scene.exact_bounds() if self.exact_bounds else self.scene.bounds)
+            self.hierarchy.refit(self.unit_bounds())
+
+    def unit_bounds(self):
+        """World boxes of the draw units, ``(u, 2, 3)``."""
+        ub = self.units.world_bounds(self.scene.matrices)
+        if self.exact_bounds:
+            whole = np.flatnonzero([t is None for t in self.units.trees])
+            ub[np.concatenate([self.units.of_object[o] for o in whole])] = self.scene.exact_bounds()[whole]
+        return ub
 
     def truth(self, camera):
         """Exact visible set at the query resolution from an object-ID buffer, ``(n,) bool``."""
@@ -117,9 +153,10 @@ class Culler:
         frame = Frame(self.hierarchy, self.renderer, camera, self.options, self.scene_size)
         self.strategy(frame, chunk=self.options.chunk, truth=truth)
         stats = frame.finish()
-        stats.update(self._counts(frame.state))
-        assert len(frame.state) == n
-        return CullResult(frame.state, stats, frame.om.grid.copy())
+        state = frame.object_state()
+        stats.update(self._counts(state))
+        assert len(state) == n
+        return CullResult(state, stats, frame.om.grid.copy())
 
     def _counts(self, state):
         tri = self.scene.triangle_counts

@@ -45,9 +45,10 @@ def oracle(frame, truth=None, **_):
         raise OccError("the oracle strategy needs the ground-truth visible set")
     h = frame.h
     leaves = np.flatnonzero(frame.in_frustum & h.is_leaf)
-    seen = truth[h.leaf_object[leaves]]
+    # a chunk of a truly visible object is drawn: the truth is per object
+    seen = truth[frame.unit_object[h.leaf_unit[leaves]]]
     frame.draw_leaves(frame.sort_near(leaves[seen]))
-    frame.state[h.leaf_object[leaves[~seen]]] = Visibility.OCCLUDED
+    frame.state[h.leaf_unit[leaves[~seen]]] = Visibility.OCCLUDED
 
 
 def stopwait(frame, **_):

@@ -23,7 +23,7 @@ class Visibility(IntEnum):
 
 
 STAT_KEYS = ("queries", "queries_skipped", "near_visible", "multiple_queries", "samples_passed",
-             "query_rect_pixels", "triangles_drawn", "objects_drawn", "nodes_visited",
+             "query_rect_pixels", "triangles_drawn", "units_drawn", "nodes_visited",
              "traversal_ms", "query_ms", "draw_ms", "total_ms")
 
 
@@ -43,8 +43,10 @@ class Frame:
         self.stats = dict.fromkeys(STAT_KEYS, 0)
         self.t_query = self.t_draw = 0.0
         self.t0 = time.perf_counter()
-        n_obj = renderer.n
-        self.state = np.full(n_obj, Visibility.VIEW_CULLED, dtype=np.uint8)
+        self.unit_object = renderer.units.object
+        self.n_objects = renderer.n
+        # per draw unit; reduced to objects (the most visible of their units) at the end
+        self.state = np.full(len(self.unit_object), Visibility.VIEW_CULLED, dtype=np.uint8)
         self.om = OccupancyMap(renderer.width, renderer.height, options.tiles)
         renderer.begin_frame(camera)
         self.clip = renderer.clip
@@ -84,7 +86,7 @@ class Frame:
             masks = np.repeat(masks[inner], h.child_count[keep[inner]])
         leaves = np.flatnonzero(inside & h.is_leaf)
         # objects inside the frustum start VISIBLE; strategies demote to OCCLUDED
-        self.state[h.leaf_object[leaves]] = Visibility.VISIBLE
+        self.state[h.leaf_unit[leaves]] = Visibility.VISIBLE
         return inside
 
     # --- helpers the strategies share -------------------------------------------
@@ -100,11 +102,11 @@ class Frame:
         """Draw leaf nodes and mark their rectangles in the occupancy map."""
         if not len(leaves):
             return
-        objects = self.h.leaf_object[leaves]
+        units = self.h.leaf_unit[leaves]
         t = time.perf_counter()
-        self.stats["triangles_drawn"] += self.r.draw(objects)
+        self.stats["triangles_drawn"] += self.r.draw(units)
         self.t_draw += time.perf_counter() - t
-        self.stats["objects_drawn"] += len(objects)
+        self.stats["units_drawn"] += len(units)
         self.om.set(self.rects[leaves])
 
     def query(self, nodes):
@@ -137,10 +139,16 @@ class Frame:
         return samples > self.threshold
 
     def occlude(self, nodes):
-        """Mark every object below ``nodes`` OCCLUDED (those inside the frustum)."""
+        """Mark every unit below ``nodes`` OCCLUDED (those inside the frustum)."""
         leaves = self.h.leaves_below(nodes)
         leaves = leaves[self.in_frustum[leaves]]
-        self.state[self.h.leaf_object[leaves]] = Visibility.OCCLUDED
+        self.state[self.h.leaf_unit[leaves]] = Visibility.OCCLUDED
+
+    def object_state(self):
+        """Per object: the most visible state of its units, ``(n,) uint8``."""
+        out = np.full(self.n_objects, Visibility.VIEW_CULLED, dtype=np.uint8)
+        np.minimum.at(out, self.unit_object, self.state)
+        return out
 
     def finish(self):
         t = time.perf_counter()

@@ -104,8 +104,8 @@ def test_hierarchy_invariants(seed, n, max_children):
     h = build_from_tree(boxes, parent, obj, max_children)
     leaves = np.flatnonzero(h.is_leaf)
     # every object in exactly one leaf
-    assert np.array_equal(np.sort(h.leaf_object[leaves]), np.arange(n))
-    assert np.all(h.bounds[leaves] == boxes[h.leaf_object[leaves]])
+    assert np.array_equal(np.sort(h.leaf_unit[leaves]), np.arange(n))
+    assert np.all(h.bounds[leaves] == boxes[h.leaf_unit[leaves]])
     inner = np.flatnonzero(~h.is_leaf)
     assert np.all(h.child_count[inner] >= 2) and np.all(h.child_count[inner] <= max_children)
     for i in inner:     # test code: children inside parents, parent box = union (tight)
@@ -129,7 +129,7 @@ def test_hierarchy_follows_the_scene_tree():
     obj = np.array([-1, -1, 0, 1, 2, 3, 4, 5])
     h = build_from_tree(boxes, parent, obj, 8)
     assert h.child_count[0] == 2
-    groups = [set(h.leaf_object[h.leaves_below([c])]) for c in (1, 2)]
+    groups = [set(h.leaf_unit[h.leaves_below([c])]) for c in (1, 2)]
     assert sorted(map(sorted, groups)) == [[0, 1, 2], [3, 4, 5]]
 
 

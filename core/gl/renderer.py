@@ -84,16 +84,19 @@ def box_vertices(boxes):
 class GLRenderer:
     """The scene on the GPU at ``width x height``: depth drawing, queries, ID truth."""
 
-    def __init__(self, scene, width, height, ctx=None):
+    def __init__(self, scene, width, height, ctx=None, units=None):
         if width < 1 or height < 1:
             raise OccError(f"resolution must be at least 1x1, got {width}x{height}")
+        from ..units import whole_objects
+
         self.own_ctx = ctx is None
         self.ctx = ctx if ctx is not None else create_context()
         self.width, self.height = int(width), int(height)
         ctx = self.ctx
         n = len(scene)
         self.n = n
-        self.tri_counts = scene.triangle_counts
+        self.units = units if units is not None else whole_objects(scene)
+        self.tri_counts = self.units.count
         # --- geometry, uploaded once -------------------------------------------
         centres = 0.5 * (scene.mesh_bounds[:, 0] + scene.mesh_bounds[:, 1])
         vcount = np.array([len(v) for v, _ in scene.meshes], dtype=np.int64)
@@ -103,18 +106,22 @@ class GLRenderer:
         if vcount.sum() >= 2**32:
             raise OccError("scenes of more than 4 billion vertices are not supported")
         verts = [(v - c).astype(np.float32) for (v, _), c in zip(scene.meshes, centres, strict=True)]
-        idx = [(f + s).astype(np.uint32).ravel() for (_, f), s in zip(scene.meshes, vstart, strict=True)]
+        # faces in chunk order where a mesh is chunked, as absolute uint32 indices
+        idx = [((f if order is None else f[order]) + s).astype(np.uint32).ravel()
+               for (_, f), s, order in zip(scene.meshes, vstart, self.units.face_order, strict=True)]
         vdata = np.concatenate(verts) if verts else np.zeros((0, 3), np.float32)
         idata = np.concatenate(idx) if idx else np.zeros(0, np.uint32)
         self.vbo = ctx.buffer(vdata.tobytes() or b"\0" * 12)
         self.ibo = ctx.buffer(idata.tobytes() or b"\0" * 4)
-        # per object: the indirect command (count, instances, first index, base vertex, base instance)
-        self.commands = np.zeros((max(n, 1), 5), dtype=np.uint32)
-        if n:
-            self.commands[:n, 0] = icount[scene.mesh_of]
-            self.commands[:n, 1] = 1
-            self.commands[:n, 2] = istart[scene.mesh_of]
-            self.commands[:n, 4] = np.arange(n)
+        # per unit: the indirect command (count, instances, first index, base vertex, base instance)
+        u = self.units
+        self.commands = np.zeros((max(len(u), 1), 5), dtype=np.uint32)
+        if len(u):
+            mesh = scene.mesh_of[u.object]
+            self.commands[:len(u), 0] = 3 * u.count
+            self.commands[:len(u), 1] = 1
+            self.commands[:len(u), 2] = istart[mesh] + 3 * u.first
+            self.commands[:len(u), 4] = u.object
         self.cmd_buffer = ctx.buffer(reserve=self.commands.nbytes)
         self.object_offset = np.repeat(np.eye(4)[None], max(n, 1), axis=0)
         if n:
@@ -170,21 +177,21 @@ class GLRenderer:
         self.ctx.disable(self.ctx.CULL_FACE)
         self.box_prog["u_vp"].write(np.ascontiguousarray(self.clip.T, dtype=np.float32).tobytes())
 
-    def draw(self, objects):
-        """Draw objects (``(k,) int``) into the depth buffer with one indirect multi-draw.
+    def draw(self, units):
+        """Draw units (``(k,) int``) into the depth buffer with one indirect multi-draw.
 
         Returns the number of triangles drawn.
         """
-        objects = np.asarray(objects, dtype=np.int64)
-        if not len(objects):
+        units = np.asarray(units, dtype=np.int64)
+        if not len(units):
             return 0
         self.fbo.use()
         self.fbo.depth_mask = True
         self.ctx.depth_func = "<"
         self.cmd_buffer.orphan()
-        self.cmd_buffer.write(self.commands[objects].tobytes())
-        self.depth_vao.render_indirect(self.cmd_buffer, count=len(objects))
-        return int(self.tri_counts[objects].sum())
+        self.cmd_buffer.write(self.commands[units].tobytes())
+        self.depth_vao.render_indirect(self.cmd_buffer, count=len(units))
+        return int(self.tri_counts[units].sum())
 
     def query(self, boxes_rel):
         """Samples of each camera-relative box ``(k, 2, 3)`` that pass ``<=`` the depth buffer.
@@ -247,11 +254,15 @@ class GLRenderer:
         self.id_fbo.use()
         self.id_fbo.clear(depth=1.0)
         self.ctx.depth_func = "<"
-        objects = np.arange(self.n) if objects is None else np.asarray(objects, dtype=np.int64)
-        if len(objects):
+        units = np.arange(len(self.units))
+        if objects is not None:
+            keep = np.zeros(self.n, dtype=bool)
+            keep[np.asarray(objects, dtype=np.int64)] = True
+            units = units[keep[self.units.object]]
+        if len(units):
             self.cmd_buffer.orphan()
-            self.cmd_buffer.write(self.commands[objects].tobytes())
-            self.id_vao.render_indirect(self.cmd_buffer, count=len(objects))
+            self.cmd_buffer.write(self.commands[units].tobytes())
+            self.id_vao.render_indirect(self.cmd_buffer, count=len(units))
         raw = self.id_fbo.read(components=1, dtype="u4", alignment=1)
         ids = np.frombuffer(raw, dtype=np.uint32).reshape(self.height, self.width)
         return ids.astype(np.int64) - 1

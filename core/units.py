@@ -1,0 +1,120 @@
+"""Draw units: what a hierarchy leaf draws -- a whole object, or a chunk of its mesh.
+
+A heavy mesh is cut into chunks by reordering its faces (once, on upload; the
+user's mesh is untouched) so that every chunk is a contiguous index range; no
+triangle is split.  Chunking is per mesh, so every object that shares the mesh
+shares its chunks, each chunk box moved by the object's matrix.
+
+Arrays (u units):
+- ``object``       ``(u,) int64`` object the unit belongs to;
+- ``first``        ``(u,) int64`` first triangle of the unit in its mesh's face order;
+- ``count``        ``(u,) int64`` triangles in the unit;
+- ``local_bounds`` ``(u, 2, 3) float64`` box in the mesh's local coordinates.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .bounds import MAX, MIN, transform_boxes
+
+
+@dataclass(eq=False)
+class Units:
+    object: np.ndarray
+    first: np.ndarray
+    count: np.ndarray
+    local_bounds: np.ndarray
+    face_order: list          # per mesh: (f,) face permutation, or None for the stored order
+    trees: list               # per object: chunk Tree over its units, or None
+    of_object: list           # per object: (k,) its units
+
+    def __len__(self):
+        return len(self.object)
+
+    def world_bounds(self, matrices):
+        """World boxes of the units for object matrices ``(n, 4, 4)``."""
+        if not len(self):
+            return np.zeros((0, 2, 3))
+        return transform_boxes(self.local_bounds, matrices[self.object])
+
+
+def triangle_boxes(vertices, faces):
+    """Boxes of triangles: ``(v, 3)``, ``(f, 3)`` -> ``(f, 2, 3) float64``."""
+    t = vertices[faces]                                   # (f, 3, 3)
+    return np.stack([t.min(axis=1), t.max(axis=1)], axis=1)
+
+
+def whole_objects(scene):
+    """One unit per object: unit i draws object i."""
+    n = len(scene)
+    tri = scene.triangle_counts
+    return Units(object=np.arange(n, dtype=np.int64), first=np.zeros(n, dtype=np.int64),
+                 count=tri.astype(np.int64), local_bounds=scene.mesh_bounds[scene.mesh_of],
+                 face_order=[None] * len(scene.meshes), trees=[None] * n,
+                 of_object=[np.array([i]) for i in range(n)])
+
+
+def chunked(scene, should_chunk, build_tree):
+    """Units with heavy meshes cut into chunks.
+
+    should_chunk(mesh_index, triangles) -> bool decides per mesh;
+    build_tree(triangle_boxes (f, 2, 3)) -> a :class:`core.subdivision.Tree` over
+    the triangles, whose nodes that own triangles become the chunks.
+    """
+    per_mesh = []          # (face order, chunk first, chunk count, chunk local boxes, chunk tree)
+    for m, (v, f) in enumerate(scene.meshes):
+        if len(f) == 0 or not should_chunk(m, len(f)):
+            per_mesh.append(None)
+            continue
+        boxes = triangle_boxes(v, f)
+        tree = build_tree(boxes)
+        owners = np.flatnonzero(tree.item_count > 0)
+        first, count = tree.item_start[owners], tree.item_count[owners]
+        ordered = boxes[tree.order]
+        lo = np.minimum.reduceat(ordered[:, MIN], first, axis=0)
+        hi = np.maximum.reduceat(ordered[:, MAX], first, axis=0)
+        # item i of the chunk tree (as the hierarchy sees it) is chunk i
+        chunk_tree = _tree_over_chunks(tree, owners)
+        per_mesh.append((tree.order, first, count, np.stack([lo, hi], axis=1), chunk_tree))
+    objects, firsts, counts, boxes, trees, of_object = [], [], [], [], [], []
+    tri = scene.triangle_counts
+    total = 0
+    for obj, m in enumerate(scene.mesh_of):       # bookkeeping once per object
+        pm = per_mesh[m]
+        if pm is None:
+            k = 1
+            firsts.append(np.zeros(1, np.int64))
+            counts.append(tri[obj:obj + 1])
+            boxes.append(scene.mesh_bounds[m][None])
+            trees.append(None)
+        else:
+            k = len(pm[1])
+            firsts.append(pm[1])
+            counts.append(pm[2])
+            boxes.append(pm[3])
+            trees.append(pm[4])
+        objects.append(np.full(k, obj, dtype=np.int64))
+        of_object.append(np.arange(total, total + k))
+        total += k
+
+    def cat(xs, shape):
+        return np.concatenate(xs) if xs else np.zeros(shape)
+
+    return Units(object=cat(objects, (0,)).astype(np.int64), first=cat(firsts, (0,)).astype(np.int64),
+                 count=cat(counts, (0,)).astype(np.int64), local_bounds=cat(boxes, (0, 2, 3)),
+                 face_order=[None if pm is None else pm[0] for pm in per_mesh], trees=trees,
+                 of_object=of_object)
+
+
+def _tree_over_chunks(tree, owners):
+    """The same tree with items renumbered as chunks: node ``owners[i]`` owns chunk i."""
+    from copy import copy
+    t = copy(tree)
+    t.order = np.arange(len(owners), dtype=np.int64)
+    start = np.zeros(len(tree.item_count), dtype=np.int64)
+    count = np.zeros(len(tree.item_count), dtype=np.int64)
+    start[owners] = np.arange(len(owners))
+    count[owners] = 1
+    t.item_start, t.item_count = start, count
+    return t
