@@ -134,10 +134,17 @@ class _Builder:
         if len(items) == 1:
             return items[0]
         if len(items) > self.max_children:
-            boxes = np.array([self.boxes[i] for i in items])
-            left = _sah_split(boxes)
-            arr = np.array(items)
-            items = [self.group(arr[left].tolist()), self.group(arr[~left].tolist())]
+            # SAH-split the largest part until there are max_children parts, then
+            # group each part: a k-ary node, about log_k(n) levels deep.
+            parts = [np.array(items)]
+            while len(parts) < self.max_children:
+                big = max(range(len(parts)), key=lambda j: len(parts[j]))
+                if len(parts[big]) < 2:
+                    break
+                arr = parts.pop(big)
+                left = _sah_split(np.array([self.boxes[i] for i in arr]))
+                parts += [arr[left], arr[~left]]
+            items = [self.group(p.tolist()) for p in parts]
         box = np.array([self.boxes[i] for i in items])
         self.boxes.append(np.stack([box[:, MIN].min(axis=0), box[:, MAX].max(axis=0)]))
         self.kids.append(tuple(items))

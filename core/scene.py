@@ -52,6 +52,7 @@ class Scene:
     tree_parent: np.ndarray
     tree_object: np.ndarray
     mesh_bounds: np.ndarray = field(init=False)
+    _tri: np.ndarray = field(init=False, default=None, repr=False)
 
     def __post_init__(self):
         n = len(self.names)
@@ -99,9 +100,11 @@ class Scene:
 
     @property
     def triangle_counts(self):
-        """Triangles of each object, ``(n,) int64``."""
-        per_mesh = np.array([len(f) for _, f in self.meshes], dtype=np.int64)
-        return per_mesh[self.mesh_of] if len(self.meshes) else np.zeros(0, dtype=np.int64)
+        """Triangles of each object, ``(n,) int64`` (meshes never change, so computed once)."""
+        if self._tri is None:
+            per_mesh = np.array([len(f) for _, f in self.meshes], dtype=np.int64)
+            self._tri = per_mesh[self.mesh_of] if len(self.meshes) else np.zeros(0, dtype=np.int64)
+        return self._tri
 
     @property
     def bounds(self):
