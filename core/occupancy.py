@@ -99,7 +99,10 @@ class OccupancyMap:
 
     def set(self, rects):
         """Mark the tiles under every pixel rectangle ``(n, 4)``."""
-        t = self.tile_rects(rects)
+        self.set_tiles(self.tile_rects(rects))
+
+    def set_tiles(self, t):
+        """Mark every inclusive tile rectangle ``(n, 4)``."""
         if not len(t):
             return
         d = np.zeros((self.rows + 1, self.cols + 1), dtype=np.int32)
@@ -111,11 +114,13 @@ class OccupancyMap:
         self._sat = None
 
     def _counts(self, rects):
+        return self._tile_counts(self.tile_rects(rects))
+
+    def _tile_counts(self, t):
         if self._sat is None:
             s = np.zeros((self.rows + 1, self.cols + 1), dtype=np.int32)
             s[1:, 1:] = np.cumsum(np.cumsum(self.grid, axis=0, dtype=np.int32), axis=1)
             self._sat = s
-        t = self.tile_rects(rects)
         s = self._sat
         count = (s[t[:, Y1] + 1, t[:, X1] + 1] - s[t[:, Y0], t[:, X1] + 1]
                  - s[t[:, Y1] + 1, t[:, X0]] + s[t[:, Y0], t[:, X0]])
@@ -124,7 +129,11 @@ class OccupancyMap:
 
     def any_empty(self, rects):
         """``(n,) bool``: the rectangle has at least one unset tile."""
-        count, area = self._counts(rects)
+        return self.any_empty_tiles(self.tile_rects(rects))
+
+    def any_empty_tiles(self, t):
+        """``(n,) bool``: the tile rectangle ``(n, 4)`` has at least one unset tile."""
+        count, area = self._tile_counts(t)
         return count < area
 
     def all_covered(self, rects):

@@ -83,13 +83,13 @@ def _stage1(frame, front, chunk):
         front = frame.sort_near(front)
         head, front = front[:chunk], front[chunk:]
         crosses = frame.crosses[head]
-        empty = frame.om.any_empty(frame.rects[head])
+        empty = frame.om.any_empty_tiles(frame.tiles[head])
         frame.stats["near_visible"] += int(crosses.sum())
         frame.stats["queries_skipped"] += int((empty & ~crosses).sum())
         leaf = frame.h.is_leaf[head]
         # Within a chunk, a node whose tiles all lie under one nearer leaf that is
         # drawn in this chunk would find them occupied: defer it too.
-        proven = crosses | (empty & ~_under_nearer(frame.om.tile_rects(frame.rects[head]),
+        proven = crosses | (empty & ~_under_nearer(frame.tiles[head],
                                                    empty & leaf))
         frame.draw_leaves(head[proven & leaf])
         front = np.concatenate([front, frame.children_in_frustum(head[proven & ~leaf])])
@@ -114,7 +114,7 @@ def _test_list(frame, pending):
 
 
 def _non_overlapping(frame, nodes):
-    return non_overlapping_first(frame.om.tile_rects(frame.rects[nodes]))
+    return non_overlapping_first(frame.tiles[nodes])
 
 
 def _resolve(frame, nodes, visible):

@@ -59,6 +59,7 @@ class Frame:
         self.crosses = np.zeros(len(hierarchy), dtype=bool)
         self.rects[live], self.crosses[live] = project_rects(
             self.boxes[live], self.clip, renderer.width, renderer.height)
+        self.tiles = self.om.tile_rects(self.rects)          # the same in occupancy tiles
         # Front-to-back key: distance from the eye (the origin here) to the box's
         # nearest point, 0 when the eye is inside.
         b = self.boxes
@@ -107,7 +108,7 @@ class Frame:
         self.stats["triangles_drawn"] += self.r.draw(units)
         self.t_draw += time.perf_counter() - t
         self.stats["units_drawn"] += len(units)
-        self.om.set(self.rects[leaves])
+        self.om.set_tiles(self.tiles[leaves])
 
     def query(self, nodes):
         """One multiple query over ``nodes``; returns ``(k,) bool`` visible.
