@@ -117,3 +117,13 @@ def test_empty_scene_file_gives_empty_answer(wall_scene, tmp_path):
     p = run("cull", str(obj), "--camera", str(cam), "--json")
     assert p.returncode == 0, p.stderr
     assert [f["visible"] for f in json.loads(p.stdout)["frames"]] == [[], []]
+
+
+def test_missing_egl_names_the_packages(wall_scene):
+    """Without a loadable libEGL the user is told which packages to install."""
+    path, cam, _ = wall_scene
+    p = subprocess.run([sys.executable, "-m", "core", "cull", str(path), "--camera", str(cam)],
+                       cwd=ROOT, capture_output=True, text=True, timeout=120,
+                       env={**os.environ, "OCC_LIBEGL": "libEGL-missing.so.1"})
+    assert p.returncode == 2, p.stderr
+    assert "libegl1 libegl-mesa0 libgl1-mesa-dri" in p.stderr and "Traceback" not in p.stderr

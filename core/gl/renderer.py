@@ -13,6 +13,7 @@ vertex buffer, and every query of a batch is issued before any result is read
 Depth test: ``<`` for geometry, ``<=`` for query boxes -- ties count as visible.
 """
 
+import os
 import sys
 
 import numpy as np
@@ -66,6 +67,8 @@ def create_context():
     except ImportError:
         raise OccError("the GPU backend needs moderngl: pip install moderngl") from None
     kwargs = {"backend": "egl"} if sys.platform.startswith("linux") else {}
+    if os.environ.get("OCC_LIBEGL"):          # a specific libEGL (or, in tests, a missing one)
+        kwargs["libegl"] = os.environ["OCC_LIBEGL"]
     try:
         ctx = moderngl.create_context(standalone=True, require=MIN_GL_VERSION, **kwargs)
     except Exception as e:  # moderngl/glcontext raise plain Exceptions for missing libraries
