@@ -71,6 +71,70 @@ def run_bench(scene, cameras, strategies, resolution=DEFAULT_RESOLUTION, warmup=
         culler.close()
 
 
+HIERARCHY_COLUMNS = (
+    ("builder", "{:<9}"), ("inner", "{:>7d}"), ("leaves", "{:>7d}"), ("units", "{:>7d}"),
+    ("build s", "{:>8.2f}"), ("frustum ms", "{:>10.2f}"), ("occlusion ms", "{:>12.2f}"),
+    ("draw ms", "{:>8.2f}"), ("render %", "{:>8.2f}"), ("fps", "{:>7.1f}"), ("median ms", "{:>9.2f}"),
+    ("FN", "{:>4d}"),
+)
+
+
+def run_hierarchies(scene, cameras, builders, resolution=DEFAULT_RESOLUTION, strategy=None,
+                    chunk_triangles=None, progress=None):
+    """The seed's Appendix A table: per builder, nodes, build time and per-frame times."""
+    from .hierarchy_choice import build_culler
+    from .strategies import DEFAULT_STRATEGY
+    strategy = strategy or DEFAULT_STRATEGY
+    tri_total = int(scene.triangle_counts.sum())
+    report = {"objects": len(scene), "triangles_total": tri_total, "frames": len(cameras),
+              "resolution": list(resolution), "strategy": strategy, "hierarchies": {}}
+    truths = None
+    for name in builders:
+        t = time.perf_counter()
+        culler, chosen = build_culler(scene, resolution, strategy, name, cameras, chunk_triangles)
+        build_s = time.perf_counter() - t
+        try:
+            report["device"] = culler.renderer.device
+            if truths is None:
+                truths = [culler.truth(cam) for cam in cameras]
+            culler.cull(cameras[0])                                      # warm-up
+            culler.set_strategy(strategy)
+            rows = []
+            for cam, truth in zip(cameras, truths, strict=True):
+                r = culler.cull(cam, truth=truth)
+                rows.append({**r.stats, "false_negatives": int((truth & ~r.visible).sum()),
+                             "truly_visible": int(truth.sum())})
+            h = culler.hierarchy
+            s = summarise(rows, tri_total)
+            s.update({"builder": chosen, "inner_nodes": int((~h.is_leaf).sum()),
+                      "leaf_nodes": int(h.is_leaf.sum()), "units": len(culler.units),
+                      "build_s": build_s,
+                      "frustum_ms": float(np.mean([x["frustum_ms"] for x in rows])),
+                      "occlusion_ms": float(np.mean([x["traversal_ms"] + x["query_ms"]
+                                                     - x["frustum_ms"] for x in rows])),
+                      "fps": 1e3 / max(s["frame_ms_median"], 1e-9)})
+            report["hierarchies"][name] = s
+            if progress:
+                progress(name, s)
+        finally:
+            culler.close()
+    return report
+
+
+def format_hierarchy_table(report, title=""):
+    head = " ".join(fmt.replace(".2f", "").replace(".1f", "").replace("d}", "}").format(name)
+                    for name, fmt in HIERARCHY_COLUMNS)
+    lines = [title, f"{report['objects']} objects, {report['triangles_total']:,} triangles, "
+             f"{report['frames']} frames, strategy {report['strategy']}", head, "-" * len(head)]
+    for name, s in report["hierarchies"].items():
+        label = name if s["builder"] == name else f"{name}:{s['builder']}"
+        vals = [label, s["inner_nodes"], s["leaf_nodes"], s["units"], s["build_s"], s["frustum_ms"],
+                s["occlusion_ms"], s["draw_ms"], s["render_rate"], s["fps"], s["frame_ms_median"],
+                s["false_negatives"]]
+        lines.append(" ".join(fmt.format(v) for (_, fmt), v in zip(HIERARCHY_COLUMNS, vals, strict=True)))
+    return "\n".join(lines)
+
+
 def summarise(rows, tri_total):
     """Aggregate per-frame stats into one row of the table."""
     ms = np.array([x["total_ms"] for x in rows])
@@ -201,6 +265,8 @@ def bench_scene(spec, camera=None, strategies=STRATEGIES, resolution=DEFAULT_RES
 
 
 def cmd_bench(args):
+    if args.hierarchies:
+        return cmd_hierarchies(args)
     strategies = [s.strip() for s in args.strategies.split(",") if s.strip()]
     out = args.out or ((args.plot or args.snapshot) and "reports") or None
     log = (lambda *a: print(*a, file=sys.stderr)) if args.json else print
@@ -210,6 +276,33 @@ def cmd_bench(args):
         slim = {**report, "strategies": {k: {kk: vv for kk, vv in v.items() if kk != "per_frame"}
                                          for k, v in report["strategies"].items()}}
         json.dump(slim, sys.stdout, indent=1)
+        sys.stdout.write("\n")
+    else:
+        print(table)
+
+
+def cmd_hierarchies(args):
+    from .cli import resolve_cameras, resolve_scene
+    builders = [b.strip() for b in args.hierarchies.split(",") if b.strip()]
+    path, sample = resolve_scene(args.scene)
+    cameras = resolve_cameras(args.camera, sample)
+    if args.frames:
+        cameras = cameras[:: max(1, len(cameras) // args.frames)][: args.frames]
+    title = sample or os.path.splitext(os.path.basename(path))[0]
+    log = (lambda *a: print(*a, file=sys.stderr)) if args.json else print
+    scene = load_scene(path)
+    report = run_hierarchies(scene, cameras, builders, parse_resolution(args.resolution),
+                             progress=lambda n, s: log(f"  {n:<9} median {s['frame_ms_median']:.2f} ms"))
+    report["scene"] = title
+    table = format_hierarchy_table(report, f"== {title}: hierarchies ==")
+    if args.out:
+        os.makedirs(args.out, exist_ok=True)
+        with open(os.path.join(args.out, f"{title}_hierarchies.json"), "w") as f:
+            json.dump(report, f, indent=1)
+        with open(os.path.join(args.out, f"{title}_hierarchies.txt"), "w") as f:
+            f.write(table + "\n")
+    if args.json:
+        json.dump(report, sys.stdout, indent=1)
         sys.stdout.write("\n")
     else:
         print(table)
@@ -242,6 +335,8 @@ def add_commands(sub):
     b.add_argument("--out", help="report folder (default reports/ with --plot or --snapshot)")
     b.add_argument("--plot", action="store_true", help="PNG plots along the path")
     b.add_argument("--snapshot", action="store_true", help="pictures of one frame")
+    b.add_argument("--hierarchies", help="compare hierarchy builders instead of strategies: "
+                   "comma list of tree, pHBVO, DBVS, octree, balanced, auto")
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench)
 

@@ -24,7 +24,7 @@ class Visibility(IntEnum):
 
 STAT_KEYS = ("queries", "queries_skipped", "near_visible", "multiple_queries", "samples_passed",
              "query_rect_pixels", "triangles_drawn", "units_drawn", "nodes_visited",
-             "traversal_ms", "query_ms", "draw_ms", "total_ms")
+             "frustum_ms", "traversal_ms", "query_ms", "draw_ms", "total_ms")
 
 
 class Frame:
@@ -53,7 +53,9 @@ class Frame:
         eye = renderer.eye
         self.boxes = hierarchy.bounds - eye                 # camera-relative, float64
         self.scene_size = scene_size
+        t = time.perf_counter()
         self.in_frustum = self._frustum_cull(planes_from_matrix(self.clip))
+        self.stats["frustum_ms"] = 1e3 * (time.perf_counter() - t)
         live = np.flatnonzero(self.in_frustum)
         self.rects = np.zeros((len(hierarchy), 4), dtype=np.int64)
         self.crosses = np.zeros(len(hierarchy), dtype=bool)
