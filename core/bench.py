@@ -15,7 +15,6 @@ import time
 
 import numpy as np
 
-from .camera import cameras_from_json
 from .engine import DEFAULT_RESOLUTION, Culler, parse_resolution
 from .errors import OccError
 from .scene import load_scene
@@ -346,8 +345,3 @@ def add_commands(sub):
     d.add_argument("--resolution", default=res)
     d.add_argument("--frames", type=int)
     d.set_defaults(func=cmd_demo)
-
-
-def load_camera_path(path):
-    with open(path, encoding="utf-8") as f:
-        return cameras_from_json(json.load(f))

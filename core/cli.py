@@ -43,7 +43,7 @@ def resolve_cameras(camera_arg, sample_name):
     return cameras_from_json(sample_scenes.default_camera_path(sample_name))
 
 
-def _frames(scene, culler, cameras, names_of, run):
+def _frames(culler, cameras, names_of, run):
     out = []
     for cam in cameras:
         visible, stats = run(culler, cam)
@@ -59,7 +59,7 @@ def cmd_cull(args):
         def run(c, cam):
             r = c.cull(cam)
             return r.visible, r.stats
-        frames = _frames(scene, culler, cameras, lambda m: [scene.names[i] for i in m.nonzero()[0]], run)
+        frames = _frames(culler, cameras, lambda m: [scene.names[i] for i in m.nonzero()[0]], run)
     _print_frames(frames, args.json)
 
 
@@ -71,7 +71,7 @@ def cmd_truth(args):
         def run(c, cam):
             t = c.truth(cam)
             return t, {"objects": len(t), "visible": int(t.sum())}
-        frames = _frames(scene, culler, cameras, lambda m: [scene.names[i] for i in m.nonzero()[0]], run)
+        frames = _frames(culler, cameras, lambda m: [scene.names[i] for i in m.nonzero()[0]], run)
     _print_frames(frames, args.json)
 
 
