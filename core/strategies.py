@@ -80,7 +80,11 @@ def _stage1(frame, front, chunk):
     (pending), nearest first."""
     pending = []
     while len(front):
-        front = frame.sort_near(front)
+        # The map only ever fills, so a node with no empty tile now never gets one:
+        # defer all such nodes at once, chunk only those still in doubt.
+        hopeless = ~frame.crosses[front] & ~frame.om.any_empty_tiles(frame.tiles[front])
+        pending.append(front[hopeless])
+        front = frame.sort_near(front[~hopeless])
         head, front = front[:chunk], front[chunk:]
         crosses = frame.crosses[head]
         empty = frame.om.any_empty_tiles(frame.tiles[head])
@@ -89,8 +93,7 @@ def _stage1(frame, front, chunk):
         leaf = frame.h.is_leaf[head]
         # Within a chunk, a node whose tiles all lie under one nearer leaf that is
         # drawn in this chunk would find them occupied: defer it too.
-        proven = crosses | (empty & ~_under_nearer(frame.tiles[head],
-                                                   empty & leaf))
+        proven = crosses | (empty & ~_under_nearer(frame.tiles[head], empty & leaf))
         frame.draw_leaves(head[proven & leaf])
         front = np.concatenate([front, frame.children_in_frustum(head[proven & ~leaf])])
         pending.append(head[~proven])
