@@ -4,7 +4,7 @@
 PY ?= python3.11
 VENV := .venv
 VPY := $(VENV)/bin/python
-STAMP := $(VENV)/.installed-v1
+STAMP := $(VENV)/.installed-v2
 
 .PHONY: venv demo test test-numpy2 lint extension clean
 
