@@ -19,6 +19,8 @@ less before a query can only make it say "visible" more often.
                overlap on screen) and issues each as one multiple query, at most
                ``max_tests`` rounds, ``max_tests(f + 1) = 0.7 m(f)``; stage 3 queries
                all that remain.
+- ``om_coherent`` om_multi that draws last frame's visible leaves first, without
+               queries, re-checking each every few frames (temporal coherence).
 - ``oracle``   draws exactly the ground-truth set, no queries: the physical limit.
 """
 
@@ -82,7 +84,8 @@ def _stage1(frame, front, chunk):
     while len(front):
         # The map only ever fills, so a node with no empty tile now never gets one:
         # defer all such nodes at once, chunk only those still in doubt.
-        hopeless = ~frame.crosses[front] & ~frame.om.any_empty_tiles(frame.tiles[front])
+        hopeless = (~frame.crosses[front] & ~frame.free[front]
+                    & ~frame.om.any_empty_tiles(frame.tiles[front]))
         pending.append(front[hopeless])
         front = frame.sort_near(front[~hopeless])
         head, front = front[:chunk], front[chunk:]
@@ -93,8 +96,8 @@ def _stage1(frame, front, chunk):
         leaf = frame.h.is_leaf[head]
         # Within a chunk, a node whose tiles all lie under one nearer leaf that is
         # drawn in this chunk would find them occupied: defer it too.
-        proven = crosses | (empty & ~_under_nearer(frame.tiles[head], empty & leaf))
-        frame.draw_leaves(head[proven & leaf])
+        proven = crosses | frame.free[head] | (empty & ~_under_nearer(frame.tiles[head], empty & leaf))
+        frame.draw_leaves(head[proven & leaf & ~frame.predrawn[head]])
         front = np.concatenate([front, frame.children_in_frustum(head[proven & ~leaf])])
         pending.append(head[~proven])
     return np.concatenate(pending) if pending else np.zeros(0, dtype=np.int64)
@@ -146,14 +149,54 @@ def om(frame, chunk=16, **_):
 
 
 class OmMulti:
-    """Staneker et al. 2004; keeps ``max_tests`` across frames (the 0.7 m rule)."""
+    """Staneker et al. 2004; keeps ``max_tests`` across frames (the 0.7 m rule).
 
-    def __init__(self, max_tests=8):
+    With ``coherent`` (this project's addition, after Bittner et al.'s CHC): the
+    leaves found visible last frame are drawn first, without a query, and their
+    ancestors are opened without one; each such leaf is queried again every
+    ``RECHECK`` frames (staggered), so one that became hidden is culled soon.
+    Only skipping queries, never culling without one, it stays conservative.
+    """
+
+    RECHECK = 8
+
+    def __init__(self, max_tests=8, coherent=False):
         self.max_tests = max(1, int(max_tests))
+        self.coherent = coherent
+        self.assumed = None
+        self.frame_no = 0
 
     def __call__(self, frame, chunk=16, **_):
         if not frame.in_frustum[0]:
             return
+        if self.coherent:
+            self._draw_assumed(frame)
+        self._traverse(frame, chunk)
+        if self.coherent:
+            self._remember(frame)
+
+    def _draw_assumed(self, frame):
+        h = frame.h
+        if self.assumed is None or len(self.assumed) != len(h):
+            self.assumed = np.zeros(len(h), dtype=bool)
+        pre = np.flatnonzero(self.assumed & frame.in_frustum)
+        frame.draw_leaves(frame.sort_near(pre))
+        frame.predrawn[pre] = True
+        frame.stats["queries_skipped"] += len(pre)
+        up = pre
+        while len(up):                              # ancestors, one level per step
+            frame.free[up] = True
+            up = np.unique(h.parent[up])
+            up = up[(up >= 0) & ~frame.free[up]]
+
+    def _remember(self, frame):
+        h = frame.h
+        seen = h.is_leaf & frame.in_frustum
+        seen[seen] = frame.state[h.leaf_unit[seen]] == Visibility.VISIBLE
+        self.frame_no += 1
+        self.assumed = seen & ((np.arange(len(h)) + self.frame_no) % self.RECHECK != 0)
+
+    def _traverse(self, frame, chunk):
         pending = _stage1(frame, np.zeros(1, dtype=np.int64), chunk)
         rounds = 0
         # Stage 2: occupancy-map-arranged multiple queries.
@@ -171,15 +214,15 @@ class OmMulti:
         self.max_tests = max(1, math.ceil(0.7 * rounds)) if rounds else self.max_tests
 
 
-STRATEGIES = ("vfc", "stopwait", "om", "om_multi", "oracle")
-DEFAULT_STRATEGY = "om_multi"
+STRATEGIES = ("vfc", "stopwait", "om", "om_multi", "om_coherent", "oracle")
+DEFAULT_STRATEGY = "om_coherent"
 
 
 def make_strategy(name, max_tests=8):
     """A callable ``strategy(frame, **options)`` for a strategy name."""
     table = {"vfc": vfc, "stopwait": stopwait, "om": om, "oracle": oracle}
-    if name == "om_multi":
-        return OmMulti(max_tests)
+    if name in ("om_multi", "om_coherent"):
+        return OmMulti(max_tests, coherent=name == "om_coherent")
     if name not in table:
         raise OccError(f"unknown strategy '{name}'; choose one of {', '.join(STRATEGIES)}")
     return table[name]

@@ -62,6 +62,10 @@ class Frame:
         self.rects[live], self.crosses[live] = project_rects(
             self.boxes[live], self.clip, renderer.width, renderer.height)
         self.tiles = self.om.tile_rects(self.rects)          # the same in occupancy tiles
+        # Set by coherent strategies: nodes opened or drawn without a query, and
+        # leaves drawn before the traversal started.
+        self.free = np.zeros(len(hierarchy), dtype=bool)
+        self.predrawn = np.zeros(len(hierarchy), dtype=bool)
         # Front-to-back key: distance from the eye (the origin here) to the box's
         # nearest point, 0 when the eye is inside.
         b = self.boxes
