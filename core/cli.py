@@ -27,10 +27,15 @@ def resolve_scene(spec):
         names = tuple(sample_scenes.NAMES)
     except (ImportError, AttributeError):
         names = ()
-    base, small = (spec[:-6], True) if spec.endswith("-small") else (spec, False)
+    base, small, joined = spec, False, False
+    if base.endswith("-joined"):
+        base, joined = base[:-7], True
+    if base.endswith("-small"):
+        base, small = base[:-6], True
     if base in names:
-        return str(sample_scenes.scene_path(base, small=small)), base
-    hint = f" (or a sample scene: {', '.join(names)}, with -small for the small variant)" if names else ""
+        return str(sample_scenes.scene_path(base, small=small, joined=joined)), base
+    hint = (f" (or a sample scene: {', '.join(names)}; -small for the small variant, -joined for "
+            "all objects merged into one mesh)" if names else "")
     raise OccError(f"scene file not found: {spec}{hint}")
 
 

@@ -35,14 +35,23 @@ def build_scene(name, small=False):
     return _module(name).build(np.random.default_rng(SEEDS[name]), small=small)
 
 
-def scene_path(name, cache_dir_=None, small=False):
-    """Path of the scene's GLB, generating it on first use (written atomically)."""
+def scene_path(name, cache_dir_=None, small=False, joined=False):
+    """Path of the scene's GLB, generating it on first use (written atomically).
+
+    joined: every object merged into one mesh (one node, "joined"), the case of a
+    user's scene that was never cut for culling.
+    """
     mod = _module(name)
     folder = Path(cache_dir_) if cache_dir_ else cache_dir()
-    path = folder / f"{name}{'-small' if small else ''}-v{VERSION}.glb"
+    path = folder / f"{name}{'-small' if small else ''}{'-joined' if joined else ''}-v{VERSION}.glb"
     if not path.exists():
         folder.mkdir(parents=True, exist_ok=True)
         scene = mod.build(np.random.default_rng(SEEDS[name]), small=small)
+        if joined:
+            import trimesh
+            merged = trimesh.Scene()
+            merged.add_geometry(scene.to_geometry(), node_name="joined", geom_name="joined")
+            scene = merged
         tmp = path.with_suffix(f".tmp{os.getpid()}")
         scene.export(tmp, file_type="glb")
         os.replace(tmp, path)

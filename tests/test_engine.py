@@ -20,6 +20,7 @@ def run_scene(ctx, name, offset, strategy, resolution=None):
             truth = culler.truth(cam)
             for _ in range(2):         # twice: om_multi adapts max_tests between frames
                 result = culler.cull(cam, truth=truth)
+                assert_depth_complete(culler, cam)
                 out.append((scene, truth, result))
     return out, expect
 
@@ -100,3 +101,52 @@ def test_moving_objects_refits(ctx):
         culler.set_matrices([hidden], moved[None])
         assert culler.cull(cam).state[hidden] == Visibility.VISIBLE
         assert culler.truth(cam)[hidden]
+
+
+def joined(scene):
+    """All objects of a scene merged into one mesh (world coordinates), as users import CAD."""
+    from core import Scene
+    verts, faces, base = [], [], 0
+    for mesh, m in zip(scene.mesh_of, scene.matrices, strict=True):
+        v, f = scene.meshes[mesh]
+        verts.append(v @ m[:3, :3].T + m[:3, 3])
+        faces.append(f + base)
+        base += len(v)
+    return Scene.from_arrays(["joined"], [(np.concatenate(verts), np.concatenate(faces))], [0],
+                             np.eye(4)[None])
+
+
+@pytest.mark.parametrize("builder", ["pHBVO", "DBVS", "octree", "balanced"])
+def test_chunked_joined_mesh_is_culled_without_misses(ctx, builder):
+    """One joined mesh cut into chunks: never a missed pixel of it, and most chunks culled."""
+    scene, cams, _ = scenes.random_city(4, 300)
+    one = joined(scene)
+    with Culler(one, (96, 64), hierarchy=builder, chunk_triangles=24, ctx=ctx) as culler:
+        assert len(culler.units) > 50 and culler.units.object.max() == 0
+        for cam in cams:
+            truth = culler.truth(cam)
+            r = culler.cull(cam, truth=truth)
+            assert np.array_equal(r.visible, truth)          # the one object is visible
+            assert r.stats["triangles_drawn"] < 0.6 * len(one.meshes[0][1])
+            assert_depth_complete(culler, cam)
+
+
+def assert_depth_complete(culler, cam):
+    """The depth buffer after culling equals the one with everything drawn: no
+    visible chunk or object is missing from a single pixel."""
+    culled = culler.renderer.read_depth().copy()
+    culler.renderer.begin_frame(cam)
+    culler.renderer.draw(np.arange(len(culler.units)))
+    assert np.array_equal(culled, culler.renderer.read_depth())
+
+
+@pytest.mark.parametrize("builder", ["pHBVO", "DBVS", "octree", "balanced"])
+def test_object_level_builders_keep_every_visible_object(ctx, builder):
+    scene, cams, _ = scenes.random_city(6, 300)
+    with Culler(scene, (96, 64), hierarchy=builder, ctx=ctx) as culler:
+        for cam in cams:
+            truth = culler.truth(cam)
+            r = culler.cull(cam, truth=truth)
+            assert not (truth & ~r.visible).any()
+            assert (r.state == Visibility.OCCLUDED).any()
+            assert_depth_complete(culler, cam)
