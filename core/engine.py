@@ -127,6 +127,9 @@ class Culler:
             raise OccError("new world matrices contain NaN or infinite values")
         self.scene.matrices[idx] = m
         self.renderer.set_matrices(idx, m)
+        forget = getattr(self.strategy, "forget", None)
+        if forget is not None:            # what was visible before the move proves nothing now
+            forget()
         if self.hierarchy is not None:
             self.hierarchy.refit(self.unit_bounds())
 

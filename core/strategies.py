@@ -175,6 +175,10 @@ class OmMulti:
         if self.coherent:
             self._remember(frame)
 
+    def forget(self):
+        """Drop the memory of visible leaves (objects moved)."""
+        self.assumed = None
+
     def _draw_assumed(self, frame):
         h = frame.h
         if self.assumed is None or len(self.assumed) != len(h):

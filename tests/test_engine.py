@@ -150,3 +150,19 @@ def test_object_level_builders_keep_every_visible_object(ctx, builder):
             assert not (truth & ~r.visible).any()
             assert (r.state == Visibility.OCCLUDED).any()
             assert_depth_complete(culler, cam)
+
+
+def test_coherent_strategy_rechecks_moved_objects(ctx):
+    """om_coherent draws last frame's visible leaves without a query; after objects
+    move, that memory is dropped, so a box moved behind a wall is culled at once."""
+    scene, (cam,), _ = scenes.near_plane_crossing()
+    hidden = scene.names.index("behind_wall")
+    home = scene.matrices[hidden].copy()
+    with Culler(scene, (64, 64), strategy="om_coherent", ctx=ctx) as culler:
+        near = home.copy()
+        near[:3, 3] = (0.02, -0.01, -0.01)
+        culler.set_matrices([hidden], near[None])
+        assert culler.cull(cam).state[hidden] == Visibility.VISIBLE
+        assert culler.cull(cam).state[hidden] == Visibility.VISIBLE     # remembered as visible
+        culler.set_matrices([hidden], home[None])
+        assert culler.cull(cam).state[hidden] == Visibility.OCCLUDED

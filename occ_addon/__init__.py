@@ -1,0 +1,39 @@
+"""Blender glue: settings, operators, panel, live mode, handlers.  Registers in
+order and unregisters in reverse; no GPU or timer work happens here."""
+
+import bpy
+from bpy.app.handlers import persistent
+
+from . import operators, panel, props, visibility
+from .session import SESSION, on_depsgraph_update
+
+MODULES = (props, operators, panel)
+
+
+@persistent
+def _restore_on_load(_dummy):
+    """A file saved while culled opens with everything the add-on hid shown again."""
+    SESSION.invalidate()
+    visibility.restore()
+
+
+def register():
+    for m in MODULES:
+        m.register()
+    bpy.app.handlers.load_post.append(_restore_on_load)
+    bpy.app.handlers.depsgraph_update_post.append(on_depsgraph_update)
+
+
+def unregister():
+    from . import live
+    if bpy.context.scene is not None and getattr(bpy.context.scene, "occ", None) is not None:
+        if bpy.context.scene.occ.live:
+            live.stop(bpy.context)
+    visibility.restore()
+    SESSION.invalidate()
+    for h, f in ((bpy.app.handlers.depsgraph_update_post, on_depsgraph_update),
+                 (bpy.app.handlers.load_post, _restore_on_load)):
+        if f in h:
+            h.remove(f)
+    for m in reversed(MODULES):
+        m.unregister()

@@ -1,0 +1,166 @@
+"""Operators: glue from settings to one engine call, errors mapped to reports."""
+
+import csv
+import json
+import os
+import time
+
+import bpy
+from bpy.props import BoolProperty, IntProperty, StringProperty
+
+from ..core import OccError, Visibility
+from . import live, visibility
+from .session import SESSION, camera_for, scene_camera
+
+
+class OCC_OT_cull(bpy.types.Operator):
+    """Hide the objects the active viewport (or the scene camera) cannot see"""
+
+    bl_idname = "occ.cull"
+    bl_label = "Cull"
+    bl_options = {"REGISTER"}
+
+    def execute(self, context):
+        try:
+            camera, display = camera_for(context)
+            result, objects = SESSION.cull(context, camera, display)
+        except OccError as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        s = context.scene.occ
+        self.report({"INFO"}, f"{s.last_occluded} occluded, {s.last_outside} outside the view, "
+                              f"of {s.last_tested} ({s.last_ms:.0f} ms)")
+        return {"FINISHED"}
+
+
+class OCC_OT_restore(bpy.types.Operator):
+    """Show again exactly the objects the occlusion culler hid"""
+
+    bl_idname = "occ.restore"
+    bl_label = "Restore"
+    bl_options = {"REGISTER"}
+
+    def execute(self, context):
+        if context.scene.occ.live:
+            live.stop(context)
+        n = visibility.restore()
+        self.report({"INFO"}, f"restored {n} objects")
+        return {"FINISHED"}
+
+
+class OCC_OT_live(bpy.types.Operator):
+    """Re-cull whenever the view changes (toggle)"""
+
+    bl_idname = "occ.live"
+    bl_label = "Live"
+
+    def execute(self, context):
+        if bpy.app.background:
+            self.report({"ERROR"}, "live culling needs a window (Blender is running in background mode)")
+            return {"CANCELLED"}
+        if context.scene.occ.live:
+            live.stop(context)
+            visibility.restore()
+        else:
+            live.start(context)
+        return {"FINISHED"}
+
+
+class OCC_OT_analyze(bpy.types.Operator):
+    """Cull from the scene camera over a frame range and write what it sees (JSON and CSV)"""
+
+    bl_idname = "occ.analyze"
+    bl_label = "Analyze Camera Path"
+
+    frame_start: IntProperty(name="Start", default=-1, description="-1: the scene's start")
+    frame_end: IntProperty(name="End", default=-1, description="-1: the scene's end")
+    frame_step: IntProperty(name="Step", default=1, min=1)
+    filepath: StringProperty(name="Report", subtype="FILE_PATH", default="//occlusion_report.json")
+    link_never_visible: BoolProperty(name="Collect Never Visible", default=False,
+                                     description="Link never-visible objects into a collection")
+
+    def execute(self, context):
+        scene = context.scene
+        start = scene.frame_start if self.frame_start < 0 else self.frame_start
+        end = scene.frame_end if self.frame_end < 0 else self.frame_end
+        if end < start:
+            self.report({"ERROR"}, f"empty frame range {start}..{end}")
+            return {"CANCELLED"}
+        frames = list(range(start, end + 1, self.frame_step))
+        path = bpy.path.abspath(self.filepath)
+        if self.filepath.startswith("//") and not bpy.data.filepath:
+            path = os.path.join(bpy.app.tempdir or ".", os.path.basename(self.filepath[2:]))
+        previous = scene.frame_current
+        wm = context.window_manager
+        per_frame, seen = [], {}
+        t = time.perf_counter()
+        wm.progress_begin(0, len(frames))
+        try:
+            for k, f in enumerate(frames):           # synchronous: timers never fire headless
+                scene.frame_set(f)
+                camera, display = scene_camera(context)
+                result, objects = SESSION.compute(context, camera, display)   # nothing is hidden
+                names = [o.name for o, s in zip(objects, result.state, strict=True) if s == Visibility.VISIBLE]
+                per_frame.append({"frame": f, "visible": names})
+                for o in objects:
+                    seen.setdefault(o.name, 0)
+                for n in names:
+                    seen[n] += 1
+                wm.progress_update(k + 1)
+        except OccError as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        finally:
+            wm.progress_end()
+            scene.frame_set(previous)
+        write_report(path, frames, per_frame, seen)
+        never = sorted(n for n, c in seen.items() if c == 0)
+        if self.link_never_visible:
+            link_collection(scene, "Never Visible", never)
+        self.report({"INFO"}, f"{len(frames)} frames in {time.perf_counter() - t:.1f} s; "
+                              f"{len(never)} of {len(seen)} objects never visible; report {path}")
+        return {"FINISHED"}
+
+
+def write_report(path, frames, per_frame, seen):
+    """JSON: per frame the visible objects, per object the frames it is visible in; CSV beside it."""
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    first, last = {}, {}
+    for fr in per_frame:
+        for n in fr["visible"]:
+            first.setdefault(n, fr["frame"])
+            last[n] = fr["frame"]
+    objects = {n: {"frames_visible": c, "first": first.get(n), "last": last.get(n)}
+               for n, c in sorted(seen.items())}
+    with open(path, "w", encoding="utf-8") as f:
+        json.dump({"frames": per_frame, "objects": objects, "frame_count": len(frames)}, f, indent=1)
+    with open(os.path.splitext(path)[0] + ".csv", "w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        w.writerow(["object", "frames_visible", "fraction", "first_frame", "last_frame"])
+        for n, o in objects.items():
+            w.writerow([n, o["frames_visible"], f"{o['frames_visible'] / max(len(frames), 1):.4f}",
+                        o["first"] if o["first"] is not None else "", o["last"] if o["last"] is not None else ""])
+
+
+def link_collection(scene, name, object_names):
+    coll = bpy.data.collections.get(name) or bpy.data.collections.new(name)
+    if coll.name not in scene.collection.children:
+        scene.collection.children.link(coll)
+    for n in object_names:
+        obj = bpy.data.objects.get(n)
+        if obj is not None and obj.name not in coll.objects:
+            coll.objects.link(obj)
+
+
+CLASSES = (OCC_OT_cull, OCC_OT_restore, OCC_OT_live, OCC_OT_analyze)
+
+
+def register():
+    for cls in CLASSES:
+        bpy.utils.register_class(cls)
+
+
+def unregister():
+    for cls in reversed(CLASSES):
+        bpy.utils.unregister_class(cls)
+

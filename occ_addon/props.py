@@ -1,0 +1,63 @@
+"""Settings on ``scene.occ``, the per-object "never cull" flag and the hide record."""
+
+import bpy
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty
+
+STRATEGY_ITEMS = [
+    ("om_coherent", "Coherent (default)", "Occupancy map, multiple queries, last frame's visible first"),
+    ("om_multi", "Multiple queries", "Staneker et al. 2004: occupancy-map-arranged multiple queries"),
+    ("om", "Occupancy map", "Staneker et al. 2003"),
+    ("stopwait", "Stop and wait", "One query per node, waiting for each"),
+    ("vfc", "Frustum only", "Hide only what is outside the view"),
+]
+
+
+class OccSettings(bpy.types.PropertyGroup):
+    source: EnumProperty(
+        name="Source", default="VIEWPORT",
+        items=[("VIEWPORT", "Viewport", "Cull for the active 3D viewport's view"),
+               ("CAMERA", "Scene Camera", "Cull for the scene camera at the render resolution")])
+    strategy: EnumProperty(name="Strategy", items=STRATEGY_ITEMS, default="om_coherent")
+    preset: EnumProperty(
+        name="Accuracy", default="conservative",
+        items=[("conservative", "Conservative", "Query at the display resolution: hides nothing visible"),
+               ("fast", "Fast", "Query at half the display resolution (measured error in the README)")])
+    max_resolution: IntProperty(
+        name="Max Query Size", default=1920, min=16, max=8192,
+        description="Longest side of the query buffer; larger displays are scaled down to it")
+    exclude_collection: PointerProperty(
+        name="Exclude", type=bpy.types.Collection,
+        description="Objects of this collection are never hidden (they still hide others)")
+    exclude_children: BoolProperty(name="Include Child Collections", default=True)
+    live: BoolProperty(name="Live", default=False, description="Re-cull when the view changes")
+    show_overlay: BoolProperty(name="Overlay", default=True,
+                               description="Draw the culled boxes and the figures of the last pass")
+    # the last pass, shown in the panel
+    last_tested: IntProperty(name="Tested", default=0)
+    last_occluded: IntProperty(name="Occluded", default=0)
+    last_outside: IntProperty(name="Outside", default=0)
+    last_triangles_hidden: IntProperty(name="Triangles Hidden", default=0)
+    last_ms: FloatProperty(name="Milliseconds", default=0.0)
+
+
+CLASSES = (OccSettings,)
+
+
+def register():
+    for cls in CLASSES:
+        bpy.utils.register_class(cls)
+    bpy.types.Scene.occ = PointerProperty(type=OccSettings)
+    bpy.types.Object.occ_never_cull = BoolProperty(
+        name="Never Cull", default=False, description="The occlusion culler never hides this object")
+    # The record of what the add-on hid; saved in the .blend, so a file left
+    # culled is restored on load.
+    bpy.types.Object.occ_culled = BoolProperty(name="Hidden by Occlusion Culling", default=False,
+                                               options={"HIDDEN"})
+
+
+def unregister():
+    del bpy.types.Object.occ_culled
+    del bpy.types.Object.occ_never_cull
+    del bpy.types.Scene.occ
+    for cls in reversed(CLASSES):
+        bpy.utils.unregister_class(cls)
