@@ -15,7 +15,7 @@ import numpy as np
 from .engine import Culler
 
 CANDIDATES = ("tree", "pHBVO", "DBVS", "octree", "balanced")
-PROBE_FRAMES = 4
+PROBE_FRAMES = 8
 DEFAULT_CHUNK_TRIANGLES = 4096
 
 
@@ -65,17 +65,15 @@ def build_culler(scene, resolution, strategy, builder, cameras, chunk_triangles=
     finally:
         base.close()
     chunks = chunk_triangles or chunk_size(scene, costs)
-    best, best_ms, best_name = None, np.inf, None
+    # one culler alive at a time: probe each candidate, then rebuild the winner
+    timings = {}
     for name in CANDIDATES:
-        c = Culler(scene, resolution, strategy=strategy, hierarchy=name,
-                   chunk_triangles=None if name == "tree" else chunks, **kw)
-        c.cull(probe[0])
-        ms = float(np.median([c.cull(cam).stats["total_ms"] for cam in probe]))
-        if ms < best_ms:
-            if best is not None:
-                best.close()
-            best, best_ms, best_name = c, ms, name
-        else:
-            c.close()
-    best.set_strategy(strategy)            # fresh max_tests state after the probe
-    return best, f"{best_name}" + (f"/{chunks}" if chunks and best_name != "tree" else "")
+        with Culler(scene, resolution, strategy=strategy, hierarchy=name,
+                    chunk_triangles=None if name == "tree" else chunks, **kw) as c:
+            c.cull(probe[0])
+            timings[name] = float(np.median([c.cull(cam).stats["total_ms"] for cam in probe]))
+    best = min(timings, key=timings.get)
+    culler = Culler(scene, resolution, strategy=strategy, hierarchy=best,
+                    chunk_triangles=None if best == "tree" else chunks, **kw)
+    culler.costs, culler.probe_ms = costs, timings
+    return culler, best + (f"/{chunks}" if chunks and best != "tree" else "")

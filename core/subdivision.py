@@ -25,7 +25,6 @@ stay at that node instead of inflating every box below (``pull_up``).  Binary
 trees collapse into ``max_children``-ary ones by opening the largest child.
 """
 
-import math
 import time
 from dataclasses import dataclass
 
@@ -272,18 +271,16 @@ def sah_cost(tree):
     return float((p[inner] * TRAVERSAL_COST).sum() + (p * tree.item_count).sum())
 
 
-def choose_leaf_size(n_items, cost_query_us, cost_node_us, cost_ktri_us, lo=256):
-    """Chunk size (triangles) minimising a per-frame cost model of one mesh.
+def choose_leaf_size(n_items, cost_query_us, cost_node_us, cost_ktri_us, lo=256, per_query=1.0):
+    """Chunk size (triangles) at which drawing a chunk costs about what testing it
+    costs: ``L = 1000 * per_query * (c_q + c_n) / c_t``, clamped to [lo, N].
 
-    With chunks of L of a mesh of N triangles, testing costs ``N/L (c_q + c_n)``
-    and the chunks cut by the visibility boundary waste about ``sqrt(N L) / 2``
-    drawn triangles (a boundary curve crosses ~sqrt(N/L) chunks of L), costing
-    ``c_t / 1000`` each.  The minimum is at
-    ``L = (4000 sqrt(N) (c_q + c_n) / c_t) ** (2/3)``, clamped to [lo, N].
+    Coarser chunks are drawn whole when any part shows (on the sample city, 4k
+    triangle chunks ran 7x faster than 588k ones); finer chunks cost more
+    queries than their triangles would take to draw.
     """
     n = max(int(n_items), 1)
-    ct = max(float(cost_ktri_us), 1e-6)
-    size = (4000.0 * math.sqrt(n) * (cost_query_us + cost_node_us) / ct) ** (2.0 / 3.0)
+    size = 1000.0 * per_query * (cost_query_us + cost_node_us) / max(float(cost_ktri_us), 1e-6)
     return int(min(max(size, lo), n))
 
 

@@ -97,3 +97,15 @@ def test_nan_matrix_in_scene_is_rejected():
     m[0, 1, 3] = np.inf
     with pytest.raises(OccError, match="'bad' has a NaN or infinite world matrix"):
         Scene.from_arrays(["bad"], [(np.zeros((3, 3)), [[0, 1, 2]])], [0], m)
+
+
+def test_two_renderers_alive_at_once_each_use_their_own_context():
+    """Each Culler owns an EGL context; interleaved passes must not draw into the other's."""
+    a_scene = boxes_scene([((-4, -4, 0), (4, 4, 1)), ((-1, -1, -3), (1, 1, -2))])
+    b_scene = boxes_scene([((-1, -1, -3), (1, 1, -2))])
+    with Culler(a_scene, (16, 16), strategy="om_multi") as a:
+        with Culler(b_scene, (16, 16), strategy="om_multi") as b:
+            for _ in range(2):
+                assert a.cull(ortho_cam()).state.tolist() == [0, 1]
+                assert b.cull(ortho_cam()).state.tolist() == [0]
+                assert a.truth(ortho_cam()).tolist() == [True, False]

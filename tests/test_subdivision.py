@@ -113,5 +113,6 @@ def test_cost_model():
     a = choose_leaf_size(1_000_000, 30.0, 1.0, 20.0)
     assert choose_leaf_size(1_000_000, 60.0, 1.0, 20.0) > a > choose_leaf_size(1_000_000, 30.0, 1.0, 80.0)
     assert choose_leaf_size(100, 30.0, 1.0, 20.0) == 100
+    assert choose_leaf_size(10**7, 30.0, 1.0, 20.0) == 1550
     assert not worth_chunking(5000, 30.0, 20.0)
     assert worth_chunking(1_000_000, 30.0, 20.0)

@@ -96,6 +96,7 @@ class GLRenderer:
         self.ctx = ctx if ctx is not None else create_context()
         self.width, self.height = int(width), int(height)
         ctx = self.ctx
+        self.activate()
         n = len(scene)
         self.n = n
         self.units = units if units is not None else whole_objects(scene)
@@ -157,6 +158,11 @@ class GLRenderer:
             content.append((self.id_buffer, "u/i", "in_id"))
         return self.ctx.vertex_array(prog, content, index_buffer=self.ibo, index_element_size=4)
 
+    def activate(self):
+        """Make this renderer's context current: several renderers (each with its own
+        context) may be alive at once, and GL calls go to whichever is current."""
+        self.ctx.__enter__()
+
     # --- per frame -----------------------------------------------------------
     def set_matrices(self, indices, matrices):
         """Store world matrices ``(k, 4, 4)`` of objects ``indices`` (mesh centre folded in)."""
@@ -167,6 +173,7 @@ class GLRenderer:
 
     def begin_frame(self, camera):
         """Upload camera-relative matrices for ``camera`` and clear the depth buffer."""
+        self.activate()
         self.eye = camera.eye
         self.clip = camera.relative_view_projection()
         rel = self.world.copy()
@@ -244,6 +251,7 @@ class GLRenderer:
 
     def read_depth(self):
         """The depth buffer, ``(height, width) float32``, row 0 at the bottom."""
+        self.activate()
         data = self.depth_tex.read(alignment=1)
         return np.frombuffer(data, dtype=np.float32).reshape(self.height, self.width)
 
@@ -279,6 +287,7 @@ class GLRenderer:
 
     def release(self):
         """Free the GPU objects (and the context when this renderer created it)."""
+        self.activate()
         if self.own_ctx:
             self.ctx.release()
             return
