@@ -5,7 +5,9 @@ machine, with this scene uploaded (:func:`measure_costs`).  A cost model turns
 those into a chunk size and decides whether a mesh is worth cutting at all
 (:mod:`core.subdivision`); then every candidate builder is built and run on a
 few probe frames, and the fastest is kept -- the cost of a frame is measured,
-not guessed.
+not guessed.  For meshes worth cutting, the model's chunk size and 4x and 16x
+coarser ones are probed on pHBVO (per-node Python overhead makes the model's
+size a lower bound), and the other builders use the best.
 """
 
 import time
@@ -17,6 +19,7 @@ from .engine import Culler
 CANDIDATES = ("tree", "pHBVO", "DBVS", "octree", "balanced")
 PROBE_FRAMES = 8
 DEFAULT_CHUNK_TRIANGLES = 4096
+NODE_US_DEFAULT = 1.0        # measured on the city: 0.9 ms frustum culling for ~1,450 nodes
 
 
 def measure_costs(culler, camera):
@@ -24,17 +27,24 @@ def measure_costs(culler, camera):
     measured on ``culler``'s renderer from ``camera``."""
     r = culler.renderer
     vfc = culler.cull(camera)                      # warms up; nodes_visited, frustum time
-    node_us = 1e3 * vfc.stats["frustum_ms"] / max(vfc.stats["nodes_visited"], 1)
+    # per node, once there are enough nodes that the pass's fixed cost does not dominate
+    nodes = vfc.stats["nodes_visited"]
+    node_us = 1e3 * vfc.stats["frustum_ms"] / nodes if nodes >= 256 else NODE_US_DEFAULT
     r.begin_frame(camera)
     units = np.arange(len(culler.units))
     t = time.perf_counter()
     tris = r.draw(units)
     r.finish()
     ktri_us = 1e6 * (time.perf_counter() - t) / max(tris / 1e3, 1e-3)
-    boxes = culler.hierarchy.bounds[culler.hierarchy.is_leaf][:256] - r.eye
+    # queries of chunk-sized boxes (1/32 of the scene) spread over the scene
+    lo, hi = culler.hierarchy.bounds[0]
+    size = (hi - lo) / 32.0
+    corner = lo + np.random.default_rng(0).random((256, 3)) * (hi - lo - size)
+    boxes = np.stack([corner, corner + size], axis=1) - r.eye
+    r.begin_frame(camera)
     t = time.perf_counter()
     r.query(boxes)
-    query_us = 1e6 * (time.perf_counter() - t) / max(len(boxes), 1)
+    query_us = 1e6 * (time.perf_counter() - t) / len(boxes)
     return {"query_us": query_us, "node_us": node_us, "ktri_us": ktri_us}
 
 
@@ -64,14 +74,25 @@ def build_culler(scene, resolution, strategy, builder, cameras, chunk_triangles=
         costs = measure_costs(base, probe[len(probe) // 2])
     finally:
         base.close()
-    chunks = chunk_triangles or chunk_size(scene, costs)
+    model = chunk_triangles or chunk_size(scene, costs)
     # one culler alive at a time: probe each candidate, then rebuild the winner
     timings = {}
-    for name in CANDIDATES:
+
+    def probe_ms(name, chunks):
         with Culler(scene, resolution, strategy=strategy, hierarchy=name,
                     chunk_triangles=None if name == "tree" else chunks, **kw) as c:
             c.cull(probe[0])
-            timings[name] = float(np.median([c.cull(cam).stats["total_ms"] for cam in probe]))
+            return float(np.median([c.cull(cam).stats["total_ms"] for cam in probe]))
+
+    chunks = model
+    if model and not chunk_triangles:          # the model's size and 4x, 16x coarser, on pHBVO
+        sizes = sorted({model, 4 * model, 16 * model})
+        by_size = {k: probe_ms("pHBVO", k) for k in sizes}
+        chunks = min(by_size, key=by_size.get)
+        timings["pHBVO"] = by_size[chunks]
+    for name in CANDIDATES:
+        if name not in timings:
+            timings[name] = probe_ms(name, chunks)
     best = min(timings, key=timings.get)
     culler = Culler(scene, resolution, strategy=strategy, hierarchy=best,
                     chunk_triangles=None if best == "tree" else chunks, **kw)
