@@ -17,7 +17,6 @@ import numpy as np
 
 from .engine import DEFAULT_RESOLUTION, Culler, parse_resolution
 from .errors import OccError
-from .scene import load_scene
 from .strategies import STRATEGIES
 from .traversal import Visibility
 
@@ -236,14 +235,9 @@ def write_snapshot(scene, camera, out_dir, title, resolution, strategy="om_multi
 def bench_scene(spec, camera=None, strategies=STRATEGIES, resolution=DEFAULT_RESOLUTION,
                 frames=None, out_dir=None, plot=False, snapshot=False, log=print):
     """Load a scene (file or sample name), run the benchmark, optionally write a report folder."""
-    from .cli import resolve_cameras, resolve_scene
-    path, sample = resolve_scene(spec)
-    cameras = resolve_cameras(camera, sample)
-    if frames:
-        cameras = cameras[:: max(1, len(cameras) // frames)][:frames]
-    title = sample or os.path.splitext(os.path.basename(path))[0]
+    from .cli import load_job
     t = time.perf_counter()
-    scene = load_scene(path)
+    scene, cameras, title = load_job(spec, camera, frames)
     log(f"{title}: loaded {len(scene)} objects, {int(scene.triangle_counts.sum()):,} triangles "
         f"in {time.perf_counter() - t:.1f} s; {len(cameras)} frames")
     report = run_bench(scene, cameras, list(strategies), resolution,
@@ -266,9 +260,10 @@ def bench_scene(spec, camera=None, strategies=STRATEGIES, resolution=DEFAULT_RES
 def cmd_bench(args):
     if args.hierarchies:
         return cmd_hierarchies(args)
+    from .cli import log_for
     strategies = [s.strip() for s in args.strategies.split(",") if s.strip()]
     out = args.out or ((args.plot or args.snapshot) and "reports") or None
-    log = (lambda *a: print(*a, file=sys.stderr)) if args.json else print
+    log = log_for(args.json)
     report, table = bench_scene(args.scene, args.camera, strategies, parse_resolution(args.resolution),
                                 args.frames, out, args.plot, args.snapshot, log)
     if args.json:
@@ -281,15 +276,10 @@ def cmd_bench(args):
 
 
 def cmd_hierarchies(args):
-    from .cli import resolve_cameras, resolve_scene
+    from .cli import load_job, log_for
     builders = [b.strip() for b in args.hierarchies.split(",") if b.strip()]
-    path, sample = resolve_scene(args.scene)
-    cameras = resolve_cameras(args.camera, sample)
-    if args.frames:
-        cameras = cameras[:: max(1, len(cameras) // args.frames)][: args.frames]
-    title = sample or os.path.splitext(os.path.basename(path))[0]
-    log = (lambda *a: print(*a, file=sys.stderr)) if args.json else print
-    scene = load_scene(path)
+    scene, cameras, title = load_job(args.scene, args.camera, args.frames)
+    log = log_for(args.json)
     report = run_hierarchies(scene, cameras, builders, parse_resolution(args.resolution),
                              progress=lambda n, s: log(f"  {n:<9} median {s['frame_ms_median']:.2f} ms"))
     report["scene"] = title

@@ -48,6 +48,26 @@ def resolve_cameras(camera_arg, sample_name):
     return cameras_from_json(sample_scenes.default_camera_path(sample_name))
 
 
+def spread(items, k):
+    """At most ``k`` items, evenly spread over the list (all of them when k is falsy)."""
+    if not k:
+        return items
+    return items[:: max(1, len(items) // k)][:k]
+
+
+def load_job(scene_spec, camera_arg, frames=None):
+    """Scene, cameras (at most ``frames`` of them, evenly spread) and a title for reports."""
+    path, sample = resolve_scene(scene_spec)
+    cameras = spread(resolve_cameras(camera_arg, sample), frames)
+    title = sample or os.path.splitext(os.path.basename(path))[0]
+    return load_scene(path), cameras, title
+
+
+def log_for(as_json):
+    """Progress goes to stderr when stdout carries JSON."""
+    return (lambda *a: print(*a, file=sys.stderr)) if as_json else print
+
+
 def _frames(culler, cameras, names_of, run):
     out = []
     for cam in cameras:

@@ -68,7 +68,8 @@ def build_culler(scene, resolution, strategy, builder, cameras, chunk_triangles=
         chunks = None if builder == "tree" else (chunk_triangles or DEFAULT_CHUNK_TRIANGLES)
         return Culler(scene, resolution, strategy=strategy, hierarchy=builder,
                       chunk_triangles=chunks, **kw), builder
-    probe = cameras[:: max(1, len(cameras) // PROBE_FRAMES)][:PROBE_FRAMES]
+    from .cli import spread
+    probe = spread(cameras, PROBE_FRAMES)
     base = Culler(scene, resolution, strategy="vfc", **kw)
     try:
         costs = measure_costs(base, probe[len(probe) // 2])

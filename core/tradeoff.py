@@ -126,15 +126,9 @@ def plot_tradeoff(report, path, title):
 
 
 def cmd_tradeoff(args):
-    from .cli import resolve_cameras, resolve_scene
-    from .scene import load_scene
-    path, sample = resolve_scene(args.scene)
-    cameras = resolve_cameras(args.camera, sample)
-    if args.frames:
-        cameras = cameras[:: max(1, len(cameras) // args.frames)][: args.frames]
-    title = sample or os.path.splitext(os.path.basename(path))[0]
-    log = (lambda *a: print(*a, file=sys.stderr)) if args.json else print
-    scene = load_scene(path)
+    from .cli import load_job, log_for
+    scene, cameras, title = load_job(args.scene, args.camera, args.frames)
+    log = log_for(args.json)
     knobs = [k.strip() for k in args.knobs.split(",")] if args.knobs else list(KNOBS)
     log(f"{title}: {len(scene)} objects, {len(cameras)} frames, display {args.display}")
     report = run_tradeoff(scene, cameras, parse_resolution(args.display), knobs, log)

@@ -7,7 +7,7 @@ from bpy.app.handlers import persistent
 from . import operators, panel, props, visibility
 from .session import SESSION, on_depsgraph_update
 
-MODULES = (props, operators, panel)
+CLASSES = operators.CLASSES + panel.CLASSES
 
 
 @persistent
@@ -18,8 +18,9 @@ def _restore_on_load(_dummy):
 
 
 def register():
-    for m in MODULES:
-        m.register()
+    props.register()
+    for cls in CLASSES:
+        bpy.utils.register_class(cls)
     bpy.app.handlers.load_post.append(_restore_on_load)
     bpy.app.handlers.depsgraph_update_post.append(on_depsgraph_update)
 
@@ -35,5 +36,6 @@ def unregister():
                  (bpy.app.handlers.load_post, _restore_on_load)):
         if f in h:
             h.remove(f)
-    for m in reversed(MODULES):
-        m.unregister()
+    for cls in reversed(CLASSES):
+        bpy.utils.unregister_class(cls)
+    props.unregister()

@@ -153,14 +153,3 @@ def link_collection(scene, name, object_names):
 
 
 CLASSES = (OCC_OT_cull, OCC_OT_restore, OCC_OT_live, OCC_OT_analyze)
-
-
-def register():
-    for cls in CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(CLASSES):
-        bpy.utils.unregister_class(cls)
-

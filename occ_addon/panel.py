@@ -43,13 +43,3 @@ class OCC_PT_panel(bpy.types.Panel):
 
 
 CLASSES = (OCC_PT_panel,)
-
-
-def register():
-    for cls in CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(CLASSES):
-        bpy.utils.unregister_class(cls)
