@@ -22,15 +22,16 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(VPY) -m pytest -q
 
-# The engine alone on Python 3.13 with numpy 2.x (no bpy): the other numpy Blender may bundle.
+# Python 3.13 with numpy 2.x and Blender 5.2 (bpy from PyPI): the whole suite again,
+# on the other numpy and the other Blender line the extension supports.
 VENV2 := .venv-numpy2
-$(VENV2)/.installed-v1: pyproject.toml
+$(VENV2)/.installed-v2: pyproject.toml
 	PYENV_VERSION=3.13.0 python3.13 -m venv $(VENV2)
-	$(VENV2)/bin/python -m pip install -q -e '.[dev]' 'numpy>=2'
+	$(VENV2)/bin/python -m pip install -q -e '.[dev]' 'numpy>=2.2' 'bpy>=5.2,<5.3'
 	touch $@
 
-test-numpy2: $(VENV2)/.installed-v1
-	$(VENV2)/bin/python -m pytest -q -m 'not blender'
+test-numpy2: $(VENV2)/.installed-v2
+	$(VENV2)/bin/python -m pytest -q
 
 lint: $(STAMP)
 	$(VPY) -m ruff check core occ_addon tests sample_scenes
@@ -39,4 +40,4 @@ extension: $(STAMP)
 	$(VPY) tools/build_extension.py
 
 clean:
-	rm -rf $(VENV) dist .cache
+	rm -rf $(VENV) $(VENV2) dist build .cache
