@@ -21,7 +21,7 @@ from .strategies import STRATEGIES
 from .traversal import Visibility
 
 TABLE_COLUMNS = (
-    ("strategy", "{:<10}"), ("median ms", "{:>9.2f}"), ("p95 ms", "{:>8.2f}"),
+    ("strategy", "{:<11}"), ("median ms", "{:>9.2f}"), ("p95 ms", "{:>8.2f}"),
     ("cull ms", "{:>8.2f}"), ("triangles", "{:>11.0f}"), ("render %", "{:>8.2f}"),
     ("queries", "{:>8.1f}"), ("skipped", "{:>8.1f}"), ("query px", "{:>10.0f}"),
     ("FN", "{:>4d}"), ("R/V'", "{:>6.2f}"), ("x vfc", "{:>6.2f}"), ("x stopwait", "{:>10.2f}"),
@@ -70,7 +70,7 @@ def run_bench(scene, cameras, strategies, resolution=DEFAULT_RESOLUTION, warmup=
 
 
 HIERARCHY_COLUMNS = (
-    ("builder", "{:<9}"), ("inner", "{:>7d}"), ("leaves", "{:>7d}"), ("units", "{:>7d}"),
+    ("builder", "{:<16}"), ("inner", "{:>7d}"), ("leaves", "{:>7d}"), ("units", "{:>7d}"),
     ("build s", "{:>8.2f}"), ("frustum ms", "{:>10.2f}"), ("occlusion ms", "{:>12.2f}"),
     ("draw ms", "{:>8.2f}"), ("render %", "{:>8.2f}"), ("fps", "{:>7.1f}"), ("median ms", "{:>9.2f}"),
     ("FN", "{:>4d}"),

@@ -59,7 +59,7 @@ def load_job(scene_spec, camera_arg, frames=None):
     """Scene, cameras (at most ``frames`` of them, evenly spread) and a title for reports."""
     path, sample = resolve_scene(scene_spec)
     cameras = spread(resolve_cameras(camera_arg, sample), frames)
-    title = sample or os.path.splitext(os.path.basename(path))[0]
+    title = scene_spec if sample else os.path.splitext(os.path.basename(path))[0]
     return load_scene(path), cameras, title
 
 
