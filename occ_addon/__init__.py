@@ -26,7 +26,8 @@ def register():
 
 
 def unregister():
-    from . import live
+    from . import live, overlay
+    overlay.uninstall()
     if bpy.context.scene is not None and getattr(bpy.context.scene, "occ", None) is not None:
         if bpy.context.scene.occ.live:
             live.stop(bpy.context)

@@ -41,6 +41,8 @@ def _tick():
 
 
 def start(context):
+    from . import overlay
+    overlay.install()
     context.scene.occ.live = True
     _state.update(last_view=None, changed_at=time.perf_counter(), scene=context.scene)
     if not bpy.app.timers.is_registered(_tick):

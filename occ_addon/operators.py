@@ -9,7 +9,7 @@ import bpy
 from bpy.props import BoolProperty, IntProperty, StringProperty
 
 from ..core import OccError, Visibility
-from . import live, visibility
+from . import live, overlay, visibility
 from .session import SESSION, camera_for, scene_camera
 
 
@@ -24,6 +24,7 @@ class OCC_OT_cull(bpy.types.Operator):
         try:
             camera, display = camera_for(context)
             result, objects = SESSION.cull(context, camera, display)
+            overlay.install()
         except OccError as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}

@@ -1,0 +1,103 @@
+"""Viewport overlay (GUI only): wireframes of the boxes that were culled, a small
+inset of the occupancy map and the last pass's figures.  Installed on the first
+pass in a window, never at registration or in background mode."""
+
+import bpy
+import numpy as np
+
+from ..core import Visibility
+from ..core.overlay import box_lines, occupancy_quads
+from .session import SESSION
+
+MAX_BOXES = 4000            # wireframes drawn at most (the largest culled ones)
+INSET = 160                 # occupancy inset width in pixels
+_handles = []
+_cache = {"key": None, "lines": None, "quads": None, "grid": None}
+
+
+def _shader(kind):
+    import gpu
+    for name in ("UNIFORM_COLOR", f"{kind}_UNIFORM_COLOR"):     # Blender 4+, then 3.x
+        try:
+            return gpu.shader.from_builtin(name)
+        except (ValueError, TypeError):
+            continue
+    raise RuntimeError("no uniform-colour shader")
+
+
+def _geometry():
+    last = SESSION.last
+    culler = SESSION.culler
+    if last is None or culler is None:
+        return None
+    result, _names = last
+    if _cache["key"] is not result:
+        culled = np.flatnonzero(result.state != Visibility.VISIBLE)
+        boxes = culler.scene.bounds[culled]
+        if len(boxes) > MAX_BOXES:
+            size = np.prod(np.maximum(boxes[:, 1] - boxes[:, 0], 1e-9), axis=1)
+            boxes = boxes[np.argsort(size)[-MAX_BOXES:]]
+        _cache.update(key=result, lines=box_lines(boxes), grid=result.occupancy)
+    return _cache
+
+
+def _draw_view():
+    scene = bpy.context.scene
+    geo = _geometry()
+    if geo is None or not scene.occ.show_overlay or not len(geo["lines"]):
+        return
+    import gpu
+    from gpu_extras.batch import batch_for_shader
+    shader = _shader("3D")
+    gpu.state.blend_set("ALPHA")
+    batch = batch_for_shader(shader, "LINES", {"pos": geo["lines"]})
+    shader.bind()
+    shader.uniform_float("color", (1.0, 0.35, 0.25, 0.5))
+    batch.draw(shader)
+    gpu.state.blend_set("NONE")
+
+
+def _draw_pixel():
+    scene = bpy.context.scene
+    geo = _geometry()
+    if geo is None or not scene.occ.show_overlay:
+        return
+    import blf
+    import gpu
+    from gpu_extras.batch import batch_for_shader
+    grid = geo["grid"]
+    if grid.size:
+        h = INSET * grid.shape[0] / max(grid.shape[1], 1)
+        shader = _shader("2D")
+        gpu.state.blend_set("ALPHA")
+        shader.bind()
+        back = np.array([[20, 20], [20 + INSET, 20], [20 + INSET, 20 + h], [20, 20], [20 + INSET, 20 + h],
+                         [20, 20 + h]], dtype=np.float32)
+        shader.uniform_float("color", (0.0, 0.0, 0.0, 0.5))
+        batch_for_shader(shader, "TRIS", {"pos": back}).draw(shader)
+        quads = occupancy_quads(grid, 20, 20, INSET, h)
+        if len(quads):
+            shader.uniform_float("color", (0.3, 0.9, 0.4, 0.6))
+            batch_for_shader(shader, "TRIS", {"pos": quads}).draw(shader)
+        gpu.state.blend_set("NONE")
+    s = scene.occ
+    blf.size(0, 13)
+    blf.position(0, 20, 30 + INSET * grid.shape[0] / max(grid.shape[1], 1) if grid.size else 30, 0)
+    blf.draw(0, f"occluded {s.last_occluded}  outside {s.last_outside}  of {s.last_tested}  "
+                f"hidden {s.last_triangles_hidden:,} tris  {s.last_ms:.1f} ms")
+
+
+def install():
+    """Add the draw handlers once (GUI only)."""
+    if bpy.app.background or _handles:
+        return
+    space = bpy.types.SpaceView3D
+    _handles.append(space.draw_handler_add(_draw_view, (), "WINDOW", "POST_VIEW"))
+    _handles.append(space.draw_handler_add(_draw_pixel, (), "WINDOW", "POST_PIXEL"))
+
+
+def uninstall():
+    space = bpy.types.SpaceView3D
+    while _handles:
+        space.draw_handler_remove(_handles.pop(), "WINDOW")
+    _cache.update(key=None, lines=None, grid=None)
