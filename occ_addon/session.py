@@ -2,6 +2,7 @@
 (kept while only transforms change) and the camera of a pass."""
 
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 import bpy
 import numpy as np
@@ -10,6 +11,15 @@ from ..core import Camera, Culler, OccError, Visibility
 from ..core.settings import preset, query_resolution
 from . import visibility
 from .extract import Extractor
+
+# The engine's OpenGL context lives on its own thread: a context is current per
+# thread, so Blender's own (on the main thread) is never switched away from.
+_GL_THREAD = ThreadPoolExecutor(max_workers=1, thread_name_prefix="occ-gl")
+
+
+def on_gl_thread(fn, *args, **kwargs):
+    """Run ``fn`` on the engine's GL thread and wait for it (exceptions propagate)."""
+    return _GL_THREAD.submit(fn, *args, **kwargs).result()
 
 
 class Session:
@@ -28,7 +38,7 @@ class Session:
 
     def release(self):
         if self.culler is not None:
-            self.culler.close()
+            on_gl_thread(self.culler.close)
         self.culler = None
 
     def engine(self, context, resolution, strategy):
@@ -39,10 +49,10 @@ class Session:
             moved = np.flatnonzero(~np.all(np.isclose(self.culler.scene.matrices, scene.matrices,
                                                       rtol=0.0, atol=0.0), axis=(1, 2)))
             if len(moved):
-                self.culler.set_matrices(moved, scene.matrices[moved])
+                on_gl_thread(self.culler.set_matrices, moved, scene.matrices[moved])
         else:
             self.release()
-            self.culler = Culler(scene, resolution, strategy=strategy)
+            self.culler = on_gl_thread(Culler, scene, resolution, strategy=strategy)
             self.names, self.resolution, self.strategy = scene.names, resolution, strategy
         return self.culler, objects
 
@@ -53,7 +63,7 @@ class Session:
         res = query_resolution(fit(display, settings.max_resolution), options)
         culler, objects = self.engine(context, res, settings.strategy)
         culler.options = options
-        return culler.cull(camera), objects
+        return on_gl_thread(culler.cull, camera), objects
 
     def cull(self, context, camera, display):
         """One pass: cull from ``camera`` at ``display`` resolution and apply it."""
