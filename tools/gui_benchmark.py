@@ -1,0 +1,144 @@
+"""Run inside a real Blender window (e.g. Debian's Blender 3.4 under Xvfb):
+
+    xvfb-run -a -s "-screen 0 1600x900x24" blender \
+        --python tools/gui_benchmark.py -- OUT_DIR [SCENE]
+
+with the add-on installed as a legacy add-on (BLENDER_USER_SCRIPTS/addons/
+occlusion_culled_viewport) and moderngl, glcontext and trimesh importable
+(PYTHONPATH).  Loads the sample city into the scene, sets the viewport at
+street level, times ``wm.redraw_timer`` with and without culling, times cull
+passes as live mode runs them, saves a screenshot, writes OUT_DIR/gui.json, quits.
+"""
+
+import json
+import os
+import sys
+import time
+import traceback
+
+import bpy
+import mathutils
+import numpy as np
+
+ARGS = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+OUT = os.path.abspath(ARGS[0] if ARGS else "gui_out")
+SCENE = ARGS[1] if len(ARGS) > 1 else "city"
+ADDON = "occlusion_culled_viewport"
+REDRAWS = 5
+results = {}
+
+
+def build_scene(core, scene):
+    """The engine's scene as Blender objects (shared meshes stay shared), in bulk."""
+    for o in list(bpy.data.objects):
+        bpy.data.objects.remove(o)
+    meshes = []
+    for i, (v, f) in enumerate(scene.meshes):
+        me = bpy.data.meshes.new(f"mesh{i}")
+        me.vertices.add(len(v))
+        me.vertices.foreach_set("co", v.astype(np.float32).ravel())
+        me.loops.add(f.size)
+        me.loops.foreach_set("vertex_index", f.astype(np.int32).ravel())
+        me.polygons.add(len(f))
+        me.polygons.foreach_set("loop_start", np.arange(0, f.size, 3, dtype=np.int32))
+        me.polygons.foreach_set("loop_total", np.full(len(f), 3, dtype=np.int32))
+        me.update()
+        meshes.append(me)
+    coll = bpy.context.scene.collection
+    for name, m, mat in zip(scene.names, scene.mesh_of, scene.matrices, strict=True):
+        o = bpy.data.objects.new(name, meshes[m])
+        o.matrix_world = mathutils.Matrix(mat.tolist())
+        coll.objects.link(o)
+
+
+def view3d():
+    for win in bpy.context.window_manager.windows:
+        for area in win.screen.areas:
+            if area.type == "VIEW_3D":
+                region = next(r for r in area.regions if r.type == "WINDOW")
+                return win, area, region
+    raise RuntimeError("no 3D viewport")
+
+
+def redraw_ms(win, area, region):
+    with bpy.context.temp_override(window=win, area=area, region=region):
+        bpy.ops.wm.redraw_timer(type="DRAW", iterations=1)
+        t = time.perf_counter()
+        bpy.ops.wm.redraw_timer(type="DRAW", iterations=REDRAWS)
+    return 1e3 * (time.perf_counter() - t) / REDRAWS
+
+
+def run():
+    os.makedirs(OUT, exist_ok=True)
+    bpy.ops.preferences.addon_enable(module=ADDON)
+    addon = sys.modules[ADDON]
+    core = sys.modules[f"{ADDON}.core"]
+    import sample_scenes
+    scene = core.load_scene(str(sample_scenes.scene_path(SCENE)))
+    frames = sample_scenes.default_camera_path(SCENE)["frames"]
+    build_scene(core, scene)
+    results.update(objects=len(scene), triangles=int(scene.triangle_counts.sum()))
+    win, area, region = view3d()
+    area.spaces.active.overlay.show_floor = False
+    space = area.spaces.active
+    space.shading.type = "SOLID"
+    cam = frames[len(frames) // 2]
+    view = core.Camera.look_at(cam["eye"], cam["target"], cam["up"]).view
+    rv3d = space.region_3d
+    rv3d.view_perspective = "PERSP"
+    rv3d.view_matrix = mathutils.Matrix(view.tolist())
+    space.clip_start, space.clip_end = 0.1, 600.0
+    results["region"] = [region.width, region.height]
+    results["redraw_ms_without"] = redraw_ms(win, area, region)
+    with bpy.context.temp_override(window=win, area=area, region=region):
+        bpy.ops.screen.screenshot(filepath=os.path.join(OUT, "before.png"))
+        t = time.perf_counter()
+        r = bpy.ops.occ.cull()
+        results["first_cull_ms"] = 1e3 * (time.perf_counter() - t)
+    s = bpy.context.scene.occ
+    results.update(cull_result=list(r), tested=s.last_tested, occluded=s.last_occluded,
+                   outside=s.last_outside, triangles_hidden=s.last_triangles_hidden)
+    s.show_overlay = False                       # time the scene, not the debugging overlay
+    results["redraw_ms_with"] = redraw_ms(win, area, region)
+    s.show_overlay = True
+    space.show_region_ui = True
+    with bpy.context.temp_override(window=win, area=area, region=region):
+        bpy.ops.screen.screenshot(filepath=os.path.join(OUT, "culled.png"))
+    # live passes: the view moves along the path, as the live timer would cull
+    session = sys.modules[f"{ADDON}.occ_addon.session"]
+    passes, parts = [], []
+    sess = session.SESSION
+    for f in frames[len(frames) // 2: len(frames) // 2 + 10]:
+        rv3d.view_matrix = mathutils.Matrix(core.Camera.look_at(f["eye"], f["target"], f["up"]).view.tolist())
+        with bpy.context.temp_override(window=win, area=area, region=region):
+            camera, display = session.viewport_camera(bpy.context)
+            t = time.perf_counter()
+            sess.cull(bpy.context, camera, display)
+            passes.append(1e3 * (time.perf_counter() - t))
+            t = time.perf_counter()
+            sess.extractor.scene(bpy.context)
+            extract = 1e3 * (time.perf_counter() - t)
+            t = time.perf_counter()
+            session.on_gl_thread(sess.culler.cull, camera)
+            parts.append((extract, 1e3 * (time.perf_counter() - t)))
+    results["live_pass_ms"] = passes
+    results["live_pass_extract_ms"] = [p[0] for p in parts]
+    results["live_pass_engine_ms"] = [p[1] for p in parts]
+    with bpy.context.temp_override(window=win, area=area, region=region):
+        bpy.ops.occ.restore()
+    results["redraw_ms_restored"] = redraw_ms(win, area, region)
+    results["speedup"] = results["redraw_ms_without"] / max(results["redraw_ms_with"], 1e-9)
+    del addon
+
+
+def main():
+    try:
+        run()
+    except Exception:
+        results["error"] = traceback.format_exc()
+    with open(os.path.join(OUT, "gui.json"), "w") as f:
+        json.dump(results, f, indent=1)
+    bpy.ops.wm.quit_blender()
+
+
+bpy.app.timers.register(main, first_interval=1.0)
