@@ -13,7 +13,7 @@ CLASSES = operators.CLASSES + panel.CLASSES
 @persistent
 def _restore_on_load(_dummy):
     """A file saved while culled opens with everything the add-on hid shown again."""
-    SESSION.invalidate()
+    SESSION.reset()
     visibility.restore()
 
 
@@ -32,7 +32,7 @@ def unregister():
         if bpy.context.scene.occ.live:
             live.stop(bpy.context)
     visibility.restore()
-    SESSION.invalidate()
+    SESSION.shutdown()
     for h, f in ((bpy.app.handlers.depsgraph_update_post, on_depsgraph_update),
                  (bpy.app.handlers.load_post, _restore_on_load)):
         if f in h:

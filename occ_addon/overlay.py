@@ -27,17 +27,16 @@ def _shader(kind):
 
 def _geometry():
     last = SESSION.last
-    culler = SESSION.culler
-    if last is None or culler is None:
+    if last is None:
         return None
-    result, _names = last
-    if _cache["key"] is not result:
-        culled = np.flatnonzero(result.state != Visibility.VISIBLE)
-        boxes = culler.scene.bounds[culled]
+    if _cache["key"] != SESSION.version:
+        culled = np.flatnonzero((last["state"] != Visibility.VISIBLE) & ~last["protected"])
+        boxes = last["bounds"][culled]
         if len(boxes) > MAX_BOXES:
             size = np.prod(np.maximum(boxes[:, 1] - boxes[:, 0], 1e-9), axis=1)
             boxes = boxes[np.argsort(size)[-MAX_BOXES:]]
-        _cache.update(key=result, lines=box_lines(boxes), grid=result.occupancy)
+        grid = last["occupancy"] if last["occupancy"] is not None else np.zeros((0, 0), dtype=bool)
+        _cache.update(key=SESSION.version, lines=box_lines(boxes), grid=grid)
     return _cache
 
 

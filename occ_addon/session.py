@@ -1,60 +1,77 @@
 """One culling session per Blender session: the extraction cache, the engine
-(kept while only transforms change) and the camera of a pass."""
+(kept while only transforms change), the camera of a pass and its result.
+
+A pass costs, on the Blender side, one ``visible_get`` per object, one
+``foreach_get`` of every world matrix and one ``foreach_set`` of the hide
+flags; the engine is rebuilt only when the set of objects, some geometry, the
+query resolution or the strategy changed.
+"""
 
 import time
-from concurrent.futures import ThreadPoolExecutor
 
 import bpy
 import numpy as np
+from bpy.app.handlers import persistent
 
 from ..core import Camera, Culler, OccError, Visibility
 from ..core.settings import preset, query_resolution
 from . import visibility
 from .extract import Extractor
-
-# The engine's OpenGL context lives on its own thread: a context is current per
-# thread, so Blender's own (on the main thread) is never switched away from.
-_GL_THREAD = ThreadPoolExecutor(max_workers=1, thread_name_prefix="occ-gl")
-
-
-def on_gl_thread(fn, *args, **kwargs):
-    """Run ``fn`` on the engine's GL thread and wait for it (exceptions propagate)."""
-    return _GL_THREAD.submit(fn, *args, **kwargs).result()
+from .worker import EngineThread
 
 
 class Session:
     def __init__(self):
         self.extractor = Extractor()
+        self.worker = EngineThread()
         self.culler = None
-        self.names = None
+        self.names = None          # candidate names the engine was built for
+        self.kept = None           # (k,) indices of the candidates the engine holds
+        self.kept_names = None     # (k,) object array of their names
         self.resolution = None
-        self.strategy = None
-        self.last = None           # (state per object, names) of the last pass
+        self.last = None           # the last applied pass, for the overlay (see :meth:`cull`)
+        self.version = 0           # bumped by every applied pass
+        self.toggled = frozenset() # names whose visibility the pass in progress changed
 
-    def invalidate(self, names=None):
-        """Geometry changed (``names`` or everything): the engine is rebuilt next pass."""
-        self.extractor.mark(names)
+    def reset(self):
+        """Forget everything (a file was loaded, or the add-on goes away)."""
         self.release()
+        self.extractor = Extractor()
+        self.names = self.kept = self.kept_names = None
+        self.last = None
+        self.version += 1
 
     def release(self):
         if self.culler is not None:
-            on_gl_thread(self.culler.close)
-        self.culler = None
+            culler, self.culler = self.culler, None
+            self.worker.run(culler.close)
+
+    def shutdown(self):
+        self.reset()
+        self.worker.shutdown()
 
     def engine(self, context, resolution, strategy):
-        scene, objects = self.extractor.scene(context)
-        same = (self.culler is not None and self.names == scene.names
-                and self.resolution == resolution and self.strategy == strategy)
-        if same:
-            moved = np.flatnonzero(~np.all(np.isclose(self.culler.scene.matrices, scene.matrices,
-                                                      rtol=0.0, atol=0.0), axis=(1, 2)))
-            if len(moved):
-                on_gl_thread(self.culler.set_matrices, moved, scene.matrices[moved])
-        else:
+        """The engine for the current candidates: rebuilt when objects or geometry
+        changed, otherwise only the moved objects' matrices are sent."""
+        cand = self.extractor.candidates(context)
+        if not len(cand):
+            raise OccError("nothing to cull: the view layer has no visible mesh objects")
+        rebuild = (self.culler is None or cand.names != self.names or resolution != self.resolution
+                   or self.extractor.needs_geometry(cand))
+        if rebuild:
+            scene, kept = self.extractor.scene(context, cand)
             self.release()
-            self.culler = on_gl_thread(Culler, scene, resolution, strategy=strategy)
-            self.names, self.resolution, self.strategy = scene.names, resolution, strategy
-        return self.culler, objects
+            self.culler = self.worker.run(Culler, scene, resolution, strategy=strategy)
+            self.names, self.kept, self.resolution = cand.names, kept, resolution
+            self.kept_names = np.array(scene.names, dtype=object)
+        else:
+            if strategy != self.culler.strategy_name:
+                self.worker.run(self.culler.set_strategy, strategy)
+            m = self.extractor.matrices(cand, self.kept)
+            moved = np.flatnonzero(np.any(m != self.culler.scene.matrices, axis=(1, 2)))
+            if len(moved):
+                self.worker.run(self.culler.set_matrices, moved, m[moved])
+        return self.culler, [cand.objects[i] for i in self.kept]
 
     def compute(self, context, camera, display):
         """Visibility from ``camera`` at ``display`` resolution, without hiding anything."""
@@ -63,26 +80,34 @@ class Session:
         res = query_resolution(fit(display, settings.max_resolution), options)
         culler, objects = self.engine(context, res, settings.strategy)
         culler.options = options
-        return on_gl_thread(culler.cull, camera), objects
+        return self.worker.run(culler.cull, camera), objects
 
     def cull(self, context, camera, display):
         """One pass: cull from ``camera`` at ``display`` resolution and apply it."""
         settings = context.scene.occ
         t = time.perf_counter()
         result, objects = self.compute(context, camera, display)
-        culler = self.culler
-        protected = visibility.excluded_names(settings)
-        hide = [o.name for o, s in zip(objects, result.state, strict=True)
-                if s != Visibility.VISIBLE and o.name not in protected]
-        visibility.apply(hide)
+        state = result.state
+        culled = state != Visibility.VISIBLE
+        protected = visibility.protected(settings, self.kept_names)
+        self.toggled = frozenset(visibility.apply(self.kept_names[culled & ~protected]))
+        try:
+            # Showing an object again makes the depsgraph report it as changed
+            # geometry; evaluate now, while the handler knows to ignore exactly
+            # these, so that hiding never costs an engine rebuild on the next pass.
+            context.view_layer.update()
+        finally:
+            self.toggled = frozenset()
         ms = 1e3 * (time.perf_counter() - t)
-        tri = culler.scene.triangle_counts
+        tri = self.culler.scene.triangle_counts
         settings.last_tested = len(objects)
-        settings.last_occluded = int((result.state == Visibility.OCCLUDED).sum())
-        settings.last_outside = int((result.state == Visibility.VIEW_CULLED).sum())
-        settings.last_triangles_hidden = int(tri[result.state != Visibility.VISIBLE].sum())
+        settings.last_occluded = int((state == Visibility.OCCLUDED).sum())
+        settings.last_outside = int((state == Visibility.VIEW_CULLED).sum())
+        settings.last_triangles_hidden = int(tri[culled & ~protected].sum())
         settings.last_ms = ms
-        self.last = (result, [o.name for o in objects])
+        self.last = {"state": state, "protected": protected, "bounds": self.culler.scene.bounds,
+                     "occupancy": result.occupancy, "stats": result.stats, "ms": ms}
+        self.version += 1
         return result, objects
 
 
@@ -98,19 +123,31 @@ def fit(display, longest):
     return max(1, round(w * s)), max(1, round(h * s))
 
 
+def find_viewport(context):
+    """``(area, region, region_3d)`` of the active 3D viewport, else the first one of
+    any window; None when there is none (timers have no area in their context)."""
+    areas = []
+    if context.area is not None and context.area.type == "VIEW_3D":
+        areas.append(context.area)
+    screens = [context.screen] if context.screen is not None else []
+    screens += [w.screen for w in context.window_manager.windows] if context.window_manager else []
+    areas += [a for s in screens for a in s.areas if a.type == "VIEW_3D"]
+    for area in areas:
+        region = next((r for r in area.regions if r.type == "WINDOW"), None)
+        rv3d = area.spaces.active.region_3d
+        if region is not None and rv3d is not None:
+            return area, region, rv3d
+    return None
+
+
 def viewport_camera(context):
     """Camera and display size of the active 3D viewport (or the first one)."""
     if bpy.app.background:
         raise OccError("no 3D viewport in background mode: set the source to the scene camera")
-    area = context.area if context.area and context.area.type == "VIEW_3D" else None
-    if area is None and context.screen is not None:
-        area = next((a for a in context.screen.areas if a.type == "VIEW_3D"), None)
-    if area is None:
+    found = find_viewport(context)
+    if found is None:
         raise OccError("no 3D viewport to cull for: use the scene camera as the source")
-    region = next((r for r in area.regions if r.type == "WINDOW"), None)
-    rv3d = area.spaces.active.region_3d
-    if region is None or rv3d is None:
-        raise OccError("the 3D viewport has no view region")
+    _, region, rv3d = found
     camera = Camera.from_matrices(np.array(rv3d.view_matrix), np.array(rv3d.window_matrix))
     return camera, (region.width, region.height)
 
@@ -137,12 +174,16 @@ def camera_for(context):
     return viewport_camera(context)
 
 
+@persistent          # kept across file loads, like the add-on itself
 def on_depsgraph_update(scene, depsgraph):
-    """Mark what changed: geometry -> re-extract those objects; transforms are
-    picked up by comparing matrices on the next pass."""
-    names = set()
+    """Mark what changed: geometry -> re-extract those objects (and instances of
+    collections holding them); transforms are read in bulk every pass anyway."""
+    geometry, moved = [], []
     for update in depsgraph.updates:
-        if isinstance(update.id, bpy.types.Object) and update.is_updated_geometry:
-            names.add(update.id.original.name)
-    if names:
-        SESSION.invalidate(names)
+        if isinstance(update.id, bpy.types.Object) and update.id.original.name not in SESSION.toggled:
+            if update.is_updated_geometry:
+                geometry.append(update.id.original.name)
+            elif update.is_updated_transform:
+                moved.append(update.id.original.name)
+    if geometry or moved:
+        SESSION.extractor.mark(geometry, moved)

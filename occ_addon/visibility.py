@@ -8,6 +8,11 @@ excluded one, or one marked "never cull"; restoring clears exactly its record.
 Local-view bits would leave even ``hide_viewport`` alone, but they exist only
 while a viewport is in local view and never in background mode, where the
 same operators must work.
+
+Blender neither evaluates nor reports (depsgraph updates) an object while it is
+hidden, so an edit made by script to an object the add-on hides is read only
+once the object is shown again (``occ.restore``, or a pass that finds it
+visible by its last extracted shape).
 """
 
 import bpy
@@ -31,36 +36,41 @@ def _set(prop, values):
         first.hide_viewport = bool(values[0])
 
 
-def excluded_names(settings):
-    """Names of the objects the user protected from hiding."""
-    names = {o.name for o in bpy.data.objects if o.occ_never_cull}
+def protected(settings, names):
+    """``(k,) bool`` over ``names``: objects the user protected from hiding (the
+    exclusion collection, with its children when asked, and "never cull")."""
+    objs = bpy.data.objects
+    never = _flags("occ_never_cull")
+    keep = {name for name, flag in zip(objs.keys(), never, strict=True) if flag}
     coll = settings.exclude_collection
     if coll is not None:
-        objs = coll.all_objects if settings.exclude_children else coll.objects
-        names.update(o.name for o in objs)
-    return names
+        keep.update(o.name for o in (coll.all_objects if settings.exclude_children else coll.objects))
+    if not keep:
+        return np.zeros(len(names), dtype=bool)
+    return np.fromiter((n in keep for n in names), dtype=bool, count=len(names))
 
 
 def apply(hide_names):
     """Make exactly ``hide_names`` (minus protected ones) hidden by the add-on.
 
     Objects the add-on hid before and that are not in ``hide_names`` come back.
-    Returns the number of objects hidden now.
+    Returns the names of the objects whose visibility changed.
     """
     objs = bpy.data.objects
     culled = _flags("occ_culled")
     hidden = _flags("hide_viewport")
     want = np.zeros(len(objs), dtype=bool)
-    if hide_names:
+    if len(hide_names):
         lookup = {name: i for i, name in enumerate(objs.keys())}
         idx = [lookup[n] for n in hide_names if n in lookup]
         want[idx] = True
     # never take over an object the user hid: only ours or currently shown ones
     want &= culled | ~hidden
-    hidden = np.where(culled, False, hidden) | want
-    _set("hide_viewport", hidden)
+    new_hidden = np.where(culled, False, hidden) | want
+    _set("hide_viewport", new_hidden)
     _set("occ_culled", want)
-    return int(want.sum())
+    names = objs.keys()
+    return {names[i] for i in np.flatnonzero(new_hidden != hidden)}
 
 
 def restore():

@@ -119,6 +119,34 @@ def main():
     bpy.context.view_layer.update()
     bpy.ops.occ.cull()
     check("moved_back_hidden_again", not visible()["behind"])
+    session = sys.modules[f"bl_ext.user_default.{EXT_ID}.occ_addon.session"].SESSION
+    engine = session.culler
+    bpy.data.objects["behind"].location = (-6, -1, 0.5)      # shown again: no rebuild for that
+    bpy.context.view_layer.update()
+    bpy.ops.occ.cull()
+    bpy.data.objects["behind"].location = (3.5, 0, 0.5)
+    bpy.context.view_layer.update()
+    bpy.ops.occ.cull()
+    check("engine_kept_while_only_moving", engine is not None and session.culler is engine
+          and not visible()["behind"], (engine, session.culler))
+
+    # --- a geometry edit is re-extracted: a lowered wall uncovers what it hid --------
+    wall = bpy.data.objects["wall"].data
+    z = [v.co.z for v in wall.vertices]
+    for v in wall.vertices:
+        v.co.z = min(v.co.z, -0.45)                      # the wall sinks below the floor boxes
+    wall.update()
+    bpy.context.view_layer.update()
+    bpy.ops.occ.cull()
+    lowered = session.culler
+    check("geometry_edit_rebuilds", lowered is not engine and visible()["behind"], visible())
+    bpy.ops.occ.restore()                                # hidden objects are not evaluated: show, then edit
+    for v, zz in zip(wall.vertices, z, strict=True):
+        v.co.z = zz
+    wall.update()
+    bpy.context.view_layer.update()
+    bpy.ops.occ.cull()
+    check("geometry_edit_back", session.culler is not lowered and not visible()["behind"], visible())
 
     # --- the record survives save and reload; loading restores ------------------
     path = os.path.join(WORK, "culled.blend")
