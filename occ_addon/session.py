@@ -31,7 +31,7 @@ class Session:
         self.resolution = None
         self.last = None           # the last applied pass, for the overlay (see :meth:`cull`)
         self.version = 0           # bumped by every applied pass
-        self.toggled = frozenset() # names whose visibility the pass in progress changed
+        self.applying = False      # the depsgraph updates now are our own hiding's
 
     def reset(self):
         """Forget everything (a file was loaded, or the add-on goes away)."""
@@ -86,18 +86,21 @@ class Session:
         """One pass: cull from ``camera`` at ``display`` resolution and apply it."""
         settings = context.scene.occ
         t = time.perf_counter()
+        context.view_layer.update()            # edits still pending reach the handler now, not below
         result, objects = self.compute(context, camera, display)
         state = result.state
         culled = state != Visibility.VISIBLE
         protected = visibility.protected(settings, self.kept_names)
-        self.toggled = frozenset(visibility.apply(self.kept_names[culled & ~protected]))
+        visibility.apply(self.kept_names[culled & ~protected])
+        self.applying = True
         try:
-            # Showing an object again makes the depsgraph report it as changed
-            # geometry; evaluate now, while the handler knows to ignore exactly
-            # these, so that hiding never costs an engine rebuild on the next pass.
+            # Showing an object again makes the depsgraph report it, and every
+            # object sharing its mesh, as changed geometry.  Nothing else can have
+            # changed since the update above, so evaluate now and let the handler
+            # ignore it all: hiding never costs an engine rebuild on the next pass.
             context.view_layer.update()
         finally:
-            self.toggled = frozenset()
+            self.applying = False
         ms = 1e3 * (time.perf_counter() - t)
         tri = self.culler.scene.triangle_counts
         settings.last_tested = len(objects)
@@ -178,9 +181,11 @@ def camera_for(context):
 def on_depsgraph_update(scene, depsgraph):
     """Mark what changed: geometry -> re-extract those objects (and instances of
     collections holding them); transforms are read in bulk every pass anyway."""
+    if SESSION.applying:
+        return
     geometry, moved = [], []
     for update in depsgraph.updates:
-        if isinstance(update.id, bpy.types.Object) and update.id.original.name not in SESSION.toggled:
+        if isinstance(update.id, bpy.types.Object):
             if update.is_updated_geometry:
                 geometry.append(update.id.original.name)
             elif update.is_updated_transform:

@@ -18,7 +18,9 @@ import traceback
 
 import bpy
 import mathutils
-import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from blender_scene import build_scene  # noqa: E402
 
 ARGS = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
 OUT = os.path.abspath(ARGS[0] if ARGS else "gui_out")
@@ -26,29 +28,6 @@ SCENE = ARGS[1] if len(ARGS) > 1 else "city"
 ADDON = "occlusion_culled_viewport"
 REDRAWS = 5
 results = {}
-
-
-def build_scene(core, scene):
-    """The engine's scene as Blender objects (shared meshes stay shared), in bulk."""
-    for o in list(bpy.data.objects):
-        bpy.data.objects.remove(o)
-    meshes = []
-    for i, (v, f) in enumerate(scene.meshes):
-        me = bpy.data.meshes.new(f"mesh{i}")
-        me.vertices.add(len(v))
-        me.vertices.foreach_set("co", v.astype(np.float32).ravel())
-        me.loops.add(f.size)
-        me.loops.foreach_set("vertex_index", f.astype(np.int32).ravel())
-        me.polygons.add(len(f))
-        me.polygons.foreach_set("loop_start", np.arange(0, f.size, 3, dtype=np.int32))
-        me.polygons.foreach_set("loop_total", np.full(len(f), 3, dtype=np.int32))
-        me.update()
-        meshes.append(me)
-    coll = bpy.context.scene.collection
-    for name, m, mat in zip(scene.names, scene.mesh_of, scene.matrices, strict=True):
-        o = bpy.data.objects.new(name, meshes[m])
-        o.matrix_world = mathutils.Matrix(mat.tolist())
-        coll.objects.link(o)
 
 
 def view3d():
@@ -76,7 +55,7 @@ def run():
     import sample_scenes
     scene = core.load_scene(str(sample_scenes.scene_path(SCENE)))
     frames = sample_scenes.default_camera_path(SCENE)["frames"]
-    build_scene(core, scene)
+    build_scene(scene)
     results.update(objects=len(scene), triangles=int(scene.triangle_counts.sum()))
     win, area, region = view3d()
     area.spaces.active.overlay.show_floor = False
@@ -108,6 +87,7 @@ def run():
     session = sys.modules[f"{ADDON}.occ_addon.session"]
     passes, parts = [], []
     sess = session.SESSION
+    engine = sess.culler
     for f in frames[len(frames) // 2: len(frames) // 2 + 10]:
         rv3d.view_matrix = mathutils.Matrix(core.Camera.look_at(f["eye"], f["target"], f["up"]).view.tolist())
         with bpy.context.temp_override(window=win, area=area, region=region):
@@ -116,14 +96,18 @@ def run():
             sess.cull(bpy.context, camera, display)
             passes.append(1e3 * (time.perf_counter() - t))
             t = time.perf_counter()
-            sess.extractor.scene(bpy.context)
-            extract = 1e3 * (time.perf_counter() - t)
-            t = time.perf_counter()
-            session.on_gl_thread(sess.culler.cull, camera)
-            parts.append((extract, 1e3 * (time.perf_counter() - t)))
+            cand = sess.extractor.candidates(bpy.context)
+            t1 = time.perf_counter()
+            sess.extractor.matrices(cand, sess.kept)
+            t2 = time.perf_counter()
+            sess.worker.run(sess.culler.cull, camera)
+            t3 = time.perf_counter()
+            parts.append((1e3 * (t1 - t), 1e3 * (t2 - t1), 1e3 * (t3 - t2)))
     results["live_pass_ms"] = passes
-    results["live_pass_extract_ms"] = [p[0] for p in parts]
-    results["live_pass_engine_ms"] = [p[1] for p in parts]
+    results["live_pass_candidates_ms"] = [p[0] for p in parts]
+    results["live_pass_matrices_ms"] = [p[1] for p in parts]
+    results["live_pass_engine_ms"] = [p[2] for p in parts]
+    results["engine_rebuilt_during_live_passes"] = sess.culler is not engine
     with bpy.context.temp_override(window=win, area=area, region=region):
         bpy.ops.occ.restore()
     results["redraw_ms_restored"] = redraw_ms(win, area, region)

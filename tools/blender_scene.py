@@ -1,0 +1,29 @@
+"""An engine scene (``core.Scene``) as Blender objects, in bulk: one mesh per
+distinct engine mesh (shared meshes stay shared), one object per node."""
+
+import bpy
+import mathutils
+import numpy as np
+
+
+def build_scene(scene, collection=None):
+    """Replace every object of the current file with ``scene``'s objects."""
+    for o in list(bpy.data.objects):
+        bpy.data.objects.remove(o)
+    meshes = []
+    for i, (v, f) in enumerate(scene.meshes):
+        me = bpy.data.meshes.new(f"mesh{i}")
+        me.vertices.add(len(v))
+        me.vertices.foreach_set("co", v.astype(np.float32).ravel())
+        me.loops.add(f.size)
+        me.loops.foreach_set("vertex_index", f.astype(np.int32).ravel())
+        me.polygons.add(len(f))
+        me.polygons.foreach_set("loop_start", np.arange(0, f.size, 3, dtype=np.int32))
+        me.polygons.foreach_set("loop_total", np.full(len(f), 3, dtype=np.int32))
+        me.update()
+        meshes.append(me)
+    coll = collection or bpy.context.scene.collection
+    for name, m, mat in zip(scene.names, scene.mesh_of, scene.matrices, strict=True):
+        o = bpy.data.objects.new(name, meshes[m])
+        o.matrix_world = mathutils.Matrix(mat.tolist())
+        coll.objects.link(o)
