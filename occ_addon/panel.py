@@ -14,13 +14,10 @@ class OCC_PT_panel(bpy.types.Panel):
         s = context.scene.occ
         layout = self.layout
         layout.prop(s, "source", expand=True)
-        col = layout.column(align=True)
-        col.prop(s, "strategy")
-        col.prop(s, "preset")
-        col.prop(s, "max_resolution")
+        for prop, label in (("strategy", "Method"), ("preset", "Accuracy"), ("max_resolution", "Query px")):
+            _labelled(layout, s, prop, label)
         box = layout.box()
-        box.label(text="Never hide")
-        box.prop(s, "exclude_collection")
+        _labelled(box, s, "exclude_collection", "Never hide")
         box.prop(s, "exclude_children")
         if context.object is not None:
             box.prop(context.object, "occ_never_cull", text=f"{context.object.name}: never cull")
@@ -33,13 +30,20 @@ class OCC_PT_panel(bpy.types.Panel):
         layout.operator("occ.analyze", icon="RENDER_ANIMATION")
         res = layout.box()
         res.label(text="Last pass")
-        grid = res.grid_flow(columns=2, align=True)
-        for label, value in (("Tested", s.last_tested), ("Occluded", s.last_occluded),
-                             ("Outside view", s.last_outside),
+        for label, value in (("Tested", f"{s.last_tested:,}"), ("Occluded", f"{s.last_occluded:,}"),
+                             ("Outside view", f"{s.last_outside:,}"),
                              ("Triangles hidden", f"{s.last_triangles_hidden:,}"),
                              ("Time", f"{s.last_ms:.1f} ms")):
-            grid.label(text=label)
-            grid.label(text=str(value))
+            split = res.split(factor=0.55)
+            split.label(text=label)
+            split.label(text=value)
+
+
+def _labelled(layout, data, prop, label):
+    """Label left, field right: the sidebar is too narrow for Blender's own split labels."""
+    split = layout.split(factor=0.38, align=True)
+    split.label(text=label)
+    split.prop(data, prop, text="")
 
 
 CLASSES = (OCC_PT_panel,)

@@ -6,8 +6,9 @@ import mathutils
 import numpy as np
 
 
-def build_scene(scene, collection=None):
-    """Replace every object of the current file with ``scene``'s objects."""
+def build_scene(scene, collection=None, limit=None):
+    """Replace every object of the current file with ``scene``'s objects (the first
+    ``limit`` of them, in the scene's order, when given)."""
     for o in list(bpy.data.objects):
         bpy.data.objects.remove(o)
     meshes = []
@@ -23,7 +24,8 @@ def build_scene(scene, collection=None):
         me.update()
         meshes.append(me)
     coll = collection or bpy.context.scene.collection
-    for name, m, mat in zip(scene.names, scene.mesh_of, scene.matrices, strict=True):
+    n = len(scene.names) if limit is None else min(limit, len(scene.names))
+    for name, m, mat in zip(scene.names[:n], scene.mesh_of[:n], scene.matrices[:n], strict=True):
         o = bpy.data.objects.new(name, meshes[m])
         o.matrix_world = mathutils.Matrix(mat.tolist())
         coll.objects.link(o)

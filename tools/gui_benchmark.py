@@ -1,7 +1,7 @@
 """Run inside a real Blender window (e.g. Debian's Blender 3.4 under Xvfb):
 
-    xvfb-run -a -s "-screen 0 1600x900x24" blender \
-        --python tools/gui_benchmark.py -- OUT_DIR [SCENE]
+    xvfb-run -a -s "-screen 0 1600x900x24" blender --enable-event-simulate \
+        --python tools/gui_benchmark.py -- OUT_DIR [SCENE]   (a sample name, -small for its small variant)
 
 with the add-on installed as a legacy add-on (BLENDER_USER_SCRIPTS/addons/
 occlusion_culled_viewport) and moderngl, glcontext and trimesh importable
@@ -18,6 +18,7 @@ import traceback
 
 import bpy
 import mathutils
+import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from blender_scene import build_scene  # noqa: E402
@@ -26,7 +27,8 @@ ARGS = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
 OUT = os.path.abspath(ARGS[0] if ARGS else "gui_out")
 SCENE = ARGS[1] if len(ARGS) > 1 else "city"
 ADDON = "occlusion_culled_viewport"
-REDRAWS = 5
+REDRAWS = 10
+TAB_FROM_TOP = 125          # pixels from the sidebar's top to the third tab ("Occlusion") in Blender 3.4
 results = {}
 
 
@@ -53,8 +55,9 @@ def run():
     addon = sys.modules[ADDON]
     core = sys.modules[f"{ADDON}.core"]
     import sample_scenes
-    scene = core.load_scene(str(sample_scenes.scene_path(SCENE)))
-    frames = sample_scenes.default_camera_path(SCENE)["frames"]
+    name, small = (SCENE[:-6], True) if SCENE.endswith("-small") else (SCENE, False)
+    scene = core.load_scene(str(sample_scenes.scene_path(name, small=small)))
+    frames = sample_scenes.default_camera_path(name, small=small)["frames"]
     build_scene(scene)
     results.update(objects=len(scene), triangles=int(scene.triangle_counts.sum()))
     win, area, region = view3d()
@@ -81,6 +84,17 @@ def run():
     results["redraw_ms_with"] = redraw_ms(win, area, region)
     s.show_overlay = True
     space.show_region_ui = True
+    ui = next((r for r in area.regions if r.type == "UI"), None)
+    try:                                          # the sidebar shows the add-on's tab (Blender 4+)
+        ui.active_panel_category = "Occlusion"
+    except (AttributeError, TypeError):           # 3.x: click the tab (needs --enable-event-simulate)
+        yield
+        x, y = ui.x + ui.width - 8, ui.y + ui.height - TAB_FROM_TOP
+        for value in ("PRESS", "RELEASE"):
+            win.event_simulate("LEFTMOUSE", value, x=x, y=y)
+        yield
+    with bpy.context.temp_override(window=win, area=area, region=region):
+        bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
     with bpy.context.temp_override(window=win, area=area, region=region):
         bpy.ops.screen.screenshot(filepath=os.path.join(OUT, "culled.png"))
     # live passes: the view moves along the path, as the live timer would cull
@@ -111,18 +125,37 @@ def run():
     with bpy.context.temp_override(window=win, area=area, region=region):
         bpy.ops.occ.restore()
     results["redraw_ms_restored"] = redraw_ms(win, area, region)
+    # the floor: the same viewport with every object hidden (what no culling can go below)
+    objs = bpy.data.objects
+    shown = np.zeros(len(objs), dtype=bool)
+    objs.foreach_get("hide_viewport", shown)
+    objs.foreach_set("hide_viewport", np.ones(len(objs), dtype=bool))
+    objs[0].hide_viewport = True
+    results["redraw_ms_nothing_drawn"] = redraw_ms(win, area, region)
+    objs.foreach_set("hide_viewport", shown)
+    objs[0].hide_viewport = bool(shown[0])
     results["speedup"] = results["redraw_ms_without"] / max(results["redraw_ms_with"], 1e-9)
     del addon
 
 
+_steps = []
+
+
 def main():
+    """A timer: ``run`` yields where Blender must process events before it goes on."""
+    if not _steps:
+        _steps.append(run())
     try:
-        run()
+        next(_steps[0])
+        return 0.3
+    except StopIteration:
+        pass
     except Exception:
         results["error"] = traceback.format_exc()
     with open(os.path.join(OUT, "gui.json"), "w") as f:
         json.dump(results, f, indent=1)
     bpy.ops.wm.quit_blender()
+    return None
 
 
 bpy.app.timers.register(main, first_interval=1.0)

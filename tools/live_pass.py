@@ -45,6 +45,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("scene", nargs="?", default="city")
     ap.add_argument("--frames", type=int, default=30)
+    ap.add_argument("--objects", type=int, help="keep only the first N objects of the scene")
     ap.add_argument("--json")
     args = ap.parse_args(argv)
     addon = load_addon()
@@ -53,7 +54,7 @@ def main(argv=None):
     import sample_scenes
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = core.load_scene(str(sample_scenes.scene_path(args.scene)))
-    build_scene(scene)
+    build_scene(scene, limit=args.objects)
     bpy.context.view_layer.update()
     cams = core.camera.cameras_from_json(sample_scenes.default_camera_path(args.scene))
     cams = [cams[i] for i in np.linspace(0, len(cams) - 1, min(args.frames, len(cams))).round().astype(int)]
@@ -77,7 +78,8 @@ def main(argv=None):
         rows.append([1e3 * (t1 - t0), 1e3 * (t2 - t1), 1e3 * (t3 - t2), 1e3 * (t4 - t3)])
     rows = np.array(rows)
     med = np.median(rows, axis=0)
-    out = {"scene": args.scene, "objects": len(scene), "triangles": int(scene.triangle_counts.sum()),
+    n = len(scene) if args.objects is None else min(args.objects, len(scene))
+    out = {"scene": args.scene, "objects": n, "triangles": int(scene.triangle_counts[:n].sum()),
            "display": DISPLAY, "blender": bpy.app.version_string, "first_pass_ms": first,
            "passes": len(rows), "pass_ms_median": med[0], "pass_ms_p95": float(np.percentile(rows[:, 0], 95)),
            "candidates_ms_median": med[1], "matrices_ms_median": med[2], "engine_ms_median": med[3],
