@@ -17,7 +17,7 @@ class OCC_PT_panel(bpy.types.Panel):
         for prop, label in (("strategy", "Method"), ("preset", "Accuracy"), ("max_resolution", "Query px")):
             _labelled(layout, s, prop, label)
         box = layout.box()
-        _labelled(box, s, "exclude_collection", "Never hide")
+        _labelled(box, s, "exclude_collection", "Keep")
         box.prop(s, "exclude_children")
         if context.object is not None:
             box.prop(context.object, "occ_never_cull", text=f"{context.object.name}: never cull")
@@ -32,7 +32,7 @@ class OCC_PT_panel(bpy.types.Panel):
         res.label(text="Last pass")
         for label, value in (("Tested", f"{s.last_tested:,}"), ("Occluded", f"{s.last_occluded:,}"),
                              ("Outside view", f"{s.last_outside:,}"),
-                             ("Triangles hidden", f"{s.last_triangles_hidden:,}"),
+                             ("Tris hidden", f"{s.last_triangles_hidden:,}"),
                              ("Time", f"{s.last_ms:.1f} ms")):
             split = res.split(factor=0.55)
             split.label(text=label)
