@@ -5,6 +5,7 @@
     truth = culler.truth(camera)           # (n,) bool, exact at this resolution
 """
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -15,6 +16,7 @@ from .hierarchy import build_hierarchy
 from .settings import CullOptions
 from .strategies import DEFAULT_STRATEGY, make_strategy
 from .traversal import STAT_KEYS, Frame, Visibility
+from .units import ChunkCache
 
 DEFAULT_RESOLUTION = (640, 360)
 MAX_RESOLUTION = 8192          # per side; beyond this llvmpipe and most GPUs refuse targets
@@ -51,10 +53,11 @@ def check_resolution(resolution):
     return w, h
 
 
-def make_units(scene, builder="tree", chunk_triangles=None, chunk_min_triangles=None):
+def make_units(scene, builder="tree", chunk_triangles=None, chunk_min_triangles=None, cache=None):
     """Draw units of a scene: whole objects, or chunks of meshes heavier than
     ``chunk_min_triangles`` (default 4 x chunk_triangles), built with ``builder``
-    (pHBVO inside meshes when the builder is "tree")."""
+    (pHBVO inside meshes when the builder is "tree"); ``cache``: a
+    :class:`core.units.ChunkCache` of earlier chunkings to reuse."""
     from .units import chunked, whole_objects
     if not chunk_triangles:
         return whole_objects(scene)
@@ -63,7 +66,8 @@ def make_units(scene, builder="tree", chunk_triangles=None, chunk_min_triangles=
     minimum = int(chunk_min_triangles or 4 * leaf)
     inner = "pHBVO" if builder == "tree" else builder
     return chunked(scene, lambda m, tris: tris >= minimum,
-                   lambda boxes: build_tree(boxes, inner, leaf_size=leaf, max_children=4, pull_up=True))
+                   lambda boxes: build_tree(boxes, inner, leaf_size=leaf, max_children=4, pull_up=True),
+                   cache=cache)
 
 
 class Culler:
@@ -84,16 +88,25 @@ class Culler:
     def __init__(self, scene, resolution=DEFAULT_RESOLUTION, strategy=DEFAULT_STRATEGY,
                  options=None, max_tests=8, max_children=8, exact_bounds=False,
                  hierarchy="tree", chunk_triangles=None, chunk_min_triangles=None, ctx=None):
-        from .gl import GLRenderer  # the GPU backend is the only moderngl user
-
-        self.scene = scene
         self.resolution = check_resolution(resolution)
         self.strategy_name = strategy
+        self.max_tests = max_tests
         self.strategy = make_strategy(strategy, max_tests)
         self.options = options or CullOptions()
         self.exact_bounds = exact_bounds
         self.builder = hierarchy
-        self.units = make_units(scene, hierarchy, chunk_triangles, chunk_min_triangles)
+        self.max_children = max_children
+        self.chunking = (chunk_triangles, chunk_min_triangles)
+        self.chunk_cache = ChunkCache()
+        self.renderer = None
+        self._build(scene, ctx)
+
+    def _build(self, scene, ctx):
+        from .gl import GLRenderer  # the GPU backend is the only moderngl user
+
+        t = time.perf_counter()
+        self.scene = scene
+        self.units = make_units(scene, self.builder, *self.chunking, cache=self.chunk_cache)
         bounds = scene.bounds
         if len(scene):
             ext = bounds[:, MAX].max(axis=0) - bounds[:, MIN].min(axis=0)
@@ -101,13 +114,32 @@ class Culler:
         else:
             self.scene_size = 1.0
         object_tree = None
-        if hierarchy != "tree" and len(scene):
+        if self.builder != "tree" and len(scene):
             from .subdivision import build_tree
-            object_tree = build_tree(bounds, hierarchy, leaf_size=1, max_children=max(2, max_children),
+            object_tree = build_tree(bounds, self.builder, leaf_size=1, max_children=max(2, self.max_children),
                                      pull_up=False)
         self.hierarchy = build_hierarchy(self.unit_bounds(), self.units.of_object, scene.tree_parent,
-                                         scene.tree_object, max_children, self.units.trees, object_tree)
+                                         scene.tree_object, self.max_children, self.units.trees, object_tree)
         self.renderer = GLRenderer(scene, *self.resolution, ctx=ctx, units=self.units)
+        self.build_info = {"build_ms": 1e3 * (time.perf_counter() - t),
+                           "meshes_chunked": self.chunk_cache.misses, "chunkings_reused": self.chunk_cache.hits}
+
+    def replace_scene(self, scene):
+        """A new version of the scene (objects added, removed or edited), on the same
+        GL context and settings.  Meshes that are the very same arrays as before keep
+        their chunk subtrees (see :class:`core.units.ChunkCache`): an edit costs the
+        edited meshes' chunking, the hierarchy above objects and the upload, not a
+        rebuild of every heavy mesh.  ``build_info`` tells what was redone."""
+        old = self.renderer
+        kept = {k: getattr(self, k) for k in ("scene", "units", "scene_size", "hierarchy", "renderer", "build_info")}
+        try:
+            self._build(scene, old.ctx)
+        except BaseException:
+            self.__dict__.update(kept)          # a bad scene leaves the engine as it was
+            raise
+        self.renderer.own_ctx, old.own_ctx = old.own_ctx, False     # the context moves to the new renderer
+        old.release()
+        self.strategy = make_strategy(self.strategy_name, self.max_tests)   # coherence across scenes means nothing
 
     def __len__(self):
         return len(self.scene)
@@ -115,7 +147,7 @@ class Culler:
     def set_strategy(self, name, max_tests=8):
         """Switch strategy without re-uploading the scene."""
         self.strategy = make_strategy(name, max_tests)
-        self.strategy_name = name
+        self.strategy_name, self.max_tests = name, max_tests
 
     def set_matrices(self, indices, matrices):
         """Objects moved: new world matrices ``(k, 4, 4)`` for ``indices``; refits the hierarchy."""

@@ -97,6 +97,10 @@ def _stage1(frame, front, chunk):
         # Within a chunk, a node whose tiles all lie under one nearer leaf that is
         # drawn in this chunk would find them occupied: defer it too.
         proven = crosses | frame.free[head] | (empty & ~_under_nearer(frame.tiles[head], empty & leaf))
+        # A node behind (and on screen over) a nearer node drawn or opened in this
+        # chunk was judged on a map that did not hold that node yet: a query decides.
+        doubt = proven & ~crosses & ~frame.free[head] & _overlaps_nearer(frame.tiles[head], proven)
+        proven &= ~doubt
         frame.draw_leaves(head[proven & leaf & ~frame.predrawn[head]])
         front = np.concatenate([front, frame.children_in_frustum(head[proven & ~leaf])])
         pending.append(head[~proven])
@@ -110,6 +114,15 @@ def _under_nearer(tiles, drawn):
               & (t[None, :, Y0] <= t[:, None, Y0]) & (t[:, None, Y1] <= t[None, :, Y1]))
     inside &= np.tri(len(t), len(t), -1, dtype=bool) & drawn[None, :]
     return inside.any(axis=1)
+
+
+def _overlaps_nearer(tiles, opened):
+    """``(k,) bool``: rectangle i overlaps rectangle j for some earlier j with ``opened[j]``."""
+    t = tiles
+    meet = ((t[None, :, X0] <= t[:, None, X1]) & (t[:, None, X0] <= t[None, :, X1])
+            & (t[None, :, Y0] <= t[:, None, Y1]) & (t[:, None, Y0] <= t[None, :, Y1]))
+    meet &= np.tri(len(t), len(t), -1, dtype=bool) & opened[None, :]
+    return meet.any(axis=1)
 
 
 def _test_list(frame, pending):

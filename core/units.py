@@ -55,28 +55,68 @@ def whole_objects(scene):
                  of_object=[np.array([i]) for i in range(n)])
 
 
-def chunked(scene, should_chunk, build_tree):
+class ChunkCache:
+    """Chunkings of meshes kept between builds: a mesh whose vertex and face arrays
+    are the very same objects as last time is not cut again (the add-on rebuilds
+    the engine after an edit; only the edited meshes are re-chunked).
+
+    ``hits`` and ``misses`` count the meshes of the last build.
+    """
+
+    def __init__(self):
+        self._entries = {}
+        self.hits = self.misses = 0
+
+    def start(self):
+        self._used, self.hits, self.misses = {}, 0, 0
+
+    def get(self, v, f, make):
+        key = (id(v), id(f))
+        entry = self._entries.get(key)
+        if entry is not None and entry[0] is v and entry[1] is f:     # ids alone can be reused
+            self.hits += 1
+        else:
+            entry = (v, f, make())
+            self.misses += 1
+        self._used[key] = entry
+        return entry[2]
+
+    def finish(self):
+        """Keep only the meshes of this build."""
+        self._entries = self._used
+
+
+def _chunk_mesh(v, f, build_tree):
+    """(face order, chunk first, chunk count, chunk local boxes, chunk tree) of one mesh."""
+    boxes = triangle_boxes(v, f)
+    tree = build_tree(boxes)
+    owners = np.flatnonzero(tree.item_count > 0)
+    first, count = tree.item_start[owners], tree.item_count[owners]
+    ordered = boxes[tree.order]
+    lo = np.minimum.reduceat(ordered[:, MIN], first, axis=0)
+    hi = np.maximum.reduceat(ordered[:, MAX], first, axis=0)
+    # item i of the chunk tree (as the hierarchy sees it) is chunk i
+    return tree.order, first, count, np.stack([lo, hi], axis=1), _tree_over_chunks(tree, owners)
+
+
+def chunked(scene, should_chunk, build_tree, cache=None):
     """Units with heavy meshes cut into chunks.
 
     should_chunk(mesh_index, triangles) -> bool decides per mesh;
     build_tree(triangle_boxes (f, 2, 3)) -> a :class:`core.subdivision.Tree` over
-    the triangles, whose nodes that own triangles become the chunks.
+    the triangles, whose nodes that own triangles become the chunks;
+    cache: a :class:`ChunkCache` whose chunkings of unchanged meshes are reused
+    (the caller keeps ``build_tree`` the same between builds that share it).
     """
+    cache = cache if cache is not None else ChunkCache()
+    cache.start()
     per_mesh = []          # (face order, chunk first, chunk count, chunk local boxes, chunk tree)
     for m, (v, f) in enumerate(scene.meshes):
         if len(f) == 0 or not should_chunk(m, len(f)):
             per_mesh.append(None)
             continue
-        boxes = triangle_boxes(v, f)
-        tree = build_tree(boxes)
-        owners = np.flatnonzero(tree.item_count > 0)
-        first, count = tree.item_start[owners], tree.item_count[owners]
-        ordered = boxes[tree.order]
-        lo = np.minimum.reduceat(ordered[:, MIN], first, axis=0)
-        hi = np.maximum.reduceat(ordered[:, MAX], first, axis=0)
-        # item i of the chunk tree (as the hierarchy sees it) is chunk i
-        chunk_tree = _tree_over_chunks(tree, owners)
-        per_mesh.append((tree.order, first, count, np.stack([lo, hi], axis=1), chunk_tree))
+        per_mesh.append(cache.get(v, f, lambda v=v, f=f: _chunk_mesh(v, f, build_tree)))
+    cache.finish()
     objects, firsts, counts, boxes, trees, of_object = [], [], [], [], [], []
     tri = scene.triangle_counts
     total = 0

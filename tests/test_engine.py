@@ -165,3 +165,73 @@ def test_coherent_strategy_rechecks_moved_objects(ctx):
         assert culler.cull(cam).state[hidden] == Visibility.VISIBLE     # remembered as visible
         culler.set_matrices([hidden], home[None])
         assert culler.cull(cam).state[hidden] == Visibility.OCCLUDED
+
+
+def grid_wall(n, x, y0, y1, z0, z1):
+    """A heavy wall: an ``n x n`` vertex grid in the plane x = ``x`` (2 (n-1)^2 triangles)."""
+    y, z = np.meshgrid(np.linspace(y0, y1, n), np.linspace(z0, z1, n), indexing="ij")
+    v = np.stack([np.full(y.size, float(x)), y.ravel(), z.ravel()], axis=1)
+    i = np.arange(n * n).reshape(n, n)
+    a, b, c, d = i[:-1, :-1].ravel(), i[1:, :-1].ravel(), i[:-1, 1:].ravel(), i[1:, 1:].ravel()
+    return v, np.concatenate([np.stack([a, b, c], 1), np.stack([b, d, c], 1)])
+
+
+def test_replace_scene_rechunks_only_edited_meshes(ctx):
+    """An edit rebuilds the engine on the same context; the heavy mesh that did not
+    change keeps its chunks, and the result equals a fresh engine's."""
+    from core import Scene
+    city, cams, _ = scenes.random_city(4, 200)
+    heavy = joined(city).meshes[0]
+    wall = grid_wall(24, -60.0, -200.0, 200.0, -1.0, 80.0)
+    box = (scenes.UNIT_BOX_V, scenes.UNIT_BOX_F)
+    behind = scenes.box_matrix((-40, -5, 0), (-35, 5, 10))
+    cam = scenes.cam((-120, 0, 5), (0, 0, 5), up=(0, 0, 1), far=500)
+
+    def scene(wall_mesh):
+        return Scene.from_arrays(["city", "wall", "behind"], [heavy, wall_mesh, box], [0, 1, 2],
+                                 np.array([np.eye(4), np.eye(4), behind]))
+
+    lowered = (wall[0] * [1.0, 1.0, 0.0] + [0.0, 0.0, -2.0], wall[1])    # the wall sinks below the floor
+    with Culler(scene(wall), (96, 64), chunk_triangles=24, ctx=ctx) as culler:
+        assert culler.build_info["meshes_chunked"] == 2 and culler.build_info["chunkings_reused"] == 0
+        assert culler.cull(cam).state[2] == Visibility.OCCLUDED
+        culler.replace_scene(scene(lowered))
+        assert culler.build_info["meshes_chunked"] == 1 and culler.build_info["chunkings_reused"] == 1
+        assert culler.cull(cam).state[2] == Visibility.VISIBLE
+        with Culler(culler.scene, (96, 64), chunk_triangles=24, ctx=ctx) as fresh:
+            assert np.array_equal(culler.units.first, fresh.units.first)        # the same build
+            assert np.array_equal(culler.hierarchy.bounds, fresh.hierarchy.bounds)
+            for c in [cam, *cams]:
+                a, b = culler.cull(c), fresh.cull(c)
+                assert np.array_equal(a.state, b.state)
+                assert not (culler.truth(c) & ~a.visible).any()
+
+
+def test_replace_scene_moves_an_owned_context():
+    """A culler that made its own context hands it to the rebuilt renderer, and
+    closing releases it once."""
+    scene, (cam,), _ = scenes.near_plane_crossing()
+    culler = Culler(scene, (32, 32))
+    ctx = culler.renderer.ctx
+    culler.replace_scene(scene)
+    assert culler.renderer.ctx is ctx and culler.renderer.own_ctx
+    assert culler.cull(cam).state.shape == (len(scene),)
+    culler.close()
+
+
+@pytest.mark.parametrize("strategy", ["om", "om_multi", "om_coherent"])
+def test_object_behind_a_deep_subtree_is_culled(ctx, strategy):
+    """A box (a leaf near the root) behind a heavy wall cut into chunks (leaves deep
+    below): the traversal handles nodes in chunks, and a node behind a nearer one
+    drawn or opened in the same chunk must not be called visible by the occupancy
+    map before that node's geometry is in it."""
+    from core import Scene
+    wall = grid_wall(24, -60.0, -200.0, 200.0, -1.0, 80.0)
+    box = (scenes.UNIT_BOX_V, scenes.UNIT_BOX_F)
+    scene = Scene.from_arrays(["wall", "behind"], [wall, box], [0, 1],
+                              np.array([np.eye(4), scenes.box_matrix((-40, -5, 0), (-35, 5, 10))]))
+    cam = scenes.cam((-120, 0, 5), (0, 0, 5), up=(0, 0, 1), far=500)
+    with Culler(scene, (96, 64), strategy=strategy, chunk_triangles=24, ctx=ctx) as culler:
+        assert len(culler.units) > 20
+        assert not culler.truth(cam)[1]
+        assert culler.cull(cam).state[1] == Visibility.OCCLUDED
