@@ -66,8 +66,10 @@ def _box(lo, hi):
 def _bin_bounds(bins, lo, hi):
     """Per-bin box of items ``(3, m)`` in ``bins (m,)``: ``(SAH_BINS, 2, 3)``,
     empty bins inverted (+inf, -inf).  Sort-based (ufunc.at is slow)."""
-    order = np.argsort(bins, kind="stable")
-    present, start = np.unique(bins[order], return_index=True)
+    order = np.argsort(bins.astype(np.uint8), kind="stable")    # radix sort: SAH_BINS <= 256
+    count = np.bincount(bins, minlength=SAH_BINS)
+    present = np.flatnonzero(count)
+    start = (np.cumsum(count) - count)[present]
     out = np.empty((SAH_BINS, 2, 3))
     out[:, MIN], out[:, MAX] = np.inf, -np.inf
     out[present, MIN] = np.minimum.reduceat(lo[:, order], start, axis=1).T
@@ -136,7 +138,7 @@ def _split_dbvs(lo, hi, centre, box, leaf_size):
     k = min(16, max(2, int(round(ext[order[0]] / max(ext[order[1]], ext[order[0]] * 1e-3)))))
     t = (centre[axis] - box[MIN, axis]) / max(ext[axis], 1e-300)
     labels = np.minimum((t * k).astype(np.int64), k - 1)
-    if len(np.unique(labels)) > 1:
+    if labels.min() != labels.max():
         return labels
     return _split_median(lo, hi, centre, box, leaf_size)
 
@@ -145,7 +147,7 @@ def _split_octree(lo, hi, centre, box, leaf_size):
     """Eight octants around the node centre; empty ones dropped."""
     mid = 0.5 * (box[MIN] + box[MAX])
     labels = ((centre > mid[:, None]) * np.array([[1], [2], [4]])).sum(axis=0)
-    if len(np.unique(labels)) > 1:
+    if labels.min() != labels.max():
         return labels
     n = centre.shape[1]
     return _split_median(lo, hi, centre, box, leaf_size) if n > FORCE_SPLIT * leaf_size else None
@@ -171,10 +173,11 @@ def build_tree(boxes, builder="pHBVO", leaf_size=64, max_children=2, pull_up=Tru
     # Each stack entry carries its items' data (axis-major copies), so every
     # level reads memory in order instead of gathering from the whole input.
     lo_all, hi_all = np.ascontiguousarray(b[:, MIN].T), np.ascontiguousarray(b[:, MAX].T)
+    size_all = (b[:, MAX] - b[:, MIN]).max(axis=1)            # largest side of each item, once
     own, kids, box = [], [], []
-    stack = [(np.arange(len(b)), lo_all, hi_all, -1)]
+    stack = [(np.arange(len(b)), lo_all, hi_all, size_all, -1)]
     while stack:                                   # one iteration per node
-        idx, lo, hi, parent = stack.pop()
+        idx, lo, hi, size, parent = stack.pop()
         node = len(own)
         nb = _box(lo, hi)
         own.append(None)
@@ -182,20 +185,24 @@ def build_tree(boxes, builder="pHBVO", leaf_size=64, max_children=2, pull_up=Tru
         box.append(nb)
         if parent >= 0:
             kids[parent].append(node)
+        rest = nb
         if pull_up and len(idx) > leaf_size:
-            big = (hi - lo).max(axis=0) > PULL_UP * (nb[MAX] - nb[MIN]).max()
+            big = size > PULL_UP * (nb[MAX] - nb[MIN]).max()
             if big.any() and not big.all():
                 own[node] = idx[big]
-                idx, lo, hi = idx[~big], lo[:, ~big], hi[:, ~big]
+                keep = ~big
+                idx, lo, hi, size = idx[keep], np.compress(keep, lo, axis=1), np.compress(keep, hi, axis=1), size[keep]
+                rest = _box(lo, hi)
         labels = None
         if len(idx) > leaf_size:
-            labels = split(lo, hi, 0.5 * (lo + hi), _box(lo, hi), leaf_size)
+            labels = split(lo, hi, 0.5 * (lo + hi), rest, leaf_size)
         if labels is None:
             own[node] = idx if own[node] is None else np.concatenate([own[node], idx])
             continue
-        for part in np.unique(labels)[::-1]:
+        for part in np.flatnonzero(np.bincount(labels))[::-1]:     # no sort of all labels
             sel = labels == part
-            stack.append((idx[sel], lo[:, sel], hi[:, sel], node))
+            stack.append((idx[sel], np.compress(sel, lo, axis=1), np.compress(sel, hi, axis=1), size[sel],
+                          node))
     if max_children > 2:
         _collapse(kids, own, box, max_children)
     tree = _flatten(own, kids, box)

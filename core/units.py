@@ -41,8 +41,14 @@ class Units:
 
 def triangle_boxes(vertices, faces):
     """Boxes of triangles: ``(v, 3)``, ``(f, 3)`` -> ``(f, 2, 3) float64``."""
-    t = vertices[faces]                                   # (f, 3, 3)
-    return np.stack([t.min(axis=1), t.max(axis=1)], axis=1)
+    corner = np.ascontiguousarray(np.asarray(faces).T)   # (3, f): the three corners' vertex indices
+    out = np.empty((corner.shape[1], 2, 3))
+    for k in range(3):                                    # per axis, over all triangles at once
+        c = np.ascontiguousarray(vertices[:, k])
+        a, b, d = c[corner[0]], c[corner[1]], c[corner[2]]
+        out[:, MIN, k] = np.minimum(np.minimum(a, b), d)
+        out[:, MAX, k] = np.maximum(np.maximum(a, b), d)
+    return out
 
 
 def whole_objects(scene):
