@@ -19,6 +19,11 @@ from . import visibility
 from .extract import Extractor
 from .worker import EngineThread
 
+# Meshes of 4 x this many triangles or more are cut into chunks of about this
+# many (never a user's mesh: index ranges inside the engine's copy): a heavy
+# object is then drawn and tested by its visible parts, not as one box.
+CHUNK_TRIANGLES = 4096
+
 
 class Session:
     def __init__(self):
@@ -60,8 +65,15 @@ class Session:
                    or self.extractor.needs_geometry(cand))
         if rebuild:
             scene, kept = self.extractor.scene(context, cand)
-            self.release()
-            self.culler = self.worker.run(Culler, scene, resolution, strategy=strategy)
+            if self.culler is not None and resolution == self.resolution:
+                # same context; meshes read unchanged from the cache keep their chunks
+                self.worker.run(self.culler.replace_scene, scene)
+                if strategy != self.culler.strategy_name:
+                    self.worker.run(self.culler.set_strategy, strategy)
+            else:
+                self.release()
+                self.culler = self.worker.run(Culler, scene, resolution, strategy=strategy,
+                                              chunk_triangles=CHUNK_TRIANGLES)
             self.names, self.kept, self.resolution = cand.names, kept, resolution
             self.kept_names = np.array(scene.names, dtype=object)
         else:

@@ -70,6 +70,9 @@ def build_scene():
         scene.collection.children.link(src)
         lc = bpy.context.view_layer.layer_collection.children["Prop"]
     lc.exclude = True
+    # a heavy mesh (about 24k triangles: cut into chunks by the engine), behind the wall
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=128, ring_count=96, radius=1.0, location=(6.0, 0.0, 1.5))
+    bpy.context.active_object.name = "heavy_behind"
     scene.occ.source = "CAMERA"
     scene.occ.exclude_collection = excl_coll
     bpy.context.view_layer.update()
@@ -99,6 +102,10 @@ def main():
     check("excluded_never_hidden", after["excluded_behind"], after)
     check("never_cull_respected", after["never_behind"], after)
     check("instance_culled_as_unit", not after["prop_instance"], after)
+    session = sys.modules[f"bl_ext.user_default.{EXT_ID}.occ_addon.session"].SESSION
+    info = session.culler.build_info
+    check("heavy_mesh_chunked_and_hidden", not after["heavy_behind"] and info["meshes_chunked"] == 1
+          and len(session.culler.units) > len(session.culler.scene), (after, info))
     check("camera_untouched", bpy.data.objects["cam"].visible_get())
     s = bpy.context.scene.occ
     check("panel_figures", s.last_tested >= 6 and s.last_occluded >= 2 and s.last_ms > 0,
@@ -119,8 +126,8 @@ def main():
     bpy.context.view_layer.update()
     bpy.ops.occ.cull()
     check("moved_back_hidden_again", not visible()["behind"])
-    session = sys.modules[f"bl_ext.user_default.{EXT_ID}.occ_addon.session"].SESSION
     engine = session.culler
+    engine_build = engine.build_info
     bpy.data.objects["behind"].location = (-6, -1, 0.5)      # shown again: no rebuild for that
     bpy.context.view_layer.update()
     bpy.ops.occ.cull()
@@ -128,7 +135,7 @@ def main():
     bpy.context.view_layer.update()
     bpy.ops.occ.cull()
     check("engine_kept_while_only_moving", engine is not None and session.culler is engine
-          and not visible()["behind"], (engine, session.culler))
+          and session.culler.build_info is engine_build and not visible()["behind"], (engine, session.culler))
 
     # --- a geometry edit is re-extracted: a lowered wall uncovers what it hid --------
     wall = bpy.data.objects["wall"].data
@@ -138,15 +145,16 @@ def main():
     wall.update()
     bpy.context.view_layer.update()
     bpy.ops.occ.cull()
-    lowered = session.culler
-    check("geometry_edit_rebuilds", lowered is not engine and visible()["behind"], visible())
+    info = dict(session.culler.build_info)
+    check("geometry_edit_rebuilds", visible()["behind"] and info["chunkings_reused"] == 1
+          and info["meshes_chunked"] == 0, (visible(), info))
     bpy.ops.occ.restore()                                # hidden objects are not evaluated: show, then edit
     for v, zz in zip(wall.vertices, z, strict=True):
         v.co.z = zz
     wall.update()
     bpy.context.view_layer.update()
     bpy.ops.occ.cull()
-    check("geometry_edit_back", session.culler is not lowered and not visible()["behind"], visible())
+    check("geometry_edit_back", not visible()["behind"], visible())
 
     # --- the record survives save and reload; loading restores ------------------
     path = os.path.join(WORK, "culled.blend")
@@ -202,6 +210,9 @@ def main():
         check("live_needs_window", False)
     except RuntimeError as e:
         check("live_needs_window", "needs a window" in str(e), e)
+    # a heavy mesh (about 24k triangles: cut into chunks by the engine), behind the wall
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=128, ring_count=96, radius=1.0, location=(6.0, 0.0, 1.5))
+    bpy.context.active_object.name = "heavy_behind"
     scene.occ.source = "CAMERA"
     for o in list(bpy.data.objects):
         if o.type == "MESH":

@@ -24,7 +24,8 @@ pytestmark = [
 
 CHECKS = ["installed", "operators_registered", "panel_registered", "cull_finished", "behind_hidden",
           "wall_and_front_shown", "user_hidden_untouched", "excluded_never_hidden",
-          "never_cull_respected", "instance_culled_as_unit", "camera_untouched", "panel_figures",
+          "never_cull_respected", "instance_culled_as_unit",
+          "heavy_mesh_chunked_and_hidden", "camera_untouched", "panel_figures",
           "restore_exact", "restore_keeps_user_hidden", "moved_object_reappears",
           "moved_back_hidden_again",
           "engine_kept_while_only_moving", "geometry_edit_rebuilds", "geometry_edit_back",
