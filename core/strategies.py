@@ -89,31 +89,19 @@ def _stage1(frame, front, chunk):
         pending.append(front[hopeless])
         front = frame.sort_near(front[~hopeless])
         head, front = front[:chunk], front[chunk:]
-        crosses = frame.crosses[head]
+        crosses, free = frame.crosses[head], frame.free[head]
         empty = frame.om.any_empty_tiles(frame.tiles[head])
-        frame.stats["near_visible"] += int(crosses.sum())
-        frame.stats["queries_skipped"] += int((empty & ~crosses).sum())
-        leaf = frame.h.is_leaf[head]
-        # Within a chunk, a node whose tiles all lie under one nearer leaf that is
-        # drawn in this chunk would find them occupied: defer it too.
-        proven = crosses | frame.free[head] | (empty & ~_under_nearer(frame.tiles[head], empty & leaf))
-        # A node behind (and on screen over) a nearer node drawn or opened in this
+        # A node over (on screen) and behind a nearer node drawn or opened in this
         # chunk was judged on a map that did not hold that node yet: a query decides.
-        doubt = proven & ~crosses & ~frame.free[head] & _overlaps_nearer(frame.tiles[head], proven)
-        proven &= ~doubt
+        proven = crosses | free | empty
+        proven &= crosses | free | ~_overlaps_nearer(frame.tiles[head], proven)
+        frame.stats["near_visible"] += int(crosses.sum())
+        frame.stats["queries_skipped"] += int((proven & ~crosses & ~free).sum())
+        leaf = frame.h.is_leaf[head]
         frame.draw_leaves(head[proven & leaf & ~frame.predrawn[head]])
         front = np.concatenate([front, frame.children_in_frustum(head[proven & ~leaf])])
         pending.append(head[~proven])
     return np.concatenate(pending) if pending else np.zeros(0, dtype=np.int64)
-
-
-def _under_nearer(tiles, drawn):
-    """``(k,) bool``: rectangle i lies inside rectangle j for some earlier j with ``drawn[j]``."""
-    t = tiles
-    inside = ((t[None, :, X0] <= t[:, None, X0]) & (t[:, None, X1] <= t[None, :, X1])
-              & (t[None, :, Y0] <= t[:, None, Y0]) & (t[:, None, Y1] <= t[None, :, Y1]))
-    inside &= np.tri(len(t), len(t), -1, dtype=bool) & drawn[None, :]
-    return inside.any(axis=1)
 
 
 def _overlaps_nearer(tiles, opened):
