@@ -71,7 +71,7 @@ def run_bench(scene, cameras, strategies, resolution=DEFAULT_RESOLUTION, warmup=
 
 HIERARCHY_COLUMNS = (
     ("builder", "{:<16}"), ("inner", "{:>7d}"), ("leaves", "{:>7d}"), ("units", "{:>7d}"),
-    ("build s", "{:>8.2f}"), ("frustum ms", "{:>10.2f}"), ("occlusion ms", "{:>12.2f}"),
+    ("build s", "{:>8.2f}"), ("mem MB", "{:>7.1f}"), ("frustum ms", "{:>10.2f}"), ("occlusion ms", "{:>12.2f}"),
     ("draw ms", "{:>8.2f}"), ("render %", "{:>8.2f}"), ("fps", "{:>7.1f}"), ("median ms", "{:>9.2f}"),
     ("FN", "{:>4d}"),
 )
@@ -106,7 +106,7 @@ def run_hierarchies(scene, cameras, builders, resolution=DEFAULT_RESOLUTION, str
             s = summarise(rows, tri_total)
             s.update({"builder": chosen, "inner_nodes": int((~h.is_leaf).sum()),
                       "leaf_nodes": int(h.is_leaf.sum()), "units": len(culler.units),
-                      "build_s": build_s,
+                      "build_s": build_s, "structure_mb": culler.structure_mb(),
                       "frustum_ms": float(np.mean([x["frustum_ms"] for x in rows])),
                       "occlusion_ms": float(np.mean([x["traversal_ms"] + x["query_ms"]
                                                      - x["frustum_ms"] for x in rows])),
@@ -126,7 +126,7 @@ def format_hierarchy_table(report, title=""):
              f"{report['frames']} frames, strategy {report['strategy']}", head, "-" * len(head)]
     for name, s in report["hierarchies"].items():
         label = name if s["builder"] == name else f"{name}:{s['builder']}"
-        vals = [label, s["inner_nodes"], s["leaf_nodes"], s["units"], s["build_s"], s["frustum_ms"],
+        vals = [label, s["inner_nodes"], s["leaf_nodes"], s["units"], s["build_s"], s["structure_mb"], s["frustum_ms"],
                 s["occlusion_ms"], s["draw_ms"], s["render_rate"], s["fps"], s["frame_ms_median"],
                 s["false_negatives"]]
         lines.append(" ".join(fmt.format(v) for (_, fmt), v in zip(HIERARCHY_COLUMNS, vals, strict=True)))

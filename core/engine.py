@@ -124,6 +124,14 @@ class Culler:
         self.build_info = {"build_ms": 1e3 * (time.perf_counter() - t),
                            "meshes_chunked": self.chunk_cache.misses, "chunkings_reused": self.chunk_cache.hits}
 
+    def structure_mb(self):
+        """Memory held by the culling structure (hierarchy, draw units, chunk orders), MiB."""
+        h, u = self.hierarchy, self.units
+        arrays = [u.object, u.first, u.count, u.local_bounds, *[o for o in u.face_order if o is not None]]
+        if h is not None:
+            arrays += [h.bounds, h.first_child, h.child_count, h.leaf_unit, h.parent, h.depth]
+        return sum(a.nbytes for a in arrays) / 2**20
+
     def replace_scene(self, scene):
         """A new version of the scene (objects added, removed or edited), on the same
         GL context and settings.  Meshes that are the very same arrays as before keep

@@ -54,6 +54,37 @@ def test_bench_cli_json(tmp_path):
     assert rep["strategies"]["om_multi"]["triangles"] < rep["strategies"]["vfc"]["triangles"]
 
 
+def test_bench_hierarchies_cli_json(tmp_path):
+    """``bench --hierarchies`` gives the issue's JSON: per builder the Appendix-A
+    figures, build time and memory, and no false negative for any builder."""
+    import trimesh
+    s = trimesh.Scene()
+    for i in range(12):                  # a heavy joined wall (cut into chunks) and boxes behind it
+        s.add_geometry(trimesh.creation.box((1, 1, 1)), node_name=f"b{i}", geom_name="box",
+                       transform=trimesh.transformations.translation_matrix((6, 2 * i - 11, 0.5)))
+    wall = trimesh.creation.box((0.2, 30, 6), transform=trimesh.transformations.translation_matrix((2, 0, 3)))
+    for _ in range(6):                   # 49,152 triangles: heavy enough to be cut into chunks
+        wall = wall.subdivide()
+    s.add_geometry(wall, node_name="wall", geom_name="wall")
+    s.export(tmp_path / "walled.glb")
+    frames = [{"eye": [-8, 0.5 * k, 1.5], "target": [10, 0, 1.5]} for k in range(4)]
+    (tmp_path / "path.json").write_text(json.dumps({"frames": frames}))
+    p = subprocess.run([sys.executable, "-m", "core", "bench", str(tmp_path / "walled.glb"),
+                        "--camera", str(tmp_path / "path.json"), "--resolution", "64x48", "--json",
+                        "--hierarchies", "tree,pHBVO,octree,auto"], cwd=ROOT, capture_output=True,
+                       text=True, timeout=300)
+    assert p.returncode == 0, p.stderr
+    rep = json.loads(p.stdout)["hierarchies"]
+    assert set(rep) == {"tree", "pHBVO", "octree", "auto"}
+    for name, h in rep.items():
+        assert h["false_negatives"] == 0, name
+        assert h["frame_ms_median"] > 0 and h["build_s"] > 0 and h["structure_mb"] > 0, name
+        assert h["inner_nodes"] >= 1 and h["leaf_nodes"] >= 13, name
+    assert rep["tree"]["units"] == 13                    # whole objects
+    assert rep["pHBVO"]["units"] > 13                    # the wall in chunks
+    assert rep["pHBVO"]["render_rate"] < rep["tree"]["render_rate"]
+
+
 def test_low_query_resolution_closes_a_display_gap_and_the_default_does_not(ctx):
     """A slit one display pixel wide: culling at 1/4 of the display resolution closes
     it and misses the post behind; the conservative preset (display resolution)
