@@ -155,7 +155,7 @@ class Extractor:
                  and (self.all_dirty or o.name not in self.cache or self._instance_stale(o))}
         for name, (v, f) in _instanced_geometry(depsgraph, fresh).items():
             o = fresh[name]
-            inv = np.linalg.inv(np.array(o.matrix_world, dtype=np.float64))   # instancer-local: a move is a matrix
+            inv = _inverse(np.array(o.matrix_world, dtype=np.float64))   # instancer-local: a move is a matrix
             key = ("instance", name, _members(o.instance_collection))
             self.cache[name] = (key, v @ inv[:3, :3].T + inv[:3, 3], f)
         names, meshes, mesh_of, kept = [], [], [], []
@@ -203,6 +203,15 @@ class Extractor:
         v, f = read[key]
         self.cache[obj.name] = (key, v, f)
         return key, v, f
+
+
+def _inverse(m):
+    """Inverse of a world matrix; for a singular one (a scale of 0) the pseudo-inverse,
+    which still maps the instance's (flat) world geometry back exactly."""
+    try:
+        return np.linalg.inv(m)
+    except np.linalg.LinAlgError:
+        return np.linalg.pinv(m)
 
 
 def _members(collection):

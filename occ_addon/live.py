@@ -33,7 +33,11 @@ def _tick():
         _state["changed_at"] = None
         try:
             SESSION.cull(context, camera, display)
-        except OccError as e:
+        except Exception as e:  # a timer must not raise; live mode stops instead
+            if not isinstance(e, OccError):
+                import traceback
+                traceback.print_exc()
+                SESSION.reset()
             print(f"occlusion culling stopped: {e}")
             scene.occ.live = False
             return None

@@ -4,6 +4,7 @@ import csv
 import json
 import os
 import time
+import traceback
 
 import bpy
 from bpy.props import BoolProperty, IntProperty, StringProperty
@@ -25,9 +26,8 @@ class OCC_OT_cull(bpy.types.Operator):
             camera, display = camera_for(context)
             result, objects = SESSION.cull(context, camera, display)
             overlay.install()
-        except OccError as e:
-            self.report({"ERROR"}, str(e))
-            return {"CANCELLED"}
+        except Exception as e:  # every failure is a report, never a traceback
+            return failed(self, e)
         s = context.scene.occ
         self.report({"INFO"}, f"{s.last_occluded} occluded, {s.last_outside} outside the view, "
                               f"of {s.last_tested} ({s.last_ms:.0f} ms)")
@@ -108,9 +108,8 @@ class OCC_OT_analyze(bpy.types.Operator):
                 for n in names:
                     seen[n] += 1
                 wm.progress_update(k + 1)
-        except OccError as e:
-            self.report({"ERROR"}, str(e))
-            return {"CANCELLED"}
+        except Exception as e:  # every failure is a report, never a traceback
+            return failed(self, e)
         finally:
             wm.progress_end()
             scene.frame_set(previous)
@@ -121,6 +120,20 @@ class OCC_OT_analyze(bpy.types.Operator):
         self.report({"INFO"}, f"{len(frames)} frames in {time.perf_counter() - t:.1f} s; "
                               f"{len(never)} of {len(seen)} objects never visible; report {path}")
         return {"FINISHED"}
+
+
+def failed(op, error):
+    """Report ``error`` to the user and cancel.  An OccError is the user's to act on;
+    anything else is our bug: its traceback goes to the console, the engine is
+    dropped (the next pass rebuilds it) and the report says where to look."""
+    if isinstance(error, OccError):
+        op.report({"ERROR"}, str(error))
+    else:
+        traceback.print_exc()
+        SESSION.reset()
+        op.report({"ERROR"}, f"occlusion culling failed: {type(error).__name__}: {error} "
+                             "(details in the system console)")
+    return {"CANCELLED"}
 
 
 def write_report(path, frames, per_frame, seen):

@@ -210,10 +210,16 @@ def main():
         check("live_needs_window", False)
     except RuntimeError as e:
         check("live_needs_window", "needs a window" in str(e), e)
-    # a heavy mesh (about 24k triangles: cut into chunks by the engine), behind the wall
-    bpy.ops.mesh.primitive_uv_sphere_add(segments=128, ring_count=96, radius=1.0, location=(6.0, 0.0, 1.5))
-    bpy.context.active_object.name = "heavy_behind"
     scene.occ.source = "CAMERA"
+    flat = bpy.data.objects.new("flat_instance", None)       # a scale of 0: a singular world matrix
+    flat.instance_type = "COLLECTION"
+    flat.instance_collection = bpy.data.collections["Prop"]
+    flat.location, flat.scale = (-2.0, 0.0, 0.0), (1.0, 1.0, 0.0)
+    scene.collection.objects.link(flat)
+    bpy.context.view_layer.update()
+    r = bpy.ops.occ.cull()
+    check("singular_instance_culled", r == {"FINISHED"} and visible()["flat_instance"], r)
+    bpy.ops.occ.restore()
     for o in list(bpy.data.objects):
         if o.type == "MESH":
             bpy.data.objects.remove(o)

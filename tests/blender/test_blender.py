@@ -32,7 +32,8 @@ CHECKS = ["installed", "operators_registered", "panel_registered", "cull_finishe
           "reload_restores_culled", "reload_keeps_user_hidden",
           "analyze_finished", "analyze_50_frames", "analyze_per_object", "analyze_csv",
           "analyze_leaves_scene_as_it_was", "never_visible_collection", "no_camera_reported",
-          "no_viewport_reported", "live_needs_window", "empty_scene_reported", "panel_draw",
+          "no_viewport_reported", "live_needs_window",
+          "singular_instance_culled", "empty_scene_reported", "panel_draw",
           "disable_restores"]
 
 
