@@ -91,26 +91,34 @@ def _stage1(frame, front, chunk):
         head, front = front[:chunk], front[chunk:]
         crosses, free = frame.crosses[head], frame.free[head]
         empty = frame.om.any_empty_tiles(frame.tiles[head])
-        # A node over (on screen) and behind a nearer node drawn or opened in this
-        # chunk was judged on a map that did not hold that node yet: a query decides.
-        proven = crosses | free | empty
-        proven &= crosses | free | ~_overlaps_nearer(frame.tiles[head], proven)
+        leaf = frame.h.is_leaf[head]
+        tiles = frame.tiles[head]
+        # Within a chunk, a node whose tiles all lie under one nearer leaf that is
+        # drawn in this chunk would find them occupied: defer it too.
+        proven = crosses | free | (empty & ~_nearer(tiles, empty & leaf, inside=True))
+        # A node over (on screen) and behind a nearer inner node opened in this chunk
+        # was judged on a map that lacks that node's contents: a query decides.
+        proven &= crosses | free | ~_nearer(tiles, proven & ~leaf, inside=False)
         frame.stats["near_visible"] += int(crosses.sum())
         frame.stats["queries_skipped"] += int((proven & ~crosses & ~free).sum())
-        leaf = frame.h.is_leaf[head]
         frame.draw_leaves(head[proven & leaf & ~frame.predrawn[head]])
         front = np.concatenate([front, frame.children_in_frustum(head[proven & ~leaf])])
         pending.append(head[~proven])
     return np.concatenate(pending) if pending else np.zeros(0, dtype=np.int64)
 
 
-def _overlaps_nearer(tiles, opened):
-    """``(k,) bool``: rectangle i overlaps rectangle j for some earlier j with ``opened[j]``."""
+def _nearer(tiles, marked, inside):
+    """``(k,) bool``: rectangle i lies inside (``inside``) or overlaps rectangle j for
+    some earlier j with ``marked[j]``."""
     t = tiles
-    meet = ((t[None, :, X0] <= t[:, None, X1]) & (t[:, None, X0] <= t[None, :, X1])
-            & (t[None, :, Y0] <= t[:, None, Y1]) & (t[:, None, Y0] <= t[None, :, Y1]))
-    meet &= np.tri(len(t), len(t), -1, dtype=bool) & opened[None, :]
-    return meet.any(axis=1)
+    if inside:
+        rel = ((t[None, :, X0] <= t[:, None, X0]) & (t[:, None, X1] <= t[None, :, X1])
+               & (t[None, :, Y0] <= t[:, None, Y0]) & (t[:, None, Y1] <= t[None, :, Y1]))
+    else:
+        rel = ((t[None, :, X0] <= t[:, None, X1]) & (t[:, None, X0] <= t[None, :, X1])
+               & (t[None, :, Y0] <= t[:, None, Y1]) & (t[:, None, Y0] <= t[None, :, Y1]))
+    rel &= np.tri(len(t), len(t), -1, dtype=bool) & marked[None, :]
+    return rel.any(axis=1)
 
 
 def _test_list(frame, pending):
