@@ -6,7 +6,9 @@
 """
 
 import time
+from copy import copy
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -51,6 +53,24 @@ def check_resolution(resolution):
         raise OccError(f"resolution must be between 1x1 and {MAX_RESOLUTION}x{MAX_RESOLUTION}, "
                        f"got {w}x{h}")
     return w, h
+
+
+def _scene_size(bounds):
+    """Largest coordinate or extent of the scene (the depth range's scale)."""
+    if not len(bounds):
+        return 1.0
+    ext = bounds[:, MAX].max(axis=0) - bounds[:, MIN].min(axis=0)
+    return float(max(np.abs(bounds).max(), ext.max()))
+
+
+def _same_structure(previous, scene, units):
+    """Whether ``units`` of ``scene`` fit the previous hierarchy leaf for leaf."""
+    old, ou = previous.scene, previous.units
+    return (previous.hierarchy is not None and len(old) == len(scene)
+            and np.array_equal(old.tree_parent, scene.tree_parent)
+            and np.array_equal(old.tree_object, scene.tree_object)
+            and np.array_equal(ou.object, units.object)
+            and all(a is b for a, b in zip(ou.trees, units.trees, strict=True)))
 
 
 def make_units(scene, builder="tree", chunk_triangles=None, chunk_min_triangles=None, cache=None):
@@ -101,18 +121,26 @@ class Culler:
         self.renderer = None
         self._build(scene, ctx)
 
-    def _build(self, scene, ctx):
+    def _build(self, scene, ctx, previous=None):
         from .gl import GLRenderer  # the GPU backend is the only moderngl user
 
         t = time.perf_counter()
         self.scene = scene
         self.units = make_units(scene, self.builder, *self.chunking, cache=self.chunk_cache)
+        if previous is not None and _same_structure(previous, scene, self.units):
+            # the same objects, tree and chunk subtrees: the old hierarchy, refitted
+            h = copy(previous.hierarchy)
+            h.bounds = h.bounds.copy()
+            self.hierarchy = h
+            self.scene_size = _scene_size(scene.bounds)
+            h.refit(self.unit_bounds())
+            self.renderer = GLRenderer(scene, *self.resolution, ctx=ctx, units=self.units)
+            self.build_info = {"build_ms": 1e3 * (time.perf_counter() - t), "hierarchy": "refitted",
+                               "meshes_chunked": self.chunk_cache.misses,
+                               "chunkings_reused": self.chunk_cache.hits}
+            return
         bounds = scene.bounds
-        if len(scene):
-            ext = bounds[:, MAX].max(axis=0) - bounds[:, MIN].min(axis=0)
-            self.scene_size = float(max(np.abs(bounds).max(), ext.max()))
-        else:
-            self.scene_size = 1.0
+        self.scene_size = _scene_size(bounds)
         object_tree = None
         if self.builder != "tree" and len(scene):
             from .subdivision import build_tree
@@ -121,7 +149,7 @@ class Culler:
         self.hierarchy = build_hierarchy(self.unit_bounds(), self.units.of_object, scene.tree_parent,
                                          scene.tree_object, self.max_children, self.units.trees, object_tree)
         self.renderer = GLRenderer(scene, *self.resolution, ctx=ctx, units=self.units)
-        self.build_info = {"build_ms": 1e3 * (time.perf_counter() - t),
+        self.build_info = {"build_ms": 1e3 * (time.perf_counter() - t), "hierarchy": "built",
                            "meshes_chunked": self.chunk_cache.misses, "chunkings_reused": self.chunk_cache.hits}
 
     def structure_mb(self):
@@ -135,13 +163,16 @@ class Culler:
     def replace_scene(self, scene):
         """A new version of the scene (objects added, removed or edited), on the same
         GL context and settings.  Meshes that are the very same arrays as before keep
-        their chunk subtrees (see :class:`core.units.ChunkCache`): an edit costs the
-        edited meshes' chunking, the hierarchy above objects and the upload, not a
-        rebuild of every heavy mesh.  ``build_info`` tells what was redone."""
+        their chunk subtrees (see :class:`core.units.ChunkCache`); when the objects,
+        the scene tree and every object's chunk subtree are the same, the hierarchy is
+        the old one refitted to the new boxes.  An edit costs the edited meshes'
+        chunking and the upload, not a rebuild of every heavy mesh.  ``build_info``
+        tells what was redone."""
         old = self.renderer
         kept = {k: getattr(self, k) for k in ("scene", "units", "scene_size", "hierarchy", "renderer", "build_info")}
+        previous = SimpleNamespace(**kept)
         try:
-            self._build(scene, old.ctx)
+            self._build(scene, old.ctx, previous)
         except BaseException:
             self.__dict__.update(kept)          # a bad scene leaves the engine as it was
             raise

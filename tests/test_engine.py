@@ -236,3 +236,36 @@ def test_object_behind_a_deep_subtree_is_culled(ctx, strategy):
         assert len(culler.units) > 20
         assert not culler.truth(cam)[1]
         assert culler.cull(cam).state[1] == Visibility.OCCLUDED
+
+
+def test_replace_scene_refits_when_only_geometry_changed(ctx):
+    """Same objects, same tree, no chunk subtree changed: the old hierarchy is
+    refitted, not rebuilt, and the edit shows at once (a lowered wall uncovers)."""
+    from core import Scene
+    box = (scenes.UNIT_BOX_V, scenes.UNIT_BOX_F)
+    lowered = (scenes.UNIT_BOX_V * [1.0, 1.0, 0.05], scenes.UNIT_BOX_F)
+    boxes = [((0, -20, -20), (0.2, 20, 20)), ((3, -1, -1), (3.5, 1, 1)), ((3, 5, -1), (3.5, 6, 1))]
+    mats = np.array([scenes.box_matrix(lo, hi) for lo, hi in boxes])
+    cam = scenes.cam((-10, 0, 0), (0, 0, 0), up=(0, 0, 1), far=100)
+
+    def scene(wall):
+        return Scene.from_arrays(["wall", "a", "b"], [wall, box], [0, 1, 1], mats)
+
+    with Culler(scene(box), (96, 64), ctx=ctx) as culler:
+        assert culler.build_info["hierarchy"] == "built"
+        assert (culler.cull(cam).state[1:] == Visibility.OCCLUDED).all()
+        culler.replace_scene(scene(lowered))
+        assert culler.build_info["hierarchy"] == "refitted"
+        h = culler.hierarchy
+        inner = np.flatnonzero(~h.is_leaf)
+        for node in inner:                                  # every box the union of its children's
+            kids = h.children([node])
+            assert np.allclose(h.bounds[node, 0], h.bounds[kids, 0].min(axis=0))
+            assert np.allclose(h.bounds[node, 1], h.bounds[kids, 1].max(axis=0))
+        truth = culler.truth(cam)
+        r = culler.cull(cam)
+        assert truth[1] and r.state[1] == Visibility.VISIBLE
+        assert not (truth & ~r.visible).any()
+        culler.replace_scene(Scene.from_arrays(["wall", "a"], [box], [0, 0], mats[:2]))
+        assert culler.build_info["hierarchy"] == "built"       # objects changed: built anew
+        assert culler.cull(cam).state[1] == Visibility.OCCLUDED
