@@ -102,12 +102,15 @@ class Culler:
     (the scene's own tree above objects) or a builder of
     :data:`core.subdivision.BUILDERS` (above objects, and inside chunked meshes);
     chunk_triangles: cut meshes of more than ``chunk_min_triangles`` triangles
-    into chunks of about this many triangles (None: never).
+    into chunks of about this many triangles (None: never); chunk_cache: a
+    :class:`core.units.ChunkCache` shared with earlier cullers of the same
+    hierarchy and chunk settings, whose chunkings of unchanged meshes are reused.
     """
 
     def __init__(self, scene, resolution=DEFAULT_RESOLUTION, strategy=DEFAULT_STRATEGY,
                  options=None, max_tests=8, max_children=8, exact_bounds=False,
-                 hierarchy="tree", chunk_triangles=None, chunk_min_triangles=None, ctx=None):
+                 hierarchy="tree", chunk_triangles=None, chunk_min_triangles=None, ctx=None,
+                 chunk_cache=None):
         self.resolution = check_resolution(resolution)
         self.strategy_name = strategy
         self.max_tests = max_tests
@@ -117,7 +120,7 @@ class Culler:
         self.builder = hierarchy
         self.max_children = max_children
         self.chunking = (chunk_triangles, chunk_min_triangles)
-        self.chunk_cache = ChunkCache()
+        self.chunk_cache = chunk_cache if chunk_cache is not None else ChunkCache()
         self.renderer = None
         self._build(scene, ctx)
 

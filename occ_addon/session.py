@@ -15,6 +15,7 @@ from bpy.app.handlers import persistent
 
 from ..core import Camera, Culler, OccError, Visibility
 from ..core.settings import preset, query_resolution
+from ..core.units import ChunkCache
 from . import visibility
 from .extract import Extractor
 from .worker import EngineThread
@@ -28,6 +29,7 @@ CHUNK_TRIANGLES = 4096
 class Session:
     def __init__(self):
         self.extractor = Extractor()
+        self.chunks = ChunkCache()  # chunkings outlive engines: a resized viewport re-cuts nothing
         self.worker = EngineThread()
         self.culler = None
         self.names = None          # candidate names the engine was built for
@@ -42,6 +44,7 @@ class Session:
         """Forget everything (a file was loaded, or the add-on goes away)."""
         self.release()
         self.extractor = Extractor()
+        self.chunks = ChunkCache()
         self.names = self.kept = self.kept_names = None
         self.last = None
         self.version += 1
@@ -73,7 +76,7 @@ class Session:
             else:
                 self.release()
                 self.culler = self.worker.run(Culler, scene, resolution, strategy=strategy,
-                                              chunk_triangles=CHUNK_TRIANGLES)
+                                              chunk_triangles=CHUNK_TRIANGLES, chunk_cache=self.chunks)
             self.names, self.kept, self.resolution = cand.names, kept, resolution
             self.kept_names = np.array(scene.names, dtype=object)
         else:

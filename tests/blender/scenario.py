@@ -106,6 +106,14 @@ def main():
     info = session.culler.build_info
     check("heavy_mesh_chunked_and_hidden", not after["heavy_behind"] and info["meshes_chunked"] == 1
           and len(session.culler.units) > len(session.culler.scene), (after, info))
+    render = bpy.context.scene.render
+    render.resolution_x = 400                             # another query size: a new engine
+    bpy.ops.occ.cull()
+    info = session.culler.build_info
+    check("resized_view_keeps_chunks", info["chunkings_reused"] == 1 and info["meshes_chunked"] == 0
+          and session.culler.resolution[0] != 320 and not visible()["heavy_behind"], info)
+    render.resolution_x = 320
+    bpy.ops.occ.cull()
     check("camera_untouched", bpy.data.objects["cam"].visible_get())
     s = bpy.context.scene.occ
     check("panel_figures", s.last_tested >= 6 and s.last_occluded >= 2 and s.last_ms > 0,
