@@ -121,7 +121,6 @@ class Culler:
         self.max_children = max_children
         self.chunking = (chunk_triangles, chunk_min_triangles)
         self.chunk_cache = chunk_cache if chunk_cache is not None else ChunkCache()
-        self.renderer = None
         self._build(scene, ctx)
 
     def _build(self, scene, ctx, previous=None):
@@ -130,29 +129,22 @@ class Culler:
         t = time.perf_counter()
         self.scene = scene
         self.units = make_units(scene, self.builder, *self.chunking, cache=self.chunk_cache)
-        if previous is not None and _same_structure(previous, scene, self.units):
-            # the same objects, tree and chunk subtrees: the old hierarchy, refitted
-            h = copy(previous.hierarchy)
-            h.bounds = h.bounds.copy()
-            self.hierarchy = h
-            self.scene_size = _scene_size(scene.bounds)
-            h.refit(self.unit_bounds())
-            self.renderer = GLRenderer(scene, *self.resolution, ctx=ctx, units=self.units)
-            self.build_info = {"build_ms": 1e3 * (time.perf_counter() - t), "hierarchy": "refitted",
-                               "meshes_chunked": self.chunk_cache.misses,
-                               "chunkings_reused": self.chunk_cache.hits}
-            return
-        bounds = scene.bounds
-        self.scene_size = _scene_size(bounds)
-        object_tree = None
-        if self.builder != "tree" and len(scene):
-            from .subdivision import build_tree
-            object_tree = build_tree(bounds, self.builder, leaf_size=1, max_children=max(2, self.max_children),
-                                     pull_up=False)
-        self.hierarchy = build_hierarchy(self.unit_bounds(), self.units.of_object, scene.tree_parent,
-                                         scene.tree_object, self.max_children, self.units.trees, object_tree)
+        self.scene_size = _scene_size(scene.bounds)
+        refit = previous is not None and _same_structure(previous, scene, self.units)
+        if refit:              # the same objects, tree and chunk subtrees: the old hierarchy, refitted
+            self.hierarchy = copy(previous.hierarchy)
+            self.hierarchy.bounds = self.hierarchy.bounds.copy()
+            self.hierarchy.refit(self.unit_bounds())
+        else:
+            object_tree = None
+            if self.builder != "tree" and len(scene):
+                from .subdivision import build_tree
+                object_tree = build_tree(scene.bounds, self.builder, leaf_size=1,
+                                         max_children=max(2, self.max_children), pull_up=False)
+            self.hierarchy = build_hierarchy(self.unit_bounds(), self.units.of_object, scene.tree_parent,
+                                             scene.tree_object, self.max_children, self.units.trees, object_tree)
         self.renderer = GLRenderer(scene, *self.resolution, ctx=ctx, units=self.units)
-        self.build_info = {"build_ms": 1e3 * (time.perf_counter() - t), "hierarchy": "built",
+        self.build_info = {"build_ms": 1e3 * (time.perf_counter() - t), "hierarchy": "refitted" if refit else "built",
                            "meshes_chunked": self.chunk_cache.misses, "chunkings_reused": self.chunk_cache.hits}
 
     def structure_mb(self):

@@ -70,7 +70,7 @@ class ChunkCache:
     """
 
     def __init__(self):
-        self._entries = {}
+        self._entries, self._used = {}, {}
         self.hits = self.misses = 0
 
     def start(self):

@@ -104,7 +104,6 @@ class Extractor:
         self.cache = {}          # object name -> (mesh key, vertices, faces)
         self.dirty = set()       # objects whose geometry changed
         self.touched = set()     # objects whose geometry or transform changed (instanced collections)
-        self.all_dirty = True
 
     def mark(self, geometry=(), transform=()):
         """Record depsgraph updates: names whose geometry changed, and names that moved."""
@@ -112,16 +111,11 @@ class Extractor:
         self.touched.update(geometry)
         self.touched.update(transform)
 
-    def mark_all(self):
-        self.all_dirty = True
-
     def candidates(self, context):
         return Candidates(context.view_layer)
 
     def needs_geometry(self, cand):
         """Whether :meth:`scene` must read geometry again for these candidates."""
-        if self.all_dirty:
-            return True
         if self.dirty.intersection(cand.names):
             return True
         if self.touched:
@@ -134,7 +128,6 @@ class Extractor:
         """The current scene is up to date: changes seen so far are consumed."""
         self.dirty.clear()
         self.touched.clear()
-        self.all_dirty = False
 
     def matrices(self, cand, kept):
         """World matrices ``(k, 4, 4) float64`` of candidates ``kept`` (indices), in bulk."""
@@ -152,7 +145,7 @@ class Extractor:
         ``kept`` their indices into ``cand``."""
         depsgraph = context.evaluated_depsgraph_get()
         fresh = {o.name: o for o in cand.objects if is_instancer(o) and not o.occ_culled
-                 and (self.all_dirty or o.name not in self.cache or self._instance_stale(o))}
+                 and self._instance_stale(o)}
         for name, (v, f) in _instanced_geometry(depsgraph, fresh).items():
             o = fresh[name]
             inv = _inverse(np.array(o.matrix_world, dtype=np.float64))   # instancer-local: a move is a matrix
@@ -196,7 +189,7 @@ class Extractor:
             return hit
         shared = obj.type == "MESH" and not obj.modifiers and obj.data.users > 1
         key = ("mesh", obj.data.name) if shared else ("object", obj.name)
-        if hit is not None and hit[0] == key and not self.all_dirty and obj.name not in self.dirty:
+        if hit is not None and hit[0] == key and obj.name not in self.dirty:
             return hit
         if key not in read:
             read[key] = mesh_arrays(obj.evaluated_get(depsgraph))

@@ -2,6 +2,7 @@
 depsgraph update) and re-culls, debounced, when it changed.  GUI only."""
 
 import time
+import traceback
 
 import bpy
 import numpy as np
@@ -35,7 +36,6 @@ def _tick():
             SESSION.cull(context, camera, display)
         except Exception as e:  # a timer must not raise; live mode stops instead
             if not isinstance(e, OccError):
-                import traceback
                 traceback.print_exc()
                 SESSION.reset()
             print(f"occlusion culling stopped: {e}")

@@ -40,8 +40,11 @@ def protected(settings, names):
     """``(k,) bool`` over ``names``: objects the user protected from hiding (the
     exclusion collection, with its children when asked, and "never cull")."""
     objs = bpy.data.objects
-    never = _flags("occ_never_cull")
-    keep = {name for name, flag in zip(objs.keys(), never, strict=True) if flag}
+    flagged = np.flatnonzero(_flags("occ_never_cull"))
+    keep = set()
+    if len(flagged):
+        all_names = objs.keys()
+        keep.update(all_names[i] for i in flagged)
     coll = settings.exclude_collection
     if coll is not None:
         keep.update(o.name for o in (coll.all_objects if settings.exclude_children else coll.objects))
@@ -54,7 +57,7 @@ def apply(hide_names):
     """Make exactly ``hide_names`` (minus protected ones) hidden by the add-on.
 
     Objects the add-on hid before and that are not in ``hide_names`` come back.
-    Returns the names of the objects whose visibility changed.
+    Returns the number of objects hidden now.
     """
     objs = bpy.data.objects
     culled = _flags("occ_culled")
@@ -66,11 +69,9 @@ def apply(hide_names):
         want[idx] = True
     # never take over an object the user hid: only ours or currently shown ones
     want &= culled | ~hidden
-    new_hidden = np.where(culled, False, hidden) | want
-    _set("hide_viewport", new_hidden)
+    _set("hide_viewport", np.where(culled, False, hidden) | want)
     _set("occ_culled", want)
-    names = objs.keys()
-    return {names[i] for i in np.flatnonzero(new_hidden != hidden)}
+    return int(want.sum())
 
 
 def restore():
