@@ -19,8 +19,10 @@ venv: $(STAMP)
 demo: $(STAMP)
 	$(VPY) -m core demo
 
+# The engine suite a second time on the OpenGL 4.1 path (what macOS gets; core/gl/context.py).
 test: $(STAMP)
 	$(VPY) -m pytest -q
+	OCC_GL=4.1 $(VPY) -m pytest -q -m "not blender and not gui" tests/
 
 # Python 3.13 with numpy 2.x and Blender 5.2 (bpy from PyPI): the whole suite again,
 # on the other numpy and the other Blender line the extension supports.

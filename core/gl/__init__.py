@@ -1,5 +1,9 @@
-"""The GPU backend: the only part of the engine that imports moderngl."""
+"""The GPU backend: the only part of the engine that imports moderngl.
 
-from .renderer import GLRenderer, create_context
+``OCC_GL=4.1`` forces the OpenGL 4.1 core path (what macOS has); see :mod:`.context`.
+"""
 
-__all__ = ["GLRenderer", "create_context"]
+from .context import create_context
+from .renderer import GLRenderer, PendingQuery
+
+__all__ = ["GLRenderer", "PendingQuery", "create_context"]

@@ -1,82 +1,55 @@
-"""Depth rendering, batched occlusion queries and object-ID truth on moderngl/EGL.
+"""Depth rendering, one-draw occlusion queries and object-ID truth on moderngl.
 
 Meshes are uploaded once: one vertex buffer (each mesh recentred on its own box
 centre, so float32 keeps its precision), one index buffer of absolute indices,
-and per object an index range.  Every frame the per-object matrices are made
-camera-relative in float64 -- ``P @ R @ (M @ T(centre) - T(eye))`` -- and only
-then rounded to float32, so a scene 1e6 units from the origin renders as well as
-one at it.  All visible objects of a batch go out in one
-``glMultiDrawElementsIndirect``; all boxes of a query batch come from one
-vertex buffer, and every query of a batch is issued before any result is read
-(moderngl's ``Query.samples`` blocks).
+and per draw unit an index range.  Matrices are made camera-relative in float64
+-- ``P @ R @ (M @ T(centre) - T(eye))`` -- and only then rounded to float32, so a
+scene 1e6 units from the origin renders as well as one at it; this is done in
+``draw`` for the units drawn, never for the whole scene per frame.
 
-Depth test: ``<`` for geometry, ``<=`` for query boxes -- ties count as visible.
+Two GL paths (see :mod:`core.gl.context`; ``OCC_GL=4.1`` forces the second):
+
+- 4.3: a ``draw`` is one ``glMultiDrawElementsIndirect`` whose commands and per-draw
+  MVPs go up in one buffer write (a per-frame stream, picked by baseInstance).  A
+  query batch is ONE instanced draw of all its boxes (corners expanded in the vertex
+  shader), early depth test ``<=``, no depth or colour write; every passing fragment
+  adds one to its box's counter in a storage buffer, read back once per batch.
+- 4.1 (macOS): one draw per unit with a uniform MVP, one occlusion query object per
+  box, one blocking read per box.
+
+Both give the same samples per box: the samples of the box's front faces (chosen
+from the sign of the view-projection's determinant, so a mirrored camera works) that
+pass ``<=`` the depth buffer.  Ties count as visible; geometry is drawn with ``<``.
+
+Query resolution and display resolution: ``GLRenderer(..., width, height,
+display=(W, H))`` draws occluders at ``W x H`` and, before each query batch, reduces
+them to ``width x height`` taking for every query pixel the FARTHEST depth of all
+display pixels its area overlaps; queries run at ``width x height`` against that.
+A gap open at display resolution therefore stays open.  The boxes must be
+conservative at the query resolution too: the caller grows each box by one query
+pixel (measured at the box's farthest point); the renderer does not grow boxes.
+
+``counters`` (reset by ``begin_frame``): ``gl_calls`` (draws, buffer writes and
+orphans, uniform writes, query begin/end, reads, memory barriers, finish; state
+toggles are set only when they change and not counted), ``blocking_reads``,
+``query_fragments`` (samples passed in query draws), ``draws``, ``query_batches``.
 """
-
-import os
-import sys
 
 import numpy as np
 
 from ..bounds import corners
 from ..errors import OccError
+from . import shaders as S
+from .context import choose_path, create_context
 
-MIN_GL_VERSION = 430            # glMultiDrawElementsIndirect and baseInstance
-EGL_PACKAGES = "libegl1 libegl-mesa0 libgl1-mesa-dri"
-
-# 12 triangles of a box, counter-clockwise seen from outside, as indices into
-# bounds.corners' bit order (x=1, y=2, z=4).
-BOX_TRIANGLES = np.array([
-    0, 2, 1, 1, 2, 3,   4, 5, 6, 5, 7, 6,   0, 1, 4, 1, 5, 4,
-    2, 6, 3, 3, 6, 7,   0, 4, 2, 2, 4, 6,   1, 3, 5, 3, 7, 5,
-], dtype=np.intp)
-
-_VERTEX = """
-#version 430
-in vec3 in_pos;
-in mat4 in_mvp;
-in uint in_id;
-flat out uint v_id;
-void main() {
-    gl_Position = in_mvp * vec4(in_pos, 1.0);
-    v_id = in_id + 1u;
-}
-"""
-_DEPTH_FRAGMENT = """
-#version 430
-void main() {}
-"""
-_ID_FRAGMENT = """
-#version 430
-flat in uint v_id;
-out uint f_id;
-void main() { f_id = v_id; }
-"""
-_BOX_VERTEX = """
-#version 430
-in vec3 in_pos;
-uniform mat4 u_vp;
-void main() { gl_Position = u_vp * vec4(in_pos, 1.0); }
-"""
-
-
-def create_context():
-    """A standalone OpenGL >= 4.3 context; EGL on Linux (headless, no display)."""
-    try:
-        import moderngl
-    except ImportError:
-        raise OccError("the GPU backend needs moderngl: pip install moderngl") from None
-    kwargs = {"backend": "egl"} if sys.platform.startswith("linux") else {}
-    if os.environ.get("OCC_LIBEGL"):          # a specific libEGL (or, in tests, a missing one)
-        kwargs["libegl"] = os.environ["OCC_LIBEGL"]
-    try:
-        ctx = moderngl.create_context(standalone=True, require=MIN_GL_VERSION, **kwargs)
-    except Exception as e:  # moderngl/glcontext raise plain Exceptions for missing libraries
-        hint = (f"install Mesa's EGL: apt-get install {EGL_PACKAGES}"
-                if sys.platform.startswith("linux") else "update the graphics driver")
-        raise OccError(f"no OpenGL {MIN_GL_VERSION // 100}.{MIN_GL_VERSION % 100 // 10} context "
-                       f"could be created ({e}); {hint}") from None
-    return ctx
+GL_BUFFER_UPDATE_BARRIER_BIT = 0x200   # shader writes visible to buffer reads/maps
+SSBO_ALIGN = 256                        # >= GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT everywhere
+CMD_BYTES = 20                          # one DrawElementsIndirectCommand
+# Per-draw instance record of the 4.3 stream: column-major MVP and object id.
+RECORD = np.dtype([("mvp", "<f4", (16,)), ("id", "<u4")])
+STREAM_ALIGN = 340                      # lcm(CMD_BYTES, RECORD.itemsize): a chunk starts on both
+COUNTER_KEYS = ("gl_calls", "blocking_reads", "query_fragments", "draws", "query_batches")
+BOX_TRIANGLES = S.BOX_TRIANGLES
 
 
 def box_vertices(boxes):
@@ -84,19 +57,69 @@ def box_vertices(boxes):
     return corners(boxes)[:, BOX_TRIANGLES].reshape(-1, 3).astype(np.float32)
 
 
-class GLRenderer:
-    """The scene on the GPU at ``width x height``: depth drawing, queries, ID truth."""
+def _ceil_to(x, m):
+    return -(-x // m) * m
 
-    def __init__(self, scene, width, height, ctx=None, units=None):
+
+def _pow2(x, least=64):
+    return max(least, 1 << int(np.ceil(np.log2(max(x, 1)))))
+
+
+class PendingQuery:
+    """A query batch issued and not read yet; :meth:`result` reads it back once.
+
+    Draws issued in between do not change its answer: the batch owns its result
+    buffer (4.3) or query objects (4.1) until it is read.
+    """
+
+    __slots__ = ("_read", "_samples")
+
+    def __init__(self, read):
+        self._read, self._samples = read, None
+
+    def result(self):
+        """Samples passed per box, ``(k,) int64`` (0 = hidden); blocks the first time."""
+        if self._samples is None:
+            self._samples = self._read()
+            self._read = None
+        return self._samples
+
+
+_DONE_EMPTY = np.zeros(0, dtype=np.int64)
+
+
+class _Slot:
+    """A 4.3 query batch's own buffer: float32 boxes (lo, hi) at 0, uint counters after."""
+
+    def __init__(self, ctx, prog, cap):
+        self.cap = cap
+        self.counts_at = _ceil_to(cap * 24, SSBO_ALIGN)
+        self.buffer = ctx.buffer(reserve=self.counts_at + 4 * cap)
+        self.vao = ctx.vertex_array(prog, [(self.buffer, "3f 3f/i", "in_lo", "in_hi")])
+
+
+class GLRenderer:
+    """The scene on the GPU: depth drawing at the display resolution, queries and ID
+    truth at ``width x height`` (the query resolution).  See the module doc."""
+
+    def __init__(self, scene, width, height, ctx=None, units=None, display=None, path=None):
         if width < 1 or height < 1:
             raise OccError(f"resolution must be at least 1x1, got {width}x{height}")
         from ..units import whole_objects
 
+        self.width, self.height = int(width), int(height)
+        dw, dh = (self.width, self.height) if display is None else (int(display[0]), int(display[1]))
+        if dw < self.width or dh < self.height:
+            raise OccError(f"display resolution {dw}x{dh} must be at least the query "
+                           f"resolution {self.width}x{self.height}")
+        self.display = (dw, dh)
+        self.reduces = self.display != (self.width, self.height)
         self.own_ctx = ctx is None
         self.ctx = ctx if ctx is not None else create_context()
-        self.width, self.height = int(width), int(height)
+        self.path = choose_path(self.ctx, path)
         ctx = self.ctx
         self.activate()
+        self.counters = dict.fromkeys(COUNTER_KEYS, 0)
         n = len(scene)
         self.n = n
         self.units = units if units is not None else whole_objects(scene)
@@ -119,51 +142,114 @@ class GLRenderer:
         self.ibo = ctx.buffer(idata.tobytes() or b"\0" * 4)
         # per unit: the indirect command (count, instances, first index, base vertex, base instance)
         u = self.units
-        self.commands = np.zeros((max(len(u), 1), 5), dtype=np.uint32)
+        self.commands = np.zeros((len(u), 5), dtype=np.uint32)
         if len(u):
             mesh = scene.mesh_of[u.object]
-            self.commands[:len(u), 0] = 3 * u.count
-            self.commands[:len(u), 1] = 1
-            self.commands[:len(u), 2] = istart[mesh] + 3 * u.first
-            self.commands[:len(u), 4] = u.object
-        self.cmd_buffer = ctx.buffer(reserve=self.commands.nbytes)
+            self.commands[:, 0] = 3 * u.count
+            self.commands[:, 1] = 1
+            self.commands[:, 2] = istart[mesh] + 3 * u.first
         self.object_offset = np.repeat(np.eye(4)[None], max(n, 1), axis=0)
         if n:
             self.object_offset[:n, :3, 3] = centres[scene.mesh_of]
         self.set_matrices(np.arange(n), scene.matrices)
-        self.mvp_buffer = ctx.buffer(reserve=max(n, 1) * 64)
-        self.id_buffer = ctx.buffer(np.arange(max(n, 1), dtype=np.uint32).tobytes())
-        # --- programs and vertex arrays ---------------------------------------
-        self.depth_prog = ctx.program(vertex_shader=_VERTEX, fragment_shader=_DEPTH_FRAGMENT)
-        self.id_prog = ctx.program(vertex_shader=_VERTEX, fragment_shader=_ID_FRAGMENT)
-        self.box_prog = ctx.program(vertex_shader=_BOX_VERTEX, fragment_shader=_DEPTH_FRAGMENT)
-        self.depth_vao = self._scene_vao(self.depth_prog, with_id=False)
-        self.id_vao = self._scene_vao(self.id_prog, with_id=True)
+        # --- programs, vertex arrays, query resources ---------------------------
+        if self.path == "4.3":
+            self._init_43()
+        else:
+            self._init_41()
+        if self.reduces:
+            self.reduce_prog = self._program(S.FULLSCREEN_VERTEX, S.REDUCE_FRAGMENT)
+            self.reduce_prog["u_depth"].value = 0
+            self.reduce_prog["u_display"].value = self.display
+            self.reduce_prog["u_query"].value = (self.width, self.height)
+            self.reduce_vao = ctx.vertex_array(self.reduce_prog, [])
+        # --- targets ------------------------------------------------------------
+        size = (self.width, self.height)
+        self.depth_tex = ctx.depth_texture(size)          # what queries test against
+        self.query_fbo = ctx.framebuffer(depth_attachment=self.depth_tex)
+        self.query_fbo.depth_mask = False                  # query boxes never write depth
+        if self.reduces:
+            self.display_tex = ctx.depth_texture(self.display)
+            self.display_tex.compare_func = ""             # texelFetch reads depth values
+            self.fbo = ctx.framebuffer(depth_attachment=self.display_tex)
+            self.reduce_fbo = ctx.framebuffer(depth_attachment=self.depth_tex)
+        else:
+            self.display_tex = self.depth_tex
+            self.fbo = ctx.framebuffer(depth_attachment=self.depth_tex)
+        self.id_fbos = {}
+        self.eye = np.zeros(3)
+        self.clip = np.eye(4)
+        self.front_face = "ccw"
+        self._dirty = False            # display depth drawn since the last reduction
+        self._state = {}
+
+    # --- set-up per path -----------------------------------------------------------
+    def _program(self, vertex, fragment):
+        return self.ctx.program(vertex_shader=S.source(vertex, self.path),
+                                fragment_shader=S.source(fragment, self.path))
+
+    def _init_43(self):
+        ctx = self.ctx
+        self.depth_prog = self._program(S.SCENE_VERTEX_43, S.DEPTH_FRAGMENT)
+        self.id_prog = self._program(S.ID_VERTEX_43, S.ID_FRAGMENT)
+        self.box_prog = self._program(S.BOX_VERTEX_43, S.BOX_COUNT_FRAGMENT_43)
+        # The per-frame stream: chunks of [indirect commands | per-instance records].
+        self.stream_size = _pow2(STREAM_ALIGN + (CMD_BYTES + RECORD.itemsize) * max(len(self.units), 1)
+                                 + RECORD.itemsize, least=4096)
+        self.stream = ctx.buffer(reserve=self.stream_size)
+        self.stream_at = 0
+        self.depth_vao = ctx.vertex_array(self.depth_prog, [(self.vbo, "3f", "in_pos"),
+                                                            (self.stream, "16f 4x/i", "in_mvp")],
+                                          index_buffer=self.ibo, index_element_size=4)
+        self.id_vao = ctx.vertex_array(self.id_prog, [(self.vbo, "3f", "in_pos"),
+                                                      (self.stream, "16f u/i", "in_mvp", "in_id")],
+                                       index_buffer=self.ibo, index_element_size=4)
+        self.free_slots = {}           # capacity -> [_Slot], batches not pending
+        self.slots = []
+
+    def _init_41(self):
+        ctx = self.ctx
+        self.depth_prog = self._program(S.SCENE_VERTEX_41, S.DEPTH_FRAGMENT)
+        self.id_prog = self._program(S.ID_VERTEX_41, S.ID_FRAGMENT)
+        self.box_prog = self._program(S.BOX_VERTEX_41, S.DEPTH_FRAGMENT)
+        self.depth_vao = ctx.vertex_array(self.depth_prog, [(self.vbo, "3f", "in_pos")],
+                                          index_buffer=self.ibo, index_element_size=4)
+        self.id_vao = ctx.vertex_array(self.id_prog, [(self.vbo, "3f", "in_pos")],
+                                       index_buffer=self.ibo, index_element_size=4)
         self.box_capacity = 0
         self.box_vbo = None
         self.box_vao = None
-        self.queries = []
-        # --- targets ------------------------------------------------------------
-        size = (self.width, self.height)
-        self.depth_tex = ctx.depth_texture(size)
-        self.fbo = ctx.framebuffer(depth_attachment=self.depth_tex)
-        self.id_fbo = ctx.framebuffer(color_attachments=[ctx.texture(size, 1, dtype="u4")],
-                                      depth_attachment=ctx.depth_renderbuffer(size))
-        self.eye = np.zeros(3)
-        self.clip = np.eye(4)
-
-    def _scene_vao(self, prog, with_id):
-        content = [(self.vbo, "3f", "in_pos"), (self.mvp_buffer, "16f/i", "in_mvp")]
-        if with_id:
-            content.append((self.id_buffer, "u/i", "in_id"))
-        return self.ctx.vertex_array(prog, content, index_buffer=self.ibo, index_element_size=4)
+        self.free_queries = []         # query objects not held by a pending batch
 
     def activate(self):
         """Make this renderer's context current: several renderers (each with its own
         context) may be alive at once, and GL calls go to whichever is current."""
         self.ctx.__enter__()
 
-    # --- per frame -----------------------------------------------------------
+    def _count(self, calls=1, reads=0, draws=0):
+        c = self.counters
+        c["gl_calls"] += calls
+        c["blocking_reads"] += reads
+        c["draws"] += draws
+
+    def _use(self, fbo, depth_func, cull):
+        """Bind ``fbo`` (it carries its depth mask) and set the depth function and face
+        culling, each only when it changes."""
+        st, ctx = self._state, self.ctx
+        if st.get("fbo") is not fbo:
+            fbo.use()
+            st["fbo"] = fbo
+        if st.get("func") != depth_func:
+            ctx.depth_func = depth_func
+            st["func"] = depth_func
+        if st.get("cull") != cull:
+            (ctx.enable if cull else ctx.disable)(ctx.CULL_FACE)
+            st["cull"] = cull
+        if cull and st.get("front") != self.front_face:
+            ctx.front_face = self.front_face
+            st["front"] = self.front_face
+
+    # --- per frame -------------------------------------------------------------------
     def set_matrices(self, indices, matrices):
         """Store world matrices ``(k, 4, 4)`` of objects ``indices`` (mesh centre folded in)."""
         m = np.asarray(matrices, dtype=np.float64).reshape(-1, 4, 4)
@@ -172,68 +258,159 @@ class GLRenderer:
         self.world[idx] = m @ self.object_offset[idx]
 
     def begin_frame(self, camera):
-        """Upload camera-relative matrices for ``camera`` and clear the depth buffer."""
+        """Start a pass from ``camera``: reset the counters, clear the depth buffer.
+
+        Nothing per object: matrices are made in ``draw`` for what is drawn.
+        """
         self.activate()
+        self.counters = dict.fromkeys(COUNTER_KEYS, 0)
         self.eye = camera.eye
         self.clip = camera.relative_view_projection()
-        rel = self.world.copy()
-        rel[:, :3, 3] -= self.eye
-        mvp = self.clip @ rel                                 # float64, camera-relative
-        self.mvp_buffer.write(np.ascontiguousarray(mvp.transpose(0, 2, 1), dtype=np.float32).tobytes())
-        self.fbo.use()
-        self.fbo.depth_mask = True
-        self.fbo.clear(depth=1.0)
+        # A mirrored camera (negative-determinant view) flips the winding on screen; with
+        # OpenGL's clip z pointing away from the eye, an unmirrored camera has det < 0.
+        self.front_face = "ccw" if np.linalg.det(self.clip) < 0 else "cw"
+        self._state = {}                                   # another renderer may share the context
         self.ctx.enable(self.ctx.DEPTH_TEST)
-        self.ctx.disable(self.ctx.CULL_FACE)
+        self.fbo.clear(depth=1.0)                          # leaves the bound framebuffer's mask as is
+        self._count()
+        self._dirty = self.reduces
         self.box_prog["u_vp"].write(np.ascontiguousarray(self.clip.T, dtype=np.float32).tobytes())
+        self._count()
+        if self.path == "4.3" and self.stream_at:
+            self.stream.orphan(self.stream_size)           # last frame's draws keep their storage
+            self.stream_at = 0
+            self._count()
+
+    def _mvps(self, units):
+        """Camera-relative MVPs of ``units``: float64 math, then ``(k, 4, 4) float32``
+        column-major (transposed) as GL reads them."""
+        rel = self.world[self.units.object[units]]         # a copy (fancy indexing)
+        rel[:, :3, 3] -= self.eye
+        return np.ascontiguousarray((self.clip @ rel).transpose(0, 2, 1), dtype=np.float32)
 
     def draw(self, units):
-        """Draw units (``(k,) int``) into the depth buffer with one indirect multi-draw.
-
-        Returns the number of triangles drawn.
-        """
+        """Draw units (``(k,) int``) into the depth buffer; returns the triangles drawn."""
         units = np.asarray(units, dtype=np.int64)
         if not len(units):
             return 0
-        self.fbo.use()
-        self.fbo.depth_mask = True
-        self.ctx.depth_func = "<"
-        self.cmd_buffer.orphan()
-        self.cmd_buffer.write(self.commands[units].tobytes())
-        self.depth_vao.render_indirect(self.cmd_buffer, count=len(units))
+        self._use(self.fbo, "<", False)
+        if self.path == "4.3":
+            self._draw_43(self.depth_vao, units)
+        else:
+            self._draw_41(self.depth_prog, self.depth_vao, units)
+        self._dirty = self.reduces
         return int(self.tri_counts[units].sum())
 
-    def query(self, boxes_rel):
-        """Samples of each camera-relative box ``(k, 2, 3)`` that pass ``<=`` the depth buffer.
+    def _draw_43(self, vao, units):
+        """One buffer write (commands and records) and one multi-draw."""
+        k = len(units)
+        need = STREAM_ALIGN + (CMD_BYTES + RECORD.itemsize) * k + RECORD.itemsize
+        if self.stream_at + need > self.stream_size:
+            self.stream_size = max(self.stream_size, _pow2(need))
+            self.stream.orphan(self.stream_size)           # pending draws keep the old storage
+            self.stream_at = 0
+            self._count()
+        at = self.stream_at
+        rec_at = _ceil_to(at + CMD_BYTES * k, RECORD.itemsize)
+        end = rec_at + RECORD.itemsize * k
+        blob = np.zeros(end - at, dtype=np.uint8)
+        cmds = self.commands[units]
+        cmds[:, 4] = rec_at // RECORD.itemsize + np.arange(k)   # baseInstance: this unit's record
+        blob[:CMD_BYTES * k] = cmds.view(np.uint8).ravel()
+        rec = np.zeros(k, dtype=RECORD)
+        rec["mvp"] = self._mvps(units).reshape(k, 16)
+        rec["id"] = self.units.object[units]
+        blob[rec_at - at:] = rec.view(np.uint8)
+        self.stream.write(blob, offset=at)
+        vao.render_indirect(self.stream, count=k, first=at // CMD_BYTES)
+        self.stream_at = _ceil_to(end, STREAM_ALIGN)
+        self._count(2, draws=1)
 
-        All k queries are issued before the first result is read.
-        """
+    def _draw_41(self, prog, vao, units, ids=False):
+        """One uniform write and one draw per unit (no multi-draw, no baseInstance)."""
+        mvps = self._mvps(units)
+        mvp = prog["u_mvp"]
+        objs = self.units.object[units]
+        for i, unit in enumerate(units.tolist()):
+            mvp.write(mvps[i].tobytes())
+            if ids:
+                prog["u_id"].value = int(objs[i])
+            cmd = self.commands[unit]
+            vao.render(vertices=int(cmd[0]), first=int(cmd[2]))
+        self._count((3 if ids else 2) * len(units), draws=len(units))
+
+    # --- queries -------------------------------------------------------------------
+    def query(self, boxes_rel):
+        """Samples of each camera-relative box ``(k, 2, 3)`` that pass ``<=`` the depth
+        buffer, ``(k,) int64`` (0 = hidden).  One batch: issued, then read back."""
+        return self.query_async(boxes_rel).result()
+
+    def query_async(self, boxes_rel):
+        """Issue a query batch now; its :class:`PendingQuery` reads the answer later, so
+        CPU work can overlap the GPU.  Later draws do not change this batch's answer."""
         boxes_rel = np.asarray(boxes_rel, dtype=np.float64)
         k = len(boxes_rel)
         if k == 0:
-            return np.zeros(0, dtype=np.int64)
+            return PendingQuery(lambda: _DONE_EMPTY.copy())
+        self.counters["query_batches"] += 1
+        self._reduce()
+        # Front faces only (the side chosen by the camera's handedness): a queried box
+        # never contains the eye (that box is visible by rule), so its front faces
+        # cover its whole silhouette, each covered pixel centre once.
+        self._use(self.query_fbo, "<=", True)
+        read = self._issue_43(boxes_rel) if self.path == "4.3" else self._issue_41(boxes_rel)
+        return PendingQuery(read)
+
+    def _issue_43(self, boxes_rel):
+        k = len(boxes_rel)
+        cap = _pow2(k)
+        free = self.free_slots.setdefault(cap, [])
+        slot = free.pop() if free else None
+        if slot is None:
+            slot = _Slot(self.ctx, self.box_prog, cap)
+            self.slots.append(slot)
+        blob = np.zeros(slot.counts_at + 4 * k, dtype=np.uint8)     # counters start at 0
+        blob[:24 * k] = boxes_rel.reshape(k, 6).astype(np.float32).view(np.uint8).ravel()
+        slot.buffer.write(blob)
+        slot.buffer.bind_to_storage_buffer(0, offset=slot.counts_at, size=4 * k)
+        slot.vao.render(vertices=36, instances=k)
+        self.ctx.memory_barrier(GL_BUFFER_UPDATE_BARRIER_BIT)
+        self._count(3, draws=1)
+
+        def read():
+            raw = slot.buffer.read(size=4 * k, offset=slot.counts_at)
+            self.free_slots[cap].append(slot)
+            self._count(1, reads=1)
+            samples = np.frombuffer(raw, dtype=np.uint32).astype(np.int64)
+            self.counters["query_fragments"] += int(samples.sum())
+            return samples
+        return read
+
+    def _issue_41(self, boxes_rel):
+        k = len(boxes_rel)
         self._reserve_boxes(k)
         self.box_vbo.write(box_vertices(boxes_rel).tobytes())
-        while len(self.queries) < k:
-            self.queries.append(self.ctx.query(samples=True))
-        self.fbo.use()
-        self.fbo.depth_mask = False
-        self.ctx.depth_func = "<="
-        # Front faces only: a queried box never contains the eye (that box is
-        # visible by rule), so its front faces cover its whole silhouette.
-        self.ctx.enable(self.ctx.CULL_FACE)
-        vao, qs = self.box_vao, self.queries
-        for i in range(k):                     # one GL query per box; nothing read yet
-            with qs[i]:
+        while len(self.free_queries) < k:
+            self.free_queries.append(self.ctx.query(samples=True))
+        qs = [self.free_queries.pop() for _ in range(k)]
+        vao = self.box_vao
+        for i, q in enumerate(qs):             # one query per box; nothing read yet
+            with q:
                 vao.render(vertices=36, first=36 * i)
-        self.ctx.disable(self.ctx.CULL_FACE)
-        self.fbo.depth_mask = True
-        return np.array([qs[i].samples for i in range(k)], dtype=np.int64)
+        self._count(1 + 3 * k, draws=k)
+
+        def read():
+            samples = np.array([q.samples for q in qs], dtype=np.int64)
+            self.free_queries.extend(qs)
+            self._count(k, reads=k)
+            self.counters["query_fragments"] += int(samples.sum())
+            return samples
+        return read
 
     def _reserve_boxes(self, k):
         if k <= self.box_capacity:
             return
-        cap = max(64, 1 << int(np.ceil(np.log2(k))))
+        cap = _pow2(k)
         if self.box_vao is not None:
             self.box_vao.release()
             self.box_vbo.release()
@@ -241,46 +418,75 @@ class GLRenderer:
         self.box_vao = self.ctx.vertex_array(self.box_prog, [(self.box_vbo, "3f", "in_pos")])
         self.box_capacity = cap
 
+    def _reduce(self):
+        """Bring the query-resolution depth up to date with the display-resolution
+        depth: each query pixel gets the farthest depth its area overlaps."""
+        if not self._dirty:
+            return
+        self._use(self.reduce_fbo, "1", False)      # "always": every pixel written
+        self.display_tex.use(0)
+        self.reduce_vao.render(vertices=3)
+        self._dirty = False
+        self._count(1, draws=1)
+
     def finish(self):
         self.ctx.finish()
+        self._count()
 
     @property
     def device(self):
         """The OpenGL renderer string (e.g. 'llvmpipe (LLVM 15.0.6, 256 bits)')."""
         return self.ctx.info.get("GL_RENDERER", "unknown")
 
-    def read_depth(self):
-        """The depth buffer, ``(height, width) float32``, row 0 at the bottom."""
+    def read_depth(self, display=False):
+        """The depth buffer, ``(height, width) float32``, row 0 at the bottom: the one
+        queries test against (reduced from the display's), or the display's own."""
         self.activate()
-        data = self.depth_tex.read(alignment=1)
-        return np.frombuffer(data, dtype=np.float32).reshape(self.height, self.width)
+        if display:
+            tex, (w, h) = self.display_tex, self.display
+        else:
+            self._reduce()
+            tex, (w, h) = self.depth_tex, (self.width, self.height)
+        data = tex.read(alignment=1)
+        self._count(1, reads=1)
+        return np.frombuffer(data, dtype=np.float32).reshape(h, w)
 
     # --- ground truth ---------------------------------------------------------
-    def object_ids(self, camera, objects=None):
-        """ID buffer from ``camera``: ``(height, width) int64``, -1 = none.
+    def object_ids(self, camera, objects=None, display=False):
+        """ID buffer from ``camera``: ``(height, width) int64``, -1 = none; at the
+        display resolution with ``display=True``.
 
         objects: the objects to draw (default all of them).
         """
         self.begin_frame(camera)
-        self.id_fbo.use()
-        self.id_fbo.clear(depth=1.0)
-        self.ctx.depth_func = "<"
+        w, h = self.display if display else (self.width, self.height)
+        fbo = self.id_fbos.get((w, h))
+        if fbo is None:
+            fbo = self.ctx.framebuffer(color_attachments=[self.ctx.texture((w, h), 1, dtype="u4")],
+                                       depth_attachment=self.ctx.depth_renderbuffer((w, h)))
+            self.id_fbos[(w, h)] = fbo
+        fbo.clear(depth=1.0)
+        self._state = {}
+        self._use(fbo, "<", False)
         units = np.arange(len(self.units))
         if objects is not None:
             keep = np.zeros(self.n, dtype=bool)
             keep[np.asarray(objects, dtype=np.int64)] = True
             units = units[keep[self.units.object]]
         if len(units):
-            self.cmd_buffer.orphan()
-            self.cmd_buffer.write(self.commands[units].tobytes())
-            self.id_vao.render_indirect(self.cmd_buffer, count=len(units))
-        raw = self.id_fbo.read(components=1, dtype="u4", alignment=1)
-        ids = np.frombuffer(raw, dtype=np.uint32).reshape(self.height, self.width)
+            if self.path == "4.3":
+                self._draw_43(self.id_vao, units)
+            else:
+                self._draw_41(self.id_prog, self.id_vao, units, ids=True)
+        raw = fbo.read(components=1, dtype="u4", alignment=1)
+        self._count(1, reads=1)
+        ids = np.frombuffer(raw, dtype=np.uint32).reshape(h, w)
         return ids.astype(np.int64) - 1
 
-    def visible_truth(self, camera):
-        """Exact visible set at this resolution: ``(n,) bool``, an object covers a pixel centre."""
-        ids = self.object_ids(camera)
+    def visible_truth(self, camera, display=False):
+        """Exact visible set at the query (or display) resolution: ``(n,) bool``, an
+        object covers a pixel centre."""
+        ids = self.object_ids(camera, display=display)
         out = np.zeros(self.n, dtype=bool)
         out[ids[ids >= 0]] = True
         return out
@@ -291,13 +497,18 @@ class GLRenderer:
         if self.own_ctx:
             self.ctx.release()
             return
-        objs = [self.depth_vao, self.id_vao, self.box_vao, self.box_vbo, self.vbo, self.ibo,
-                self.cmd_buffer, self.mvp_buffer, self.id_buffer, self.depth_prog, self.id_prog,
-                self.box_prog, self.fbo, self.id_fbo, self.depth_tex]   # moderngl queries have no release
-        for a in self.id_fbo.color_attachments:
-            objs.append(a)
-        if self.id_fbo.depth_attachment is not None:
-            objs.append(self.id_fbo.depth_attachment)
+        objs = [self.depth_vao, self.id_vao, self.vbo, self.ibo, self.depth_prog, self.id_prog,
+                self.box_prog, self.fbo, self.query_fbo, self.depth_tex]
+        if self.path == "4.3":
+            objs += [self.stream]
+            for s in self.slots:
+                objs += [s.vao, s.buffer]
+        else:
+            objs += [self.box_vao, self.box_vbo]           # moderngl queries have no release
+        if self.reduces:
+            objs += [self.reduce_vao, self.reduce_prog, self.reduce_fbo, self.display_tex]
+        for fbo in self.id_fbos.values():
+            objs += [fbo, *fbo.color_attachments, fbo.depth_attachment]
         # Unbind our framebuffer first: moderngl re-binds "the current one" after
         # creating the next, and a deleted name there is GL_INVALID_OPERATION.
         self.ctx.detect_framebuffer(0).use()

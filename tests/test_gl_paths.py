@@ -1,0 +1,278 @@
+"""The two GL paths (4.3 one-draw queries, 4.1 query objects), their counters, pending
+batches, mirrored cameras and the conservative display -> query depth reduction.
+
+Tiny targets with analytic expectations; every test that takes ``ctx`` is bracketed
+by a GL-error check (tests/conftest.py).
+"""
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from core import Camera, Culler, OccError
+from core.gl import GLRenderer
+from core.gl.context import choose_path
+from tests.scenes import boxes_scene
+
+PATHS = ["4.3", "4.1"]
+
+
+def ortho_cam(w=8, h=8, mirror=False):
+    """Down -Z onto the XY plane, one unit per pixel (see test_gl.ortho_cam); ``mirror``
+    scales the view's x by -1 (a mirrored camera: the picture flips left-right)."""
+    c = Camera.look_at((0, 0, 10), (0, 0, 0), up=(0, 1, 0), aspect=w / h, near=1, far=20,
+                       ortho_height=h)
+    if not mirror:
+        return c
+    return Camera.from_matrices(np.diag([-1.0, 1.0, 1.0, 1.0]) @ c.view, c.projection)
+
+
+PROBES = np.array([((-3, -3, 3), (3, 3, 4)),          # in front: 6x6 = 36 pixels
+                   ((-3, -3, -3), (3, 3, -2)),        # behind: only the uncovered half, 3x6
+                   ((-2, -2, -5), (-1, -1, -4)),      # fully behind the drawn box
+                   ((-3, -3, 0.5), (-1, -1, 3))])     # front face in front, back face behind
+
+
+@pytest.mark.parametrize("path", PATHS)
+@pytest.mark.parametrize("mirror", [False, True])
+def test_query_samples_exact_on_both_paths_and_mirrored(ctx, path, mirror):
+    """Front faces only, one sample per covered pixel centre; a mirrored camera flips
+    the winding, and the front faces are still the ones drawn (the last probe, whose
+    back face is hidden, would read 0 with the back faces)."""
+    scene = boxes_scene([((-4, -4, 0), (0, 4, 1))])          # covers the left half
+    r = GLRenderer(scene, 8, 8, ctx=ctx, path=path)
+    assert r.path == path
+    cam = ortho_cam(mirror=mirror)
+    r.begin_frame(cam)
+    r.draw([0])
+    assert r.query(PROBES - cam.eye).tolist() == [36, 18, 0, 4]
+    r.release()
+
+
+HOLE_SCENE = [((-4, -4, 2), (-1, 4, 3)), ((1, -4, 2), (4, 4, 3)),     # wall, hole at |x|, |y| < 1
+              ((-4, -4, 2), (4, -1, 3)), ((-4, 1, 2), (4, 4, 3)),
+              ((-0.9, -0.9, -1), (0.9, 0.9, 1)),                      # post behind the hole
+              ((-4, -4, -2), (4, 4, -0.5)),                           # back wall, the post's foot in it
+              ((2, 2, 0), (3, 3, 1))]                                 # post behind solid wall
+
+
+@pytest.mark.parametrize("path", PATHS)
+def test_mirrored_camera_object_seen_through_a_hole(ctx, path):
+    """A post seen through a hole, its foot in a back wall: only its query box's front
+    faces are in front of the depth there.  Under a mirrored camera (x scale -1) the
+    winding flips; the post must still pass (4 = the 2x2 pixel centres of the hole)."""
+    scene = boxes_scene(HOLE_SCENE)
+    r = GLRenderer(scene, 8, 8, ctx=ctx, path=path)
+    for mirror in (False, True):
+        cam = ortho_cam(mirror=mirror)
+        r.begin_frame(cam)
+        r.draw([0, 1, 2, 3, 5])
+        assert r.query(scene.bounds[[4, 6]] - cam.eye).tolist() == [4, 0], mirror
+    r.release()
+
+
+@pytest.mark.parametrize("strategy", ["stopwait", "om", "om_multi", "om_coherent"])
+def test_mirrored_camera_culls_as_the_unmirrored_one(ctx, strategy):
+    """The whole engine (frustum planes, rectangles, queries) under a mirrored camera."""
+    scene = boxes_scene(HOLE_SCENE)
+    states = []
+    for mirror in (False, True):
+        with Culler(scene, (8, 8), strategy=strategy, ctx=ctx) as c:
+            states.append(c.cull(ortho_cam(mirror=mirror)).state.tolist())
+            assert c.truth(ortho_cam(mirror=mirror)).tolist() == [True] * 5 + [False, False]
+    assert states[0] == states[1]
+    assert states[1][:5] == [0] * 5 and states[1][6] == 1        # the post visible, the hidden one culled
+
+
+def random_scene(seed, n=60):
+    rng = np.random.default_rng(seed)
+    lo = rng.uniform(-10, 10, (n, 3)) * (1, 1, 0.5)
+    hi = lo + rng.uniform(0.2, 4.0, (n, 3))
+    return boxes_scene(list(zip(lo, hi, strict=True)))
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_both_paths_give_identical_samples_on_a_random_scene(ctx, seed):
+    """Seeded random boxes, random draw orders and random query boxes from three
+    perspective cameras: every sample count equal on 4.3 and 4.1."""
+    scene = random_scene(seed)
+    rng = np.random.default_rng(100 + seed)
+    renderers = {p: GLRenderer(scene, 37, 23, ctx=ctx, path=p) for p in PATHS}
+    for _ in range(3):
+        eye = rng.uniform(-20, 20, 3) + (0, 0, 25)
+        cam = Camera.look_at(eye, rng.uniform(-3, 3, 3), fov_y_deg=70, aspect=37 / 23, near=0.5, far=100)
+        order = rng.permutation(len(scene))
+        probes = np.sort(rng.uniform(-12, 12, (40, 2, 3)), axis=1) - cam.eye
+        out = {}
+        for p, r in renderers.items():
+            r.begin_frame(cam)
+            first = r.query(probes)
+            r.draw(order[:30])
+            second = r.query(probes)
+            r.draw(order[30:])
+            out[p] = (first, second, r.query(probes), r.read_depth().copy(), r.object_ids(cam))
+        for a, b in zip(out["4.3"], out["4.1"], strict=True):
+            assert np.array_equal(a, b)
+        assert out["4.3"][1].sum() > out["4.3"][2].sum() > 0      # the draws occluded something
+    for r in renderers.values():
+        r.release()
+
+
+@pytest.mark.parametrize("strategy", ["stopwait", "om", "om_multi", "om_coherent"])
+def test_both_paths_give_identical_culling(ctx, strategy, monkeypatch):
+    """The engine on OCC_GL=4.1 and on 4.3: the same states and counts of queries."""
+    scene = random_scene(7, 80)
+    cams = [Camera.look_at((x, -25, 12), (0, 0, 0), aspect=1.5, near=0.5, far=100) for x in (-8, 0, 8)]
+    runs = {}
+    for p in PATHS:
+        monkeypatch.setenv("OCC_GL", p)
+        with Culler(scene, (48, 32), strategy=strategy, ctx=ctx) as c:
+            assert c.renderer.path == p
+            runs[p] = [(c.cull(cam).state.tolist(), c.cull(cam).stats["queries"]) for cam in cams]
+    assert runs["4.3"] == runs["4.1"]
+
+
+@pytest.mark.parametrize("path", PATHS)
+def test_pending_batch_keeps_its_answer_across_later_draws(ctx, path):
+    """Batch A is issued, an occluder is drawn, batch B is issued; A still reads the
+    depth as it was when A was issued, B sees the occluder."""
+    scene = boxes_scene([((-4, -4, 5), (4, 4, 6))])            # covers everything, near
+    r = GLRenderer(scene, 8, 8, ctx=ctx, path=path)
+    cam = ortho_cam()
+    r.begin_frame(cam)
+    probe = np.array([((-1, -1, 0), (1, 1, 1))]) - cam.eye     # 2x2 pixels
+    a = r.query_async(probe)
+    r.draw([0])
+    b = r.query_async(probe)
+    c = r.query_async(probe)
+    assert b.result().tolist() == [0]
+    assert a.result().tolist() == [4]
+    assert a.result().tolist() == [4] and c.result().tolist() == [0]     # result() is idempotent
+    assert r.query(np.zeros((0, 2, 3))).shape == (0,)
+    r.release()
+
+
+@pytest.mark.parametrize("path", PATHS)
+def test_counters_per_frame(ctx, path):
+    """4.3: a batch of any size is one draw and one blocking read; 4.1: one per box.
+    begin_frame does the same GL work for 1 object as for 300 (no per-object pass)."""
+    boxes = [((i % 20 - 10, i // 20 - 8, 0), (i % 20 - 9.5, i // 20 - 7.5, 1)) for i in range(300)]
+    calls = []
+    for scene in (boxes_scene(boxes[:1]), boxes_scene(boxes)):
+        r = GLRenderer(scene, 8, 8, ctx=ctx, path=path)
+        r.begin_frame(ortho_cam())
+        calls.append(dict(r.counters))
+        r.release()
+    assert calls[0] == calls[1] and calls[0]["draws"] == 0
+    r = GLRenderer(boxes_scene(boxes[:1]), 8, 8, ctx=ctx, path=path)
+    cam = ortho_cam()
+    r.begin_frame(cam)
+    r.draw([0])
+    k = 50
+    probes = np.repeat(np.array([((-3, -3, 3), (3, 3, 4))]), k, axis=0) - cam.eye
+    samples = r.query(probes)
+    c = r.counters
+    assert c["query_batches"] == 1 and c["query_fragments"] == samples.sum() == 36 * k
+    if path == "4.3":
+        assert c["draws"] == 2 and c["blocking_reads"] == 1
+    else:
+        assert c["draws"] == 1 + k and c["blocking_reads"] == k
+    assert c["gl_calls"] > c["draws"] + c["blocking_reads"]
+    r.begin_frame(cam)
+    assert r.counters["draws"] == r.counters["blocking_reads"] == 0
+    r.release()
+
+
+def test_path_choice_and_errors(ctx, monkeypatch):
+    monkeypatch.delenv("OCC_GL", raising=False)
+    assert choose_path(ctx) == ("4.3" if ctx.version_code >= 430 else "4.1")
+    assert choose_path(ctx, "4.1") == "4.1"
+    monkeypatch.setenv("OCC_GL", "4.1")
+    assert choose_path(ctx) == "4.1"
+    monkeypatch.setenv("OCC_GL", "3.3")
+    with pytest.raises(OccError, match="OCC_GL must be one of 4.3, 4.1"):
+        choose_path(ctx)
+    old = SimpleNamespace(version_code=410)                   # what a Mac's context reports
+    monkeypatch.delenv("OCC_GL")
+    assert choose_path(old) == "4.1"
+    with pytest.raises(OccError, match="needs a 4.3 context, this one is 4.1"):
+        choose_path(old, "4.3")
+
+
+# --- conservative query resolution below the display's -----------------------------
+
+def gap_scene(gap_at):
+    """A thick wall over the whole 8x8 view (one unit per display pixel) with a slot
+    half a display pixel wide around the centre of display column ``gap_at``, so no
+    query pixel centre (odd coordinates at 4x4) sees through it; a post at z=0 behind
+    the slot, and one behind solid wall."""
+    x0 = gap_at - 4                                       # display column gap_at spans x0..x0+1
+    return boxes_scene([((-4, -4, 2), (x0 + 0.25, 4, 6)), ((x0 + 0.75, -4, 2), (4, 4, 6)),
+                        ((x0 + 0.4, -1, 0), (x0 + 0.6, 1, 1)),        # post seen through the slot
+                        ((-4, -4, -1), (-3, -3, 0))])                 # hidden post
+
+
+@pytest.mark.parametrize("path", PATHS)
+@pytest.mark.parametrize("gap_at", [2, 5])
+def test_display_gap_stays_open_at_query_resolution(ctx, path, gap_at):
+    """Display 8x8, query 4x4: a slot one display pixel wide.  Drawn at 4x4 directly the
+    slot falls between query pixel centres and the post behind it reads 0 samples;
+    with the reduction (farthest depth of the display pixels a query pixel covers)
+    its query pixel column is open and the post is visible.  The post behind solid
+    wall stays hidden either way."""
+    scene = gap_scene(gap_at)
+    cam = ortho_cam()
+    post, hidden = scene_boxes(scene)[2:] - cam.eye
+    # The caller's guard: at least 0.71 query pixel (1.41 units) on every side.
+    grow = np.array([[-1.5, -1.5, -1.5], [1.5, 1.5, 1.5]])
+    probes = np.array([post + grow, hidden + (0.1 * grow)])
+    plain = GLRenderer(scene, 4, 4, ctx=ctx, path=path)
+    plain.begin_frame(cam)
+    plain.draw([0, 1])
+    assert plain.query(probes).tolist() == [0, 0]              # the gap closed: wrongly hidden
+    plain.release()
+    r = GLRenderer(scene, 4, 4, ctx=ctx, path=path, display=(8, 8))
+    r.begin_frame(cam)
+    r.draw([0, 1])
+    assert r.display == (8, 8) and r.read_depth(display=True).shape == (8, 8)
+    samples = r.query(probes)
+    assert samples[0] == 2 and samples[1] == 0, samples        # one query column, 2 rows
+    # the reduced depth is exactly the 2x2 max of the display depth
+    d = r.read_depth(display=True)
+    assert np.array_equal(r.read_depth(), d.reshape(4, 2, 4, 2).max(axis=(1, 3)))
+    assert r.visible_truth(cam, display=True).tolist() == [True, True, True, False]
+    r.release()
+
+
+def scene_boxes(scene):
+    return scene.bounds
+
+
+@pytest.mark.parametrize("path", PATHS)
+def test_reduction_takes_every_overlapped_display_pixel(ctx, path):
+    """Display 10x7 to query 4x3 (ratios 2.5 and 2.33): each query pixel holds the max
+    of the display pixels its area overlaps, by a numpy reference."""
+    rng = np.random.default_rng(5)
+    lo = rng.uniform(-5, 4, (25, 3)) * (1, 0.7, 1) + (0, 0, 4)
+    scene = boxes_scene(list(zip(lo, lo + rng.uniform(0.3, 2.5, (25, 3)), strict=True)))
+    cam = Camera.look_at((0, 0, 10), (0, 0, 0), up=(0, 1, 0), aspect=10 / 7, near=1, far=20,
+                         ortho_height=7)
+    r = GLRenderer(scene, 4, 3, ctx=ctx, path=path, display=(10, 7))
+    r.begin_frame(cam)
+    r.draw(np.arange(len(scene)))
+    d = r.read_depth(display=True)
+    expect = np.zeros((3, 4), np.float32)
+    for j in range(3):
+        for i in range(4):
+            y0, y1 = (j * 7) // 3, -(-((j + 1) * 7) // 3)
+            x0, x1 = (i * 10) // 4, -(-((i + 1) * 10) // 4)
+            expect[j, i] = d[y0:y1, x0:x1].max()
+    assert len(np.unique(d)) > 3                               # the picture has structure
+    assert np.array_equal(r.read_depth(), expect)
+    r.release()
+
+
+def test_display_smaller_than_query_is_an_error(ctx):
+    with pytest.raises(OccError, match="display resolution 4x8 must be at least the query resolution 8x8"):
+        GLRenderer(boxes_scene([((0, 0, 0), (1, 1, 1))]), 8, 8, ctx=ctx, display=(4, 8))
