@@ -202,6 +202,16 @@ def test_path_choice_and_errors(ctx, monkeypatch):
 
 # --- conservative query resolution below the display's -----------------------------
 
+DEPTH_STEP = 1.0 / (2**24 - 1)
+
+
+def assert_reduced(got, expect):
+    """The reduction's value: the farthest display depth plus at most 3 steps of the
+    24-bit depth buffer (one added on purpose, rounding), never nearer."""
+    steps = (got.astype(np.float64) - expect) / DEPTH_STEP
+    assert steps.min() >= -1e-3 and steps.max() <= 3.001, (steps.min(), steps.max())
+    assert np.array_equal(got == 1.0, expect == 1.0)
+
 def gap_scene(gap_at):
     """A thick wall over the whole 8x8 view (one unit per display pixel) with a slot
     half a display pixel wide around the centre of display column ``gap_at``, so no
@@ -238,9 +248,9 @@ def test_display_gap_stays_open_at_query_resolution(ctx, path, gap_at):
     assert r.display == (8, 8) and r.read_depth(display=True).shape == (8, 8)
     samples = r.query(probes)
     assert samples[0] == 2 and samples[1] == 0, samples        # one query column, 2 rows
-    # the reduced depth is exactly the 2x2 max of the display depth
+    # the reduced depth is the 2x2 max of the display depth, never nearer
     d = r.read_depth(display=True)
-    assert np.array_equal(r.read_depth(), d.reshape(4, 2, 4, 2).max(axis=(1, 3)))
+    assert_reduced(r.read_depth(), d.reshape(4, 2, 4, 2).max(axis=(1, 3)))
     assert r.visible_truth(cam, display=True).tolist() == [True, True, True, False]
     r.release()
 
@@ -250,26 +260,48 @@ def scene_boxes(scene):
 
 
 @pytest.mark.parametrize("path", PATHS)
-def test_reduction_takes_every_overlapped_display_pixel(ctx, path):
-    """Display 10x7 to query 4x3 (ratios 2.5 and 2.33): each query pixel holds the max
-    of the display pixels its area overlaps, by a numpy reference."""
+@pytest.mark.parametrize("display, query", [((10, 7), (4, 3)),      # ratios 2.5, 2.33: the loop
+                                            ((8, 6), (4, 3)),       # 2x2: one textureGather
+                                            ((16, 12), (4, 3))])    # 4x4: four gathers
+def test_reduction_takes_every_overlapped_display_pixel(ctx, path, display, query):
+    """Each query pixel holds the max of the display pixels its area overlaps, by a
+    numpy reference, for fractional and even ratios."""
+    (dw, dh), (w, h) = display, query
     rng = np.random.default_rng(5)
     lo = rng.uniform(-5, 4, (25, 3)) * (1, 0.7, 1) + (0, 0, 4)
     scene = boxes_scene(list(zip(lo, lo + rng.uniform(0.3, 2.5, (25, 3)), strict=True)))
-    cam = Camera.look_at((0, 0, 10), (0, 0, 0), up=(0, 1, 0), aspect=10 / 7, near=1, far=20,
+    cam = Camera.look_at((0, 0, 10), (0, 0, 0), up=(0, 1, 0), aspect=dw / dh, near=1, far=20,
                          ortho_height=7)
-    r = GLRenderer(scene, 4, 3, ctx=ctx, path=path, display=(10, 7))
+    r = GLRenderer(scene, w, h, ctx=ctx, path=path, display=display)
     r.begin_frame(cam)
     r.draw(np.arange(len(scene)))
     d = r.read_depth(display=True)
-    expect = np.zeros((3, 4), np.float32)
-    for j in range(3):
-        for i in range(4):
-            y0, y1 = (j * 7) // 3, -(-((j + 1) * 7) // 3)
-            x0, x1 = (i * 10) // 4, -(-((i + 1) * 10) // 4)
+    expect = np.zeros((h, w), np.float32)
+    for j in range(h):
+        for i in range(w):
+            y0, y1 = (j * dh) // h, -(-((j + 1) * dh) // h)
+            x0, x1 = (i * dw) // w, -(-((i + 1) * dw) // w)
             expect[j, i] = d[y0:y1, x0:x1].max()
     assert len(np.unique(d)) > 3                               # the picture has structure
-    assert np.array_equal(r.read_depth(), expect)
+    assert_reduced(r.read_depth(), expect)
+    r.release()
+
+
+@pytest.mark.parametrize("path", PATHS)
+def test_reduction_only_where_drawn_is_complete(ctx, path):
+    """Draws in several batches with queries in between (each reduces only the
+    rectangle drawn since the last): the final query depth equals one full reduction."""
+    scene = random_scene(11, 40)
+    cam = Camera.look_at((3, -20, 15), (0, 0, 0), aspect=1.5, near=0.5, far=100)
+    r = GLRenderer(scene, 24, 16, ctx=ctx, path=path, display=(48, 32))
+    r.begin_frame(cam)
+    probe = np.array([((-20, -20, -20), (20, 20, 20))]) + (0, 0, -200.0)
+    for part in np.array_split(np.random.default_rng(0).permutation(len(scene)), 5):
+        r.draw(part)
+        r.query(probe)
+    d = r.read_depth(display=True)
+    assert (d < 1).mean() > 0.1
+    assert_reduced(r.read_depth(), d.reshape(16, 2, 24, 2).max(axis=(1, 3)))
     r.release()
 
 

@@ -37,7 +37,7 @@ toggles are set only when they change and not counted), ``blocking_reads``,
 
 import numpy as np
 
-from ..bounds import corners
+from ..bounds import corners, transform_boxes
 from ..errors import OccError
 from . import shaders as S
 from .context import choose_path, create_context
@@ -158,10 +158,16 @@ class GLRenderer:
         else:
             self._init_41()
         if self.reduces:
-            self.reduce_prog = self._program(S.FULLSCREEN_VERTEX, S.REDUCE_FRAGMENT)
+            (dw, dh), (w, h) = self.display, (self.width, self.height)
+            if dw % w == 0 and dh % h == 0 and (dw // w) % 2 == 0 and (dh // h) % 2 == 0:
+                self.reduce_prog = self._program(S.FULLSCREEN_VERTEX, S.REDUCE_GATHER_FRAGMENT
+                                                 % {"rx": dw // w, "ry": dh // h})
+                self.reduce_prog["u_texel"].value = (1.0 / dw, 1.0 / dh)
+            else:
+                self.reduce_prog = self._program(S.FULLSCREEN_VERTEX, S.REDUCE_FRAGMENT)
+                self.reduce_prog["u_display"].value = self.display
+                self.reduce_prog["u_query"].value = (w, h)
             self.reduce_prog["u_depth"].value = 0
-            self.reduce_prog["u_display"].value = self.display
-            self.reduce_prog["u_query"].value = (self.width, self.height)
             self.reduce_vao = ctx.vertex_array(self.reduce_prog, [])
         # --- targets ------------------------------------------------------------
         size = (self.width, self.height)
@@ -170,7 +176,9 @@ class GLRenderer:
         self.query_fbo.depth_mask = False                  # query boxes never write depth
         if self.reduces:
             self.display_tex = ctx.depth_texture(self.display)
-            self.display_tex.compare_func = ""             # texelFetch reads depth values
+            self.display_tex.compare_func = ""             # texelFetch / textureGather read depth values
+            self.display_tex.repeat_x = self.display_tex.repeat_y = False
+            self.display_tex.filter = (ctx.NEAREST, ctx.NEAREST)
             self.fbo = ctx.framebuffer(depth_attachment=self.display_tex)
             self.reduce_fbo = ctx.framebuffer(depth_attachment=self.depth_tex)
         else:
@@ -180,7 +188,8 @@ class GLRenderer:
         self.eye = np.zeros(3)
         self.clip = np.eye(4)
         self.front_face = "ccw"
-        self._dirty = False            # display depth drawn since the last reduction
+        self._dirty = None             # query-pixel rectangle drawn at display resolution since
+                                       # the last reduction, [x0, y0, x1, y1] inclusive, or None
         self._state = {}
 
     # --- set-up per path -----------------------------------------------------------
@@ -253,8 +262,11 @@ class GLRenderer:
     def set_matrices(self, indices, matrices):
         """Store world matrices ``(k, 4, 4)`` of objects ``indices`` (mesh centre folded in)."""
         m = np.asarray(matrices, dtype=np.float64).reshape(-1, 4, 4)
-        self.world = getattr(self, "world", np.repeat(np.eye(4)[None], max(self.n, 1), axis=0))
+        if not hasattr(self, "world"):
+            self.world = np.repeat(np.eye(4)[None], max(self.n, 1), axis=0)
+            self.model = self.world.copy()
         idx = np.asarray(indices, dtype=np.int64)
+        self.model[idx] = m
         self.world[idx] = m @ self.object_offset[idx]
 
     def begin_frame(self, camera):
@@ -273,7 +285,10 @@ class GLRenderer:
         self.ctx.enable(self.ctx.DEPTH_TEST)
         self.fbo.clear(depth=1.0)                          # leaves the bound framebuffer's mask as is
         self._count()
-        self._dirty = self.reduces
+        if self.reduces:                                   # an empty display reduces to an empty query depth
+            self.reduce_fbo.clear(depth=1.0)
+            self._count()
+        self._dirty = None
         self.box_prog["u_vp"].write(np.ascontiguousarray(self.clip.T, dtype=np.float32).tobytes())
         self._count()
         if self.path == "4.3" and self.stream_at:
@@ -288,8 +303,14 @@ class GLRenderer:
         rel[:, :3, 3] -= self.eye
         return np.ascontiguousarray((self.clip @ rel).transpose(0, 2, 1), dtype=np.float32)
 
-    def draw(self, units):
-        """Draw units (``(k,) int``) into the depth buffer; returns the triangles drawn."""
+    def draw(self, units, rects=None):
+        """Draw units (``(k,) int``) into the depth buffer; returns the triangles drawn.
+
+        rects: ``(k, 4) int`` query-resolution pixel rectangles of the units' boxes,
+        rounded outward (``x0, y0, x1, y1`` inclusive, as ``occupancy.project_rects``
+        gives), used only when a display resolution is reduced, to reduce only where
+        something was drawn; computed here when not given.
+        """
         units = np.asarray(units, dtype=np.int64)
         if not len(units):
             return 0
@@ -298,8 +319,21 @@ class GLRenderer:
             self._draw_43(self.depth_vao, units)
         else:
             self._draw_41(self.depth_prog, self.depth_vao, units)
-        self._dirty = self.reduces
+        if self.reduces:
+            self._mark_dirty(self._unit_rects(units) if rects is None else np.asarray(rects))
         return int(self.tri_counts[units].sum())
+
+    def _unit_rects(self, units):
+        """Query-pixel rectangles of units' camera-relative boxes, rounded outward."""
+        from ..occupancy import project_rects
+        boxes = transform_boxes(self.units.local_bounds[units], self.model[self.units.object[units]])
+        return project_rects(boxes - self.eye, self.clip, self.width, self.height)[0]
+
+    def _mark_dirty(self, rects):
+        box = np.array([*rects[:, :2].min(axis=0), *rects[:, 2:].max(axis=0)])
+        if self._dirty is not None:
+            box = np.array([*np.minimum(box[:2], self._dirty[:2]), *np.maximum(box[2:], self._dirty[2:])])
+        self._dirty = box
 
     def _draw_43(self, vao, units):
         """One buffer write (commands and records) and one multi-draw."""
@@ -420,13 +454,18 @@ class GLRenderer:
 
     def _reduce(self):
         """Bring the query-resolution depth up to date with the display-resolution
-        depth: each query pixel gets the farthest depth its area overlaps."""
-        if not self._dirty:
+        depth where something was drawn: each query pixel there gets the farthest
+        depth of the display pixels its area overlaps."""
+        if self._dirty is None:
             return
-        self._use(self.reduce_fbo, "1", False)      # "always": every pixel written
+        x0, y0, x1, y1 = (int(v) for v in self._dirty)
+        # The rectangles cover every query pixel whose area a drawn box overlaps.
+        self.reduce_fbo.scissor = (x0, y0, x1 - x0 + 1, y1 - y0 + 1)
+        self._use(self.reduce_fbo, "1", False)      # "always": every pixel of the rectangle written
         self.display_tex.use(0)
         self.reduce_vao.render(vertices=3)
-        self._dirty = False
+        self.reduce_fbo.scissor = None              # bound: moderngl disables the scissor test now
+        self._dirty = None
         self._count(1, draws=1)
 
     def finish(self):

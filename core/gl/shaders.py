@@ -108,7 +108,11 @@ void main() {
 """
 # Each query pixel takes the FARTHEST depth of every display pixel its area overlaps:
 # conservative, a gap open at display resolution stays open at query resolution.
+# Both depth buffers are 24-bit and a value read and written back goes through float
+# (llvmpipe rounds it 0 or 1 step farther; a driver may round nearer), so one step is
+# added: conservative, the reduced depth is never nearer than the display's.
 REDUCE_FRAGMENT = """{v}
+const float DEPTH_STEP = 1.0 / 16777215.0;
 uniform sampler2D u_depth;
 uniform ivec2 u_display;
 uniform ivec2 u_query;
@@ -120,7 +124,30 @@ void main() {
     for (int y = lo.y; y < hi.y; ++y)
         for (int x = lo.x; x < hi.x; ++x)
             d = max(d, texelFetch(u_depth, ivec2(x, y), 0).r);
-    gl_FragDepth = d;
+    gl_FragDepth = min(d + DEPTH_STEP, 1.0);
+}
+"""
+
+
+# The same for a display that is an even multiple (rx, ry) of the query resolution in
+# both axes (1280x720 over 640x360): one textureGather per 2x2 display pixels, 6-9x
+# faster than the loop above on llvmpipe; the same values.
+REDUCE_GATHER_FRAGMENT = """{v}
+const float DEPTH_STEP = 1.0 / 16777215.0;
+uniform sampler2D u_depth;
+uniform vec2 u_texel;               // 1 / display size
+const int RX = %(rx)d;
+const int RY = %(ry)d;
+void main() {
+    ivec2 q = ivec2(gl_FragCoord.xy) * ivec2(RX, RY);
+    float d = 0.0;
+    for (int j = 0; j < RY; j += 2)
+        for (int i = 0; i < RX; i += 2) {
+            // the shared corner of display pixels q + (i, j) .. q + (i + 1, j + 1)
+            vec4 g = textureGather(u_depth, vec2(q + ivec2(i + 1, j + 1)) * u_texel);
+            d = max(d, max(max(g.x, g.y), max(g.z, g.w)));
+        }
+    gl_FragDepth = min(d + DEPTH_STEP, 1.0);
 }
 """
 
