@@ -111,7 +111,9 @@ def test_both_paths_give_identical_samples_on_a_random_scene(ctx, seed):
             r.draw(order[:30])
             second = r.query(probes)
             r.draw(order[30:])
-            out[p] = (first, second, r.query(probes), r.read_depth().copy(), r.object_ids(cam))
+            flags = r.query(probes, counts=False)
+            out[p] = (first, second, r.query(probes), flags, r.read_depth().copy(), r.object_ids(cam))
+            assert np.array_equal(flags, np.minimum(out[p][2], 1))       # flags: 1 where any sample passed
         for a, b in zip(out["4.3"], out["4.1"], strict=True):
             assert np.array_equal(a, b)
         assert out["4.3"][1].sum() > out["4.3"][2].sum() > 0      # the draws occluded something
@@ -179,6 +181,8 @@ def test_counters_per_frame(ctx, path):
     else:
         assert c["draws"] == 1 + k and c["blocking_reads"] == k
     assert c["gl_calls"] > c["draws"] + c["blocking_reads"]
+    assert r.query(probes, counts=False).tolist() == [1] * k
+    assert r.counters["query_fragments"] == 36 * k                   # flags count no fragments
     r.begin_frame(cam)
     assert r.counters["draws"] == r.counters["blocking_reads"] == 0
     r.release()
@@ -308,3 +312,23 @@ def test_reduction_only_where_drawn_is_complete(ctx, path):
 def test_display_smaller_than_query_is_an_error(ctx):
     with pytest.raises(OccError, match="display resolution 4x8 must be at least the query resolution 8x8"):
         GLRenderer(boxes_scene([((0, 0, 0), (1, 1, 1))]), 8, 8, ctx=ctx, display=(4, 8))
+
+
+@pytest.mark.parametrize("path", PATHS)
+def test_renderers_sharing_a_context_interleave(ctx, path):
+    """Two renderers on one context, their calls interleaved without a new frame in
+    between (the state each sets is tracked per context, not per renderer)."""
+    wall = GLRenderer(boxes_scene([((-4, -4, 2), (4, 4, 3))]), 8, 8, ctx=ctx, path=path)
+    empty = GLRenderer(boxes_scene([((-4, -4, -9), (-3, -3, -8))]), 8, 8, ctx=ctx, path=path,
+                       display=(16, 16))
+    cam = ortho_cam()
+    probe = np.array([((-1, -1, 0), (1, 1, 1))]) - cam.eye
+    wall.begin_frame(cam)
+    empty.begin_frame(cam)
+    wall.draw([0])
+    empty.draw([0])
+    for _ in range(2):
+        assert wall.query(probe).tolist() == [0]
+        assert empty.query(probe).tolist() == [4]
+    wall.release()
+    empty.release()

@@ -35,6 +35,8 @@ toggles are set only when they change and not counted), ``blocking_reads``,
 ``query_fragments`` (samples passed in query draws), ``draws``, ``query_batches``.
 """
 
+import weakref
+
 import numpy as np
 
 from ..bounds import corners, transform_boxes
@@ -48,6 +50,8 @@ CMD_BYTES = 20                          # one DrawElementsIndirectCommand
 # Per-draw instance record of the 4.3 stream: column-major MVP and object id.
 RECORD = np.dtype([("mvp", "<f4", (16,)), ("id", "<u4")])
 STREAM_ALIGN = 340                      # lcm(CMD_BYTES, RECORD.itemsize): a chunk starts on both
+# GL state this package set last, per context: renderers sharing a context share it.
+_CONTEXT_STATE = weakref.WeakKeyDictionary()
 COUNTER_KEYS = ("gl_calls", "blocking_reads", "query_fragments", "draws", "query_batches")
 BOX_TRIANGLES = S.BOX_TRIANGLES
 
@@ -91,11 +95,13 @@ _DONE_EMPTY = np.zeros(0, dtype=np.int64)
 class _Slot:
     """A 4.3 query batch's own buffer: float32 boxes (lo, hi) at 0, uint counters after."""
 
-    def __init__(self, ctx, prog, cap):
+    def __init__(self, ctx, progs, cap):
         self.cap = cap
         self.counts_at = _ceil_to(cap * 24, SSBO_ALIGN)
         self.buffer = ctx.buffer(reserve=self.counts_at + 4 * cap)
-        self.vao = ctx.vertex_array(prog, [(self.buffer, "3f 3f/i", "in_lo", "in_hi")])
+        # one vertex array per box program (sample counters, flags) on the same buffer
+        self.vaos = {kind: ctx.vertex_array(p, [(self.buffer, "3f 3f/i", "in_lo", "in_hi")])
+                     for kind, p in progs.items()}
 
 
 class GLRenderer:
@@ -190,7 +196,7 @@ class GLRenderer:
         self.front_face = "ccw"
         self._dirty = None             # query-pixel rectangle drawn at display resolution since
                                        # the last reduction, [x0, y0, x1, y1] inclusive, or None
-        self._state = {}
+        self._state = _CONTEXT_STATE.setdefault(self.ctx, {})
 
     # --- set-up per path -----------------------------------------------------------
     def _program(self, vertex, fragment):
@@ -201,7 +207,8 @@ class GLRenderer:
         ctx = self.ctx
         self.depth_prog = self._program(S.SCENE_VERTEX_43, S.DEPTH_FRAGMENT)
         self.id_prog = self._program(S.ID_VERTEX_43, S.ID_FRAGMENT)
-        self.box_prog = self._program(S.BOX_VERTEX_43, S.BOX_COUNT_FRAGMENT_43)
+        self.box_progs = {True: self._program(S.BOX_VERTEX_43, S.BOX_COUNT_FRAGMENT_43),
+                          False: self._program(S.BOX_VERTEX_43, S.BOX_FLAG_FRAGMENT_43)}
         # The per-frame stream: chunks of [indirect commands | per-instance records].
         self.stream_size = _pow2(STREAM_ALIGN + (CMD_BYTES + RECORD.itemsize) * max(len(self.units), 1)
                                  + RECORD.itemsize, least=4096)
@@ -220,7 +227,7 @@ class GLRenderer:
         ctx = self.ctx
         self.depth_prog = self._program(S.SCENE_VERTEX_41, S.DEPTH_FRAGMENT)
         self.id_prog = self._program(S.ID_VERTEX_41, S.ID_FRAGMENT)
-        self.box_prog = self._program(S.BOX_VERTEX_41, S.DEPTH_FRAGMENT)
+        self.box_progs = {True: self._program(S.BOX_VERTEX_41, S.DEPTH_FRAGMENT)}
         self.depth_vao = ctx.vertex_array(self.depth_prog, [(self.vbo, "3f", "in_pos")],
                                           index_buffer=self.ibo, index_element_size=4)
         self.id_vao = ctx.vertex_array(self.id_prog, [(self.vbo, "3f", "in_pos")],
@@ -281,7 +288,7 @@ class GLRenderer:
         # A mirrored camera (negative-determinant view) flips the winding on screen; with
         # OpenGL's clip z pointing away from the eye, an unmirrored camera has det < 0.
         self.front_face = "ccw" if np.linalg.det(self.clip) < 0 else "cw"
-        self._state = {}                                   # another renderer may share the context
+        self._state.clear()                                # set everything once a frame
         self.ctx.enable(self.ctx.DEPTH_TEST)
         self.fbo.clear(depth=1.0)                          # leaves the bound framebuffer's mask as is
         self._count()
@@ -289,8 +296,10 @@ class GLRenderer:
             self.reduce_fbo.clear(depth=1.0)
             self._count()
         self._dirty = None
-        self.box_prog["u_vp"].write(np.ascontiguousarray(self.clip.T, dtype=np.float32).tobytes())
-        self._count()
+        vp = np.ascontiguousarray(self.clip.T, dtype=np.float32).tobytes()
+        for prog in self.box_progs.values():
+            prog["u_vp"].write(vp)
+        self._count(len(self.box_progs))
         if self.path == "4.3" and self.stream_at:
             self.stream.orphan(self.stream_size)           # last frame's draws keep their storage
             self.stream_at = 0
@@ -374,12 +383,17 @@ class GLRenderer:
         self._count((3 if ids else 2) * len(units), draws=len(units))
 
     # --- queries -------------------------------------------------------------------
-    def query(self, boxes_rel):
+    def query(self, boxes_rel, counts=True):
         """Samples of each camera-relative box ``(k, 2, 3)`` that pass ``<=`` the depth
-        buffer, ``(k,) int64`` (0 = hidden).  One batch: issued, then read back."""
-        return self.query_async(boxes_rel).result()
+        buffer, ``(k,) int64`` (0 = hidden).  One batch: issued, then read back.
 
-    def query_async(self, boxes_rel):
+        counts: True, the number of samples (what a ``visible_threshold`` > 0 needs);
+        False, 1 where any sample passed (4.3: a flag write per fragment instead of an
+        atomic add, faster on llvmpipe, see notes/gl.md; 4.1: the count clipped to 1).
+        """
+        return self.query_async(boxes_rel, counts).result()
+
+    def query_async(self, boxes_rel, counts=True):
         """Issue a query batch now; its :class:`PendingQuery` reads the answer later, so
         CPU work can overlap the GPU.  Later draws do not change this batch's answer."""
         boxes_rel = np.asarray(boxes_rel, dtype=np.float64)
@@ -392,22 +406,31 @@ class GLRenderer:
         # never contains the eye (that box is visible by rule), so its front faces
         # cover its whole silhouette, each covered pixel centre once.
         self._use(self.query_fbo, "<=", True)
-        read = self._issue_43(boxes_rel) if self.path == "4.3" else self._issue_41(boxes_rel)
-        return PendingQuery(read)
+        if self.path == "4.3":
+            read = self._issue_43(boxes_rel, bool(counts))
+        else:
+            read = self._issue_41(boxes_rel)
+        return PendingQuery(lambda: self._tally(read(), counts))
 
-    def _issue_43(self, boxes_rel):
+    def _tally(self, samples, counts):
+        if counts:
+            self.counters["query_fragments"] += int(samples.sum())
+            return samples
+        return np.minimum(samples, 1)
+
+    def _issue_43(self, boxes_rel, counts):
         k = len(boxes_rel)
         cap = _pow2(k)
         free = self.free_slots.setdefault(cap, [])
         slot = free.pop() if free else None
         if slot is None:
-            slot = _Slot(self.ctx, self.box_prog, cap)
+            slot = _Slot(self.ctx, self.box_progs, cap)
             self.slots.append(slot)
         blob = np.zeros(slot.counts_at + 4 * k, dtype=np.uint8)     # counters start at 0
         blob[:24 * k] = boxes_rel.reshape(k, 6).astype(np.float32).view(np.uint8).ravel()
         slot.buffer.write(blob)
         slot.buffer.bind_to_storage_buffer(0, offset=slot.counts_at, size=4 * k)
-        slot.vao.render(vertices=36, instances=k)
+        slot.vaos[counts].render(vertices=36, instances=k)
         self.ctx.memory_barrier(GL_BUFFER_UPDATE_BARRIER_BIT)
         self._count(3, draws=1)
 
@@ -415,9 +438,7 @@ class GLRenderer:
             raw = slot.buffer.read(size=4 * k, offset=slot.counts_at)
             self.free_slots[cap].append(slot)
             self._count(1, reads=1)
-            samples = np.frombuffer(raw, dtype=np.uint32).astype(np.int64)
-            self.counters["query_fragments"] += int(samples.sum())
-            return samples
+            return np.frombuffer(raw, dtype=np.uint32).astype(np.int64)
         return read
 
     def _issue_41(self, boxes_rel):
@@ -437,7 +458,6 @@ class GLRenderer:
             samples = np.array([q.samples for q in qs], dtype=np.int64)
             self.free_queries.extend(qs)
             self._count(k, reads=k)
-            self.counters["query_fragments"] += int(samples.sum())
             return samples
         return read
 
@@ -449,7 +469,7 @@ class GLRenderer:
             self.box_vao.release()
             self.box_vbo.release()
         self.box_vbo = self.ctx.buffer(reserve=cap * 36 * 12)
-        self.box_vao = self.ctx.vertex_array(self.box_prog, [(self.box_vbo, "3f", "in_pos")])
+        self.box_vao = self.ctx.vertex_array(self.box_progs[True], [(self.box_vbo, "3f", "in_pos")])
         self.box_capacity = cap
 
     def _reduce(self):
@@ -505,7 +525,7 @@ class GLRenderer:
                                        depth_attachment=self.ctx.depth_renderbuffer((w, h)))
             self.id_fbos[(w, h)] = fbo
         fbo.clear(depth=1.0)
-        self._state = {}
+        self._state.clear()                                # the clear re-bound a framebuffer
         self._use(fbo, "<", False)
         units = np.arange(len(self.units))
         if objects is not None:
@@ -537,11 +557,11 @@ class GLRenderer:
             self.ctx.release()
             return
         objs = [self.depth_vao, self.id_vao, self.vbo, self.ibo, self.depth_prog, self.id_prog,
-                self.box_prog, self.fbo, self.query_fbo, self.depth_tex]
+                *self.box_progs.values(), self.fbo, self.query_fbo, self.depth_tex]
         if self.path == "4.3":
             objs += [self.stream]
             for s in self.slots:
-                objs += [s.vao, s.buffer]
+                objs += [*s.vaos.values(), s.buffer]
         else:
             objs += [self.box_vao, self.box_vbo]           # moderngl queries have no release
         if self.reduces:
