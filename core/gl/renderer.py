@@ -194,6 +194,7 @@ class GLRenderer:
         self.eye = np.zeros(3)
         self.clip = np.eye(4)
         self.front_face = "ccw"
+        self._vp_set = set()
         self._dirty = None             # query-pixel rectangle drawn at display resolution since
                                        # the last reduction, [x0, y0, x1, y1] inclusive, or None
         self._state = _CONTEXT_STATE.setdefault(self.ctx, {})
@@ -296,10 +297,7 @@ class GLRenderer:
             self.reduce_fbo.clear(depth=1.0)
             self._count()
         self._dirty = None
-        vp = np.ascontiguousarray(self.clip.T, dtype=np.float32).tobytes()
-        for prog in self.box_progs.values():
-            prog["u_vp"].write(vp)
-        self._count(len(self.box_progs))
+        self._vp_set = set()                               # box programs given this frame's matrix
         if self.path == "4.3" and self.stream_at:
             self.stream.orphan(self.stream_size)           # last frame's draws keep their storage
             self.stream_at = 0
@@ -406,8 +404,14 @@ class GLRenderer:
         # never contains the eye (that box is visible by rule), so its front faces
         # cover its whole silhouette, each covered pixel centre once.
         self._use(self.query_fbo, "<=", True)
+        counts = bool(counts)
+        prog = counts if self.path == "4.3" else True      # 4.1 has one box program
+        if prog not in self._vp_set:
+            self.box_progs[prog]["u_vp"].write(np.ascontiguousarray(self.clip.T, dtype=np.float32).tobytes())
+            self._vp_set.add(prog)
+            self._count()
         if self.path == "4.3":
-            read = self._issue_43(boxes_rel, bool(counts))
+            read = self._issue_43(boxes_rel, counts)
         else:
             read = self._issue_41(boxes_rel)
         return PendingQuery(lambda: self._tally(read(), counts))
