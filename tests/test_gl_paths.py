@@ -332,3 +332,31 @@ def test_renderers_sharing_a_context_interleave(ctx, path):
         assert empty.query(probe).tolist() == [4]
     wall.release()
     empty.release()
+
+
+def test_many_small_draws_wrap_the_stream(ctx):
+    """4.3: per-draw commands and matrices go into a per-frame stream buffer; more draws
+    than it holds orphan it and start again at 0, and one draw bigger than it grows it.
+    The depth and IDs stay those of one draw of everything."""
+    scene = random_scene(4, 30)
+    cam = Camera.look_at((3, -20, 15), (0, 0, 0), aspect=1.5, near=0.5, far=100)
+    r = GLRenderer(scene, 24, 16, ctx=ctx, path="4.3")
+    r.begin_frame(cam)
+    r.draw(np.arange(len(scene)))
+    expect = r.read_depth().copy()
+    r.begin_frame(cam)
+    size = r.stream_size
+    for _ in range(4):                               # 120 draws of one unit: past the stream's end
+        for u in range(len(scene)):
+            r.draw([u])
+    # two calls a draw, two for the frame's clear and orphan, and about one orphan per 11 draws
+    assert r.counters["gl_calls"] >= 2 * 120 + 2 + 10
+    assert np.array_equal(r.read_depth(), expect)
+    r.begin_frame(cam)
+    r.draw(np.tile(np.arange(len(scene)), 200))      # 6,000 units in one draw: a bigger stream
+    assert r.stream_size > size
+    assert np.array_equal(r.read_depth(), expect)
+    other = GLRenderer(scene, 24, 16, ctx=ctx, path="4.1")
+    assert np.array_equal(r.object_ids(cam), other.object_ids(cam))
+    other.release()
+    r.release()
