@@ -360,3 +360,18 @@ def test_many_small_draws_wrap_the_stream(ctx):
     assert np.array_equal(r.object_ids(cam), other.object_ids(cam))
     other.release()
     r.release()
+
+
+@pytest.mark.parametrize("path", PATHS)
+def test_unread_batches_give_their_resources_back(ctx, path):
+    """A pending batch dropped unread returns its buffer (4.3) or query objects (4.1)."""
+    r = GLRenderer(boxes_scene([((-4, -4, 0), (0, 4, 1))]), 8, 8, ctx=ctx, path=path)
+    cam = ortho_cam()
+    r.begin_frame(cam)
+    r.draw([0])
+    for _ in range(20):
+        r.query_async(PROBES - cam.eye)                       # dropped at once
+    assert r.query(PROBES - cam.eye).tolist() == [36, 18, 0, 4]
+    held = len(r.slots) if path == "4.3" else len(r.free_queries)
+    assert held == (1 if path == "4.3" else len(PROBES))
+    r.release()

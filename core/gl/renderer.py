@@ -73,20 +73,26 @@ class PendingQuery:
     """A query batch issued and not read yet; :meth:`result` reads it back once.
 
     Draws issued in between do not change its answer: the batch owns its result
-    buffer (4.3) or query objects (4.1) until it is read.
+    buffer (4.3) or query objects (4.1) until it is read (or dropped unread).
     """
 
-    __slots__ = ("_read", "_samples")
+    __slots__ = ("_read", "_drop", "_samples")
 
-    def __init__(self, read):
-        self._read, self._samples = read, None
+    def __init__(self, read, drop=None):
+        self._read, self._drop, self._samples = read, drop, None
 
     def result(self):
         """Samples passed per box, ``(k,) int64`` (0 = hidden); blocks the first time."""
         if self._samples is None:
             self._samples = self._read()
-            self._read = None
+            self._read = self._drop = None
         return self._samples
+
+    def __del__(self):
+        # Unread: its buffer or query objects go back to the pool (GL orders any
+        # later reuse after this batch's draw).
+        if self._drop is not None:
+            self._drop()
 
 
 _DONE_EMPTY = np.zeros(0, dtype=np.int64)
@@ -97,6 +103,7 @@ class _Slot:
 
     def __init__(self, ctx, progs, cap):
         self.cap = cap
+        self.unfenced = False           # shader writes not yet behind a memory barrier
         self.counts_at = _ceil_to(cap * 24, SSBO_ALIGN)
         self.buffer = ctx.buffer(reserve=self.counts_at + 4 * cap)
         # one vertex array per box program (sample counters, flags) on the same buffer
@@ -411,10 +418,10 @@ class GLRenderer:
             self._vp_set.add(prog)
             self._count()
         if self.path == "4.3":
-            read = self._issue_43(boxes_rel, counts)
+            read, drop = self._issue_43(boxes_rel, counts)
         else:
-            read = self._issue_41(boxes_rel)
-        return PendingQuery(lambda: self._tally(read(), counts))
+            read, drop = self._issue_41(boxes_rel)
+        return PendingQuery(lambda: self._tally(read(), counts), drop)
 
     def _tally(self, samples, counts):
         if counts:
@@ -430,20 +437,27 @@ class GLRenderer:
         if slot is None:
             slot = _Slot(self.ctx, self.box_progs, cap)
             self.slots.append(slot)
+        if slot.unfenced:               # dropped unread: its shader writes must land before ours
+            self.ctx.memory_barrier(GL_BUFFER_UPDATE_BARRIER_BIT)
+            self._count()
+        slot.unfenced = True
         blob = np.zeros(slot.counts_at + 4 * k, dtype=np.uint8)     # counters start at 0
         blob[:24 * k] = boxes_rel.reshape(k, 6).astype(np.float32).view(np.uint8).ravel()
         slot.buffer.write(blob)
         slot.buffer.bind_to_storage_buffer(0, offset=slot.counts_at, size=4 * k)
         slot.vaos[counts].render(vertices=36, instances=k)
-        self.ctx.memory_barrier(GL_BUFFER_UPDATE_BARRIER_BIT)
-        self._count(3, draws=1)
+        self._count(2, draws=1)
 
         def read():
+            # The barrier here, not after the draw: it makes llvmpipe wait for the draw,
+            # and the batch is only waited for when it is read.
+            self.ctx.memory_barrier(GL_BUFFER_UPDATE_BARRIER_BIT)
+            slot.unfenced = False
             raw = slot.buffer.read(size=4 * k, offset=slot.counts_at)
             self.free_slots[cap].append(slot)
-            self._count(1, reads=1)
+            self._count(2, reads=1)
             return np.frombuffer(raw, dtype=np.uint32).astype(np.int64)
-        return read
+        return read, lambda: self.free_slots[cap].append(slot)
 
     def _issue_41(self, boxes_rel):
         k = len(boxes_rel)
@@ -463,7 +477,7 @@ class GLRenderer:
             self.free_queries.extend(qs)
             self._count(k, reads=k)
             return samples
-        return read
+        return read, lambda: self.free_queries.extend(qs)
 
     def _reserve_boxes(self, k):
         if k <= self.box_capacity:
