@@ -5,6 +5,7 @@ Tiny targets with analytic expectations; every test that takes ``ctx`` is bracke
 by a GL-error check (tests/conftest.py).
 """
 
+import sys
 from types import SimpleNamespace
 
 import numpy as np
@@ -375,3 +376,23 @@ def test_unread_batches_give_their_resources_back(ctx, path):
     held = len(r.slots) if path == "4.3" else len(r.free_queries)
     assert held == (1 if path == "4.3" else len(PROBES))
     r.release()
+
+
+@pytest.mark.parametrize("platform, says", [
+    ("linux", "apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri"),
+    ("darwin", "OpenGL 4.1 core, which every Mac since 2012 has"),
+    ("win32", "update the GPU driver")])
+def test_no_context_error_says_what_to_do_per_platform(platform, says, monkeypatch):
+    from core.gl import context
+    monkeypatch.setattr(context.sys, "platform", platform)
+    assert says in context.platform_hint()
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="EGL is the Linux backend")
+def test_missing_libegl_error_lists_each_version_tried(monkeypatch):
+    """Linux without a loadable libEGL: both versions were tried, each failure named."""
+    from core.gl import create_context
+    monkeypatch.setenv("OCC_LIBEGL", "libEGL-missing.so.1")
+    monkeypatch.delenv("OCC_GL", raising=False)
+    with pytest.raises(OccError, match=r"OpenGL 4\.3: .*; OpenGL 4\.1: .*apt-get install libegl1"):
+        create_context()
