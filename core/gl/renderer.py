@@ -13,7 +13,8 @@ Two GL paths (see :mod:`core.gl.context`; ``OCC_GL=4.1`` forces the second):
   MVPs go up in one buffer write (a per-frame stream, picked by baseInstance).  A
   query batch is ONE instanced draw of all its boxes (corners expanded in the vertex
   shader), early depth test ``<=``, no depth or colour write; every passing fragment
-  adds one to its box's counter in a storage buffer, read back once per batch.
+  adds one to its box's counter in a storage buffer (or, with ``counts=False``, sets
+  its flag), read back once per batch; each pending batch owns its buffer.
 - 4.1 (macOS): one draw per unit with a uniform MVP, one occlusion query object per
   box, one blocking read per box.
 
@@ -25,7 +26,8 @@ Query resolution and display resolution: ``GLRenderer(..., width, height,
 display=(W, H))`` draws occluders at ``W x H`` and, before each query batch, reduces
 them to ``width x height`` taking for every query pixel the FARTHEST depth of all
 display pixels its area overlaps; queries run at ``width x height`` against that.
-A gap open at display resolution therefore stays open.  The boxes must be
+A gap open at display resolution therefore stays open; only the query pixels under
+what was drawn since the last batch are reduced (scissor).  The boxes must be
 conservative at the query resolution too: the caller grows each box by one query
 pixel (measured at the box's farthest point); the renderer does not grow boxes.
 
