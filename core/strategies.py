@@ -35,6 +35,7 @@ less before a query can only make it say "visible" more often.
 
 import heapq
 import math
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -327,6 +328,89 @@ class OmMulti(Strategy):
         self.max_tests = max(1, math.ceil(0.7 * rounds)) if rounds else self.max_tests
 
 
+class Auto(Strategy):
+    """The default: occlusion tests (``om_coherent``) where they pay on this machine,
+    frustum culling alone where they cannot (few or cheap triangles behind what is
+    seen, or a GPU that draws everything faster than the tests' round trips).
+
+    Costs are measured, not assumed: on its first pass it times drawing about
+    ``CALIBRATE_TRIANGLES`` triangles and a query batch's round trip (then clears
+    the depth buffer), and it keeps learning the cost of a triangle from every
+    frustum-only pass.  After each occlusion pass it compares the pass's time with
+    what frustum culling would have cost -- the triangles drawn plus those the
+    tests proved hidden, at the measured cost, plus the frustum-only overhead last
+    seen -- and after ``LOSSES`` passes in a row where the tests did not pay it
+    switches to frustum culling, probing occlusion again every ``PROBE_EVERY``
+    passes.  Both modes are conservative, so the choice changes speed only.
+    """
+
+    CALIBRATE_TRIANGLES = 200_000
+    LOSSES = 2
+    PROBE_EVERY = 16
+    LEARN = 0.3                  # weight of a new measurement in the running cost
+
+    def __init__(self, max_tests=8, costs=None):
+        self.occlusion = OmMulti(max_tests, coherent=True)
+        # tri_ms: ms per triangle drawn; round_trip_ms: one query batch; vfc_cpu_ms:
+        # a frustum-only pass's time beyond its drawing
+        self.costs = dict(costs) if costs is not None else None
+        self.use_tests = True
+        self.losses = 0
+        self.since_probe = 0
+
+    def reset(self):
+        self.occlusion.reset()
+
+    forget = reset
+
+    def _calibrate(self, frame):
+        r = frame.r
+        tri = np.asarray(r.tri_counts)
+        order = np.argsort(tri)[::-1]
+        units = order[:max(1, int(np.searchsorted(np.cumsum(tri[order]), self.CALIBRATE_TRIANGLES)) + 1)]
+        r.finish()
+        t = time.perf_counter()
+        drawn = r.draw(units)
+        r.finish()
+        tri_ms = 1e3 * (time.perf_counter() - t) / max(drawn, 1)
+        box = frame.boxes(np.zeros(1, dtype=np.int64))
+        trips = []
+        for _ in range(3):
+            t = time.perf_counter()
+            r.query(box)
+            trips.append(1e3 * (time.perf_counter() - t))
+        r.begin_frame(frame.camera)        # the calibration's depth is no occluder
+        self.costs = {"tri_ms": tri_ms, "round_trip_ms": float(np.median(trips)), "vfc_cpu_ms": 0.0}
+
+    def __call__(self, frame, chunk=16, truth=None):
+        if self.costs is None:
+            self._calibrate(frame)
+        c = self.costs
+        probe = not self.use_tests and self.since_probe >= self.PROBE_EVERY
+        if self.use_tests or probe:
+            self.since_probe = 0
+            frame.stats["occlusion_pass"] = 1
+            self.occlusion(frame, chunk)
+            frame.r.finish()
+            spent = 1e3 * (time.perf_counter() - frame.t0)
+            s = frame.stats
+            frustum_only = (s["triangles_drawn"] + s["triangles_occluded"]) * c["tri_ms"] + c["vfc_cpu_ms"]
+            paid = spent < frustum_only
+            self.losses = 0 if paid else self.losses + 1
+            self.use_tests = paid if probe else self.losses < self.LOSSES
+            return
+        self.since_probe += 1
+        leaves = frame.frustum_leaves()
+        t = time.perf_counter()
+        frame.draw_leaves(leaves)
+        frame.r.finish()
+        end = time.perf_counter()
+        drawn = frame.stats["triangles_drawn"]
+        if drawn:
+            c["tri_ms"] += self.LEARN * (1e3 * (end - t) / drawn - c["tri_ms"])
+        c["vfc_cpu_ms"] += self.LEARN * (1e3 * (t - frame.t0) - c["vfc_cpu_ms"])
+
+
 @dataclass(frozen=True)
 class StrategyInfo:
     """One registered strategy: its factory ``(max_tests) -> Strategy``, a short
@@ -354,6 +438,8 @@ REGISTRY = {info.name: info for info in (
                  "Staneker et al. 2004: occupancy-map-arranged multiple queries", True),
     StrategyInfo("om_coherent", lambda m: OmMulti(m, coherent=True), "Coherent",
                  "Occupancy map, multiple queries, last pass's visible first", True),
+    StrategyInfo("auto", lambda m: Auto(m), "Automatic",
+                 "Occlusion tests where they pay on this machine, frustum culling where they cannot", True),
     StrategyInfo("oracle", lambda m: Oracle(), "Oracle",
                  "Draws exactly the truly visible set (benchmark limit, needs the truth)",
                  needs_truth=True),

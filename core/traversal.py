@@ -10,7 +10,7 @@ from enum import IntEnum
 
 import numpy as np
 
-from .bounds import MAX, MIN
+from .bounds import MAX, MIN, corners
 from .frustum import classify, planes_from_matrix
 from .occupancy import OccupancyMap, project_rects
 from .tolerance import tol
@@ -24,8 +24,13 @@ class Visibility(IntEnum):
 
 STAT_KEYS = ("queries", "queries_skipped", "near_visible", "multiple_queries", "samples_passed",
              "query_rect_pixels", "triangles_drawn", "units_drawn", "nodes_visited",
-             "fresh", "invalid_objects",
-             "frustum_ms", "traversal_ms", "query_ms", "draw_ms", "total_ms")
+             "query_raster_pixels", "triangles_occluded", "occlusion_pass", "fresh", "invalid_objects",
+             "gl_calls", "blocking_reads",
+             "frustum_ms", "traversal_ms", "query_ms", "draw_ms", "gl_ms", "cpu_ms", "total_ms")
+
+# The 6 faces of a box as corner quads (bounds.corners' bit order), counter-clockwise
+# seen from outside: the projected outline's area is the sum of the front faces'.
+BOX_FACES = np.array([[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]])
 
 
 class Frame:
@@ -58,7 +63,9 @@ class Frame:
         # per draw unit; reduced to objects (the most visible of their units) at the end
         self.state = np.full(len(self.unit_object), Visibility.VIEW_CULLED, dtype=np.uint8)
         self.om = OccupancyMap(renderer.width, renderer.height, options.tiles)
+        t = time.perf_counter()
         renderer.begin_frame(camera)
+        self.t_begin = time.perf_counter() - t
         self.clip = renderer.clip
         self.eye = np.asarray(renderer.eye, dtype=np.float64)
         self.planes = planes_from_matrix(self.clip)
@@ -255,9 +262,23 @@ class Frame:
             self.stats["queries"] += len(r)
             self.stats["multiple_queries"] += 1
             self.stats["samples_passed"] += int(samples.sum())
-            self.stats["query_rect_pixels"] += int(((r[:, 2] - r[:, 0] + 1) * (r[:, 3] - r[:, 1] + 1)).sum())
+            area = (r[:, 2] - r[:, 0] + 1) * (r[:, 3] - r[:, 1] + 1)
+            self.stats["query_rect_pixels"] += int(area.sum())
+            self.stats["query_raster_pixels"] += int(np.minimum(self.outline_pixels(grown[asked]), area).sum())
             visible[asked] = samples > self.threshold
         return visible
+
+    def outline_pixels(self, b):
+        """Pixels a query box rasterises (the 2003 paper's count), ``(k,) float``:
+        the area of its projected outline, the sum of its front faces' projected
+        areas.  ``b`` are camera-relative boxes entirely in front of the near plane."""
+        c = corners(b)
+        hom = c @ self.clip[[0, 1, 3], :3].T + self.clip[[0, 1, 3], 3]          # x, y, w
+        sx = hom[..., 0] / hom[..., 2] * (0.5 * self.r.width)
+        sy = hom[..., 1] / hom[..., 2] * (0.5 * self.r.height)
+        x, y = sx[:, BOX_FACES], sy[:, BOX_FACES]                               # (k, 6, 4)
+        signed = 0.5 * (x * np.roll(y, -1, axis=2) - np.roll(x, -1, axis=2) * y).sum(axis=2)
+        return np.abs(signed).sum(axis=1) * 0.5     # front and back faces cover the outline once each
 
     def occlude(self, nodes):
         """Mark every unit below ``nodes`` OCCLUDED (those inside the frustum;
@@ -273,12 +294,21 @@ class Frame:
             self.reached[todo] = True
             self.t_reach += time.perf_counter() - t
         leaves = leaves[self.in_frustum[leaves]]
-        self.state[self.h.leaf_unit[leaves]] = Visibility.OCCLUDED
+        units = self.h.leaf_unit[leaves]
+        self.state[units] = Visibility.OCCLUDED
+        self.stats["triangles_occluded"] += int(self.r.tri_counts[units].sum())
 
     def object_state(self):
         """Per object: the most visible state of its units, ``(n,) uint8``."""
+        uo = self.unit_object
+        if len(uo) == self.n_objects:             # one unit per object, unit i = object i
+            return self.state.copy()
         out = np.full(self.n_objects, Visibility.VIEW_CULLED, dtype=np.uint8)
-        np.minimum.at(out, self.unit_object, self.state)
+        if not len(uo):
+            return out
+        # units are stored object by object: reduce each object's run
+        starts = np.flatnonzero(np.r_[True, uo[1:] != uo[:-1]])
+        out[uo[starts]] = np.minimum.reduceat(self.state, starts)
         return out
 
     def finish(self):
@@ -292,4 +322,13 @@ class Frame:
         s["draw_ms"] = 1e3 * self.t_draw
         s["total_ms"] = 1e3 * total
         s["traversal_ms"] = max(0.0, s["total_ms"] - s["query_ms"] - s["draw_ms"])
+        # CPU time of the pass outside GL calls (what a faster GPU cannot shorten)
+        s["gl_ms"] = s["query_ms"] + s["draw_ms"] + 1e3 * self.t_begin
+        s["cpu_ms"] = max(0.0, s["total_ms"] - s["gl_ms"])
+        counters = getattr(self.r, "counters", None)
+        if counters is not None:              # renderers that count their GL calls
+            s["gl_calls"] = int(counters.get("gl_calls", 0))
+            s["blocking_reads"] = int(counters.get("blocking_reads", 0))
+        else:
+            s["gl_calls"] = s["blocking_reads"] = -1
         return s

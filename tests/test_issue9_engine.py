@@ -220,3 +220,38 @@ def test_every_object_invalid_culls_nothing(ctx):
     with c:
         r = c.cull(scenes.cam((-10, 0, 0), (0, 0, 0)))
         assert r.visible.all() and r.stats["queries"] == 0
+
+
+@pytest.mark.parametrize("strategy", ["stopwait", "om", "om_multi", "om_coherent"])
+def test_lower_query_resolution_keeps_what_the_display_shows(ctx, strategy):
+    """Culling at a quarter of the display resolution per side with ``display=`` given: the
+    renderer keeps each query pixel's farthest display depth, the engine grows
+    boxes by a query pixel, and a post seen through a 1-pixel slit of the display
+    is kept (at the lower resolution alone the slit closes)."""
+    scene, (cam,), _ = scenes.slit_wall(1)
+    display = scenes.SLIT_RESOLUTION
+    query = (display[0] // 4, display[1] // 4)         # without display= the slit closes here
+    with Culler(scene, display, strategy="vfc", ctx=ctx) as full:
+        truth = full.truth(cam)
+    assert truth[scene.names.index("post_slit")]
+    with Culler(scene, query, strategy=strategy, ctx=ctx, display=display) as c:
+        if not c.conservative_display:
+            pytest.skip("this renderer has no conservative lower query resolution")
+        r = c.cull(cam)
+    assert not (truth & ~r.visible).any()
+    assert r.state[scene.names.index("post_hidden")] == Visibility.OCCLUDED
+
+
+def test_test_lists_follow_the_papers_rule_in_the_engine(ctx):
+    """Issue 10: boxes behind a wall whose screen rectangles overlap their neighbours'
+    by a little go into one multiple query (each still has free tiles in the list's
+    map); the old rule (no overlap with a box taken) needed a list per neighbour."""
+    boxes = [((0, -20, -20), (0.2, 20, 20))]
+    for k in range(6):                       # side by side, each overlapping the next on screen
+        boxes.append(((3 + 0.3 * k, -6 + 2 * k, -1), (3.5 + 0.3 * k, -3.5 + 2 * k, 1)))
+    scene = scenes.boxes_scene(boxes)
+    cam = scenes.cam((-10, 0, 0), (0, 0, 0), up=(0, 0, 1), far=100)
+    with Culler(scene, (96, 64), strategy="om", ctx=ctx) as c:
+        r = c.cull(cam)
+    assert (r.state[1:] == Visibility.OCCLUDED).all()
+    assert r.stats["multiple_queries"] == 1 and r.stats["queries"] == 6
