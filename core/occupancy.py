@@ -29,7 +29,7 @@ DEFAULT_TILES = 512 * 32
 BOX_EDGES = np.array([(c, c | b) for c in range(8) for b in (1, 2, 4) if not c & b], dtype=np.intp)
 
 
-def project_rects(boxes, clip_matrix, width, height):
+def project_rects(boxes, clip_matrix, width, height, near=None):
     """Pixel rectangles of boxes, rounded outward.
 
     boxes: ``(n, 2, 3)`` in the space ``clip_matrix`` maps to clip space
@@ -38,11 +38,12 @@ def project_rects(boxes, clip_matrix, width, height):
     (or containing the eye) has ``crosses_near = True``: it is visible without a
     query (conservative rule).  Its rectangle is that of the box clipped at the
     near plane (the corners in front of it and the points where its edges cross
-    it), as the rasteriser clips it, not the whole screen.
+    it), as the rasteriser clips it, not the whole screen.  near: the near plane
+    ``(4,)`` of ``clip_matrix`` when the caller has it (see frustum.planes_from_matrix).
     """
     c = corners(boxes)                                               # (n, 8, 3)
     n = len(c)
-    near = planes_from_matrix(clip_matrix)[4]
+    near = planes_from_matrix(clip_matrix)[4] if near is None else near
     scale = np.abs(c).reshape(n, 24).max(axis=1, initial=0.0) + 1e-300
     dist = c @ near[:3] + near[3]                                    # (n, 8)
     # Conservative: a corner at or in front of the near plane (within a guard

@@ -347,6 +347,7 @@ class Auto(Strategy):
     CALIBRATE_TRIANGLES = 200_000
     LOSSES = 2
     PROBE_EVERY = 16
+    PROBE_SLOWER = 1.5           # a frustum-only pass this much slower than the last test pass: probe at once
     LEARN = 0.3                  # weight of a new measurement in the running cost
 
     def __init__(self, max_tests=8, costs=None):
@@ -357,6 +358,8 @@ class Auto(Strategy):
         self.use_tests = True
         self.losses = 0
         self.since_probe = 0
+        self.last_test_ms = None         # the last occlusion pass's time
+        self.learned = False             # the triangle cost measured on a real frustum-only pass
 
     def reset(self):
         self.occlusion.reset()
@@ -392,7 +395,7 @@ class Auto(Strategy):
             frame.stats["occlusion_pass"] = 1
             self.occlusion(frame, chunk)
             frame.r.finish()
-            spent = 1e3 * (time.perf_counter() - frame.t0)
+            spent = self.last_test_ms = 1e3 * (time.perf_counter() - frame.t0)
             s = frame.stats
             frustum_only = (s["triangles_drawn"] + s["triangles_occluded"]) * c["tri_ms"] + c["vfc_cpu_ms"]
             paid = spent < frustum_only
@@ -406,9 +409,13 @@ class Auto(Strategy):
         frame.r.finish()
         end = time.perf_counter()
         drawn = frame.stats["triangles_drawn"]
+        learn = self.LEARN if self.learned else 1.0
         if drawn:
-            c["tri_ms"] += self.LEARN * (1e3 * (end - t) / drawn - c["tri_ms"])
-        c["vfc_cpu_ms"] += self.LEARN * (1e3 * (t - frame.t0) - c["vfc_cpu_ms"])
+            c["tri_ms"] += learn * (1e3 * (end - t) / drawn - c["tri_ms"])
+        c["vfc_cpu_ms"] += learn * (1e3 * (t - frame.t0) - c["vfc_cpu_ms"])
+        self.learned = True
+        if self.last_test_ms is not None and 1e3 * (end - frame.t0) > self.PROBE_SLOWER * self.last_test_ms:
+            self.since_probe = self.PROBE_EVERY          # the view got heavier: test again next pass
 
 
 @dataclass(frozen=True)
