@@ -126,7 +126,8 @@ class Frame:
 
     def _geometry(self, nodes, b):
         self.has_geometry[nodes] = True
-        self.rects[nodes], self.crosses[nodes] = project_rects(b, self.clip, self.r.width, self.r.height, self.planes[4])
+        self.rects[nodes], self.crosses[nodes] = project_rects(b, self.clip, self.r.width, self.r.height,
+                                                               self.planes[4])
         self.tiles[nodes] = self.om.tile_rects(self.rects[nodes])
         # Front-to-back key: distance from the eye (the origin here) to the box's
         # nearest point, 0 when the eye is inside.
