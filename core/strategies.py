@@ -394,6 +394,7 @@ class Auto(Strategy):
             self.since_probe = 0
             frame.stats["occlusion_pass"] = 1
             self.occlusion(frame, chunk)
+            frame.flush()
             frame.r.finish()
             spent = self.last_test_ms = 1e3 * (time.perf_counter() - frame.t0)
             s = frame.stats
@@ -406,6 +407,7 @@ class Auto(Strategy):
         leaves = frame.frustum_leaves()
         t = time.perf_counter()
         frame.draw_leaves(leaves)
+        frame.flush()
         frame.r.finish()
         end = time.perf_counter()
         drawn = frame.stats["triangles_drawn"]

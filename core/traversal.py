@@ -85,6 +85,7 @@ class Frame:
         # leaves drawn before the traversal started.
         self.free = np.zeros(n, dtype=bool)
         self.predrawn = np.zeros(n, dtype=bool)
+        self._to_draw = []                  # units drawn on the CPU side, not yet sent to GL
         # World size of one query pixel per unit of distance (perspective) or
         # absolute (orthographic), the larger of the two axes.
         p = camera.projection
@@ -170,16 +171,26 @@ class Frame:
         return nodes[np.argsort(self.dist[nodes], kind="stable")]
 
     def draw_leaves(self, leaves):
-        """Draw leaf nodes and mark their rectangles in the occupancy map."""
+        """Draw leaf nodes and mark their rectangles in the occupancy map.  The GL
+        draw waits for :meth:`flush` (before the next query, or the pass's end), so
+        the leaves proven visible between two queries go out in one draw call."""
         if not len(leaves):
             return
         units = self.h.leaf_unit[leaves]
-        t = time.perf_counter()
-        self.stats["triangles_drawn"] += self.r.draw(units)
-        self.t_draw += time.perf_counter() - t
+        self._to_draw.append(units)
         self.stats["units_drawn"] += len(units)
         self.state[units] = Visibility.VISIBLE
         self.om.set_tiles(self.tiles[leaves[self.has_geometry[leaves]]])
+
+    def flush(self):
+        """Issue the draws :meth:`draw_leaves` collected, in their order (one call)."""
+        if not self._to_draw:
+            return
+        units = self._to_draw[0] if len(self._to_draw) == 1 else np.concatenate(self._to_draw)
+        self._to_draw = []
+        t = time.perf_counter()
+        self.stats["triangles_drawn"] += self.r.draw(units)
+        self.t_draw += time.perf_counter() - t
 
     def guard(self, b):
         """How far each camera-relative box ``(k, 2, 3)`` grows before its query,
@@ -256,6 +267,7 @@ class Frame:
         asked = ~clipped
         self.stats["near_visible"] += int(clipped.sum())
         if asked.any():
+            self.flush()                    # the occluders before the boxes tested against them
             t = time.perf_counter()
             samples = self.r.query(grown[asked])
             self.t_query += time.perf_counter() - t
@@ -313,6 +325,7 @@ class Frame:
         return out
 
     def finish(self):
+        self.flush()
         t = time.perf_counter()
         self.r.finish()
         self.t_draw += time.perf_counter() - t
