@@ -112,7 +112,10 @@ class Frame:
         t = time.perf_counter()
         self.stats["nodes_visited"] += len(nodes)
         b = self.boxes(nodes)
-        outside, remaining = classify(self.planes, b, masks)
+        if masks is not None and not masks.any():      # inside every plane already (plane masking)
+            outside, remaining = np.zeros(len(nodes), dtype=bool), masks
+        else:
+            outside, remaining = classify(self.planes, b, masks)
         keep = nodes[~outside]
         self.reached[nodes] = True
         self.in_frustum[keep] = True
