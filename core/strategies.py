@@ -30,6 +30,11 @@ less before a query can only make it say "visible" more often.
 - ``om_coherent`` om_multi that draws last pass's visible leaves first, without
                queries, re-checking each every few passes (temporal coherence);
                after a camera cut or a sparse pass it starts fresh.
+- ``two_pass`` GPU-driven: last pass's visible leaves drawn first, every other leaf
+               of the frustum tested in one batch, the nearer half of those that pass
+               drawn and the rest tested once more (a handful of GL calls a pass).
+- ``auto``     the default candidate: ``om_coherent`` where occlusion tests pay on this
+               machine (costs measured), frustum culling alone where they cannot.
 - ``oracle``   draws exactly the ground-truth set, no queries: the physical limit.
 """
 
@@ -328,6 +333,71 @@ class OmMulti(Strategy):
         self.max_tests = max(1, math.ceil(0.7 * rounds)) if rounds else self.max_tests
 
 
+class TwoPass(Strategy):
+    """GPU-driven two passes (as nvpro's temporal culling and zeux's niagara do):
+    last pass's visible leaves are drawn first, without a test; every other leaf
+    in the frustum is tested in ONE multiple query against that depth; of those
+    that pass, the nearer half is drawn and the farther half tested once more
+    against it; whatever fails a test is occluded.  A handful of GL calls and at
+    most two read-backs a pass, whatever the scene's size; the per-leaf work is
+    numpy over the frustum's leaves, none per node of the traversal.
+
+    Each remembered leaf is tested again every ``RECHECK`` passes (staggered), so
+    one that became hidden is culled soon; after a camera cut (see
+    :func:`camera_cut`) there is no memory, and the nearest ``1 / FRESH_SPLIT`` of
+    the leaves are drawn first instead.  Conservative: a test only fails against
+    geometry really drawn.
+    """
+
+    RECHECK = 8
+    FRESH_SPLIT = 8
+
+    def __init__(self):
+        self.assumed = None
+        self.last_camera = None
+        self.frame_no = 0
+
+    def reset(self):
+        self.assumed = None
+        self.last_camera = None
+
+    forget = reset
+
+    def __call__(self, frame, chunk=16, truth=None):
+        sig = camera_signature(frame.camera)
+        if camera_cut(self.last_camera, sig, frame.scene_size):
+            self.assumed = None
+            frame.stats["fresh"] = 1
+        self.last_camera = sig
+        h = frame.h
+        if self.assumed is None or len(self.assumed) != len(h):
+            self.assumed = np.zeros(len(h), dtype=bool)
+        leaves = frame.frustum_leaves()
+        frame.ensure_distance(leaves)
+        # the recheck slot of remembered leaves is tested like the rest
+        known = self.assumed[leaves] & ((leaves + self.frame_no) % self.RECHECK != 0)
+        first, rest = leaves[known], leaves[~known]
+        if not len(first):                                   # no memory: the nearest leaves first
+            rest = frame.sort_near(rest)
+            k = -(-len(rest) // self.FRESH_SPLIT)
+            first, rest = rest[:k], rest[k:]
+        frame.draw_leaves(frame.sort_near(first))
+        frame.stats["queries_skipped"] += len(first)
+        visible = frame.query(rest)
+        frame.occlude(rest[~visible])
+        passed = frame.sort_near(rest[visible])
+        half = (len(passed) + 1) // 2
+        frame.draw_leaves(passed[:half])
+        second = passed[half:]
+        visible = frame.query(second)
+        frame.occlude(second[~visible])
+        frame.draw_leaves(second[visible])
+        self.frame_no += 1
+        seen = h.is_leaf & frame.in_frustum
+        seen[seen] = frame.state[h.leaf_unit[seen]] == Visibility.VISIBLE
+        self.assumed = seen
+
+
 class Auto(Strategy):
     """The default: occlusion tests (``om_coherent``) where they pay on this machine,
     frustum culling alone where they cannot (few or cheap triangles behind what is
@@ -447,6 +517,8 @@ REGISTRY = {info.name: info for info in (
                  "Staneker et al. 2004: occupancy-map-arranged multiple queries", True),
     StrategyInfo("om_coherent", lambda m: OmMulti(m, coherent=True), "Coherent",
                  "Occupancy map, multiple queries, last pass's visible first", True),
+    StrategyInfo("two_pass", lambda m: TwoPass(), "Two passes",
+                 "Last pass's visible first, every other leaf tested in one batch (GPU-driven)", True),
     StrategyInfo("auto", lambda m: Auto(m), "Automatic",
                  "Occlusion tests where they pay on this machine, frustum culling where they cannot", True),
     StrategyInfo("oracle", lambda m: Oracle(), "Oracle",

@@ -162,6 +162,12 @@ class Frame:
             front = self.children_in_frustum(front[~leaf], geometry)
         return np.concatenate(out) if out else np.zeros(0, dtype=np.int64)
 
+    def ensure_distance(self, nodes):
+        """Front-to-back distances of reached ``nodes`` (no rectangles)."""
+        b = self.boxes(nodes)
+        nearest = np.maximum(np.maximum(b[:, MIN], -b[:, MAX]), 0.0)
+        self.dist[nodes] = np.sqrt((nearest * nearest).sum(axis=1))
+
     def ensure_geometry(self, nodes):
         """Rectangles and distances of reached ``nodes`` that were reached without them."""
         t = time.perf_counter()
@@ -278,9 +284,12 @@ class Frame:
             self.stats["queries"] += len(r)
             self.stats["multiple_queries"] += 1
             self.stats["samples_passed"] += int(samples.sum())
-            area = (r[:, 2] - r[:, 0] + 1) * (r[:, 3] - r[:, 1] + 1)
+            outline = self.outline_pixels(grown[asked])
+            # nodes reached without rectangles (the two-pass strategy): their outlines
+            area = np.where(self.has_geometry[nodes[asked]], (r[:, 2] - r[:, 0] + 1) * (r[:, 3] - r[:, 1] + 1),
+                            np.ceil(outline))
             self.stats["query_rect_pixels"] += int(area.sum())
-            self.stats["query_raster_pixels"] += int(np.minimum(self.outline_pixels(grown[asked]), area).sum())
+            self.stats["query_raster_pixels"] += int(np.minimum(outline, area).sum())
             visible[asked] = samples > self.threshold
         return visible
 
