@@ -526,7 +526,7 @@ REGISTRY = {info.name: info for info in (
                  needs_truth=True),
 )}
 STRATEGIES = tuple(REGISTRY)
-DEFAULT_STRATEGY = "om_coherent"
+DEFAULT_STRATEGY = "auto"
 
 
 def make_strategy(name, max_tests=8):
