@@ -32,7 +32,8 @@ less before a query can only make it say "visible" more often.
                after a camera cut or a sparse pass it starts fresh.
 - ``two_pass`` GPU-driven: last pass's visible leaves drawn first, every other leaf
                of the frustum tested in one batch, the nearer half of those that pass
-               drawn and the rest tested once more (a handful of GL calls a pass).
+               drawn and the rest tested once more (a handful of GL calls a pass);
+               after a camera cut, an ``om_multi`` pass.
 - ``auto``     the default candidate: ``om_coherent`` where occlusion tests pay on this
                machine (costs measured), frustum culling alone where they cannot.
 - ``oracle``   draws exactly the ground-truth set, no queries: the physical limit.
@@ -344,18 +345,19 @@ class TwoPass(Strategy):
 
     Each remembered leaf is tested again every ``RECHECK`` passes (staggered), so
     one that became hidden is culled soon; after a camera cut (see
-    :func:`camera_cut`) there is no memory, and the nearest ``1 / FRESH_SPLIT`` of
-    the leaves are drawn first instead.  Conservative: a test only fails against
-    geometry really drawn.
+    :func:`camera_cut`) there is no memory, and the pass is an ``om_multi`` pass
+    (the occupancy map finds the first occluders) whose visible leaves the next
+    pass starts from.  Conservative: a test only fails against geometry really
+    drawn.
     """
 
     RECHECK = 8
-    FRESH_SPLIT = 8
 
-    def __init__(self):
+    def __init__(self, max_tests=8):
         self.assumed = None
         self.last_camera = None
         self.frame_no = 0
+        self.fresh = OmMulti(max_tests)
 
     def reset(self):
         self.assumed = None
@@ -372,15 +374,22 @@ class TwoPass(Strategy):
         h = frame.h
         if self.assumed is None or len(self.assumed) != len(h):
             self.assumed = np.zeros(len(h), dtype=bool)
+        if not self.assumed.any():
+            self.fresh(frame, chunk)                         # no memory: the occupancy map's pass
+        else:
+            self._two_passes(frame)
+        self.frame_no += 1
+        seen = h.is_leaf & frame.in_frustum
+        seen[seen] = frame.state[h.leaf_unit[seen]] == Visibility.VISIBLE
+        self.assumed = seen
+
+
+    def _two_passes(self, frame):
         leaves = frame.frustum_leaves()
         frame.ensure_distance(leaves)
         # the recheck slot of remembered leaves is tested like the rest
         known = self.assumed[leaves] & ((leaves + self.frame_no) % self.RECHECK != 0)
         first, rest = leaves[known], leaves[~known]
-        if not len(first):                                   # no memory: the nearest leaves first
-            rest = frame.sort_near(rest)
-            k = -(-len(rest) // self.FRESH_SPLIT)
-            first, rest = rest[:k], rest[k:]
         frame.draw_leaves(frame.sort_near(first))
         frame.stats["queries_skipped"] += len(first)
         visible = frame.query(rest)
@@ -392,10 +401,6 @@ class TwoPass(Strategy):
         visible = frame.query(second)
         frame.occlude(second[~visible])
         frame.draw_leaves(second[visible])
-        self.frame_no += 1
-        seen = h.is_leaf & frame.in_frustum
-        seen[seen] = frame.state[h.leaf_unit[seen]] == Visibility.VISIBLE
-        self.assumed = seen
 
 
 class Auto(Strategy):
@@ -517,7 +522,7 @@ REGISTRY = {info.name: info for info in (
                  "Staneker et al. 2004: occupancy-map-arranged multiple queries", True),
     StrategyInfo("om_coherent", lambda m: OmMulti(m, coherent=True), "Coherent",
                  "Occupancy map, multiple queries, last pass's visible first", True),
-    StrategyInfo("two_pass", lambda m: TwoPass(), "Two passes",
+    StrategyInfo("two_pass", lambda m: TwoPass(m), "Two passes",
                  "Last pass's visible first, every other leaf tested in one batch (GPU-driven)", True),
     StrategyInfo("auto", lambda m: Auto(m), "Automatic",
                  "Occlusion tests where they pay on this machine, frustum culling where they cannot", True),

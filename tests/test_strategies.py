@@ -101,3 +101,21 @@ def test_outline_pixels_of_a_box_facing_the_camera(ctx):
         f = Frame(c.hierarchy, c.renderer, cam, c.options, c.scene_size)
         box = np.array([[[5.0, -1.0, -1.0], [6.0, 1.0, 1.0]]]) - cam.eye        # 2 x 2 units = 16 x 16 px
         assert f.outline_pixels(box)[0] == pytest.approx(256.0)
+
+
+def test_two_pass_uses_at_most_two_batches_once_coherent(ctx):
+    """After its first (om_multi) pass, two_pass tests everything in at most two
+    multiple queries a pass, never culls what the truth shows, and still culls."""
+    from core import Camera
+    scene, cams, _ = scenes.random_city(11, 300)
+    eye, d = cams[0].eye, cams[0].direction
+    with Culler(scene, (128, 96), strategy="two_pass", ctx=ctx) as c:
+        for k in range(5):
+            cam = Camera.look_at(eye + 0.02 * k * d, eye + (10 + 0.02 * k) * d, up=(0, 0, 1),
+                                 fov_y_deg=60, aspect=1.5, near=0.1, far=1000)
+            truth = c.truth(cam)
+            r = c.cull(cam)
+            assert not (truth & ~r.visible).any()
+            assert culled(r) > 0
+            if k:
+                assert r.stats["fresh"] == 0 and r.stats["multiple_queries"] <= 2
