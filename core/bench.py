@@ -21,11 +21,16 @@ from .strategies import STRATEGIES
 from .traversal import Visibility
 
 TABLE_COLUMNS = (
-    ("strategy", "{:<11}"), ("median ms", "{:>9.2f}"), ("p95 ms", "{:>8.2f}"),
-    ("cull ms", "{:>8.2f}"), ("triangles", "{:>11.0f}"), ("render %", "{:>8.2f}"),
+    ("strategy", "{:<13}"), ("median ms", "{:>9.2f}"), ("p95 ms", "{:>8.2f}"),
+    ("cpu ms", "{:>7.2f}"), ("GL calls", "{:>8.1f}"), ("reads", "{:>6.1f}"),
+    ("triangles", "{:>11.0f}"), ("render %", "{:>8.2f}"),
     ("queries", "{:>8.1f}"), ("skipped", "{:>8.1f}"), ("query px", "{:>10.0f}"),
     ("FN", "{:>4d}"), ("R/V'", "{:>6.2f}"), ("x vfc", "{:>6.2f}"), ("x stopwait", "{:>10.2f}"),
 )
+# cpu ms: the pass's time outside GL calls; GL calls and reads (blocking read-backs)
+# a frame from the renderer's counters (nan where the renderer does not count);
+# query px: pixels the query boxes rasterise (their projected outlines, as the 2003
+# paper counts them), the screen rectangles' pixels are in the JSON (query_rect_pixels).
 
 
 def peak_rss_mb():
@@ -136,9 +141,12 @@ def format_hierarchy_table(report, title=""):
 def summarise(rows, tri_total):
     """Aggregate per-frame stats into one row of the table."""
     ms = np.array([x["total_ms"] for x in rows])
-    mean = {k: float(np.mean([x[k] for x in rows])) for k in
-            ("triangles_drawn", "queries", "queries_skipped", "query_rect_pixels",
-             "traversal_ms", "query_ms", "draw_ms", "visible", "truly_visible", "multiple_queries")}
+    mean = {k: float(np.mean([x.get(k, 0) for x in rows])) for k in
+            ("triangles_drawn", "queries", "queries_skipped", "query_rect_pixels", "query_raster_pixels",
+             "traversal_ms", "query_ms", "draw_ms", "cpu_ms", "gl_ms", "visible", "truly_visible",
+             "multiple_queries", "nodes_visited", "fresh")}
+    counted = {k: (float(np.mean([x[k] for x in rows])) if all(x.get(k, -1) >= 0 for x in rows) else None)
+               for k in ("gl_calls", "blocking_reads")}
     kept = sum(x["visible"] for x in rows)
     seen = sum(x["truly_visible"] for x in rows)
     return {
@@ -147,11 +155,16 @@ def summarise(rows, tri_total):
         "culling_ms": mean["traversal_ms"] + mean["query_ms"],
         "traversal_ms": mean["traversal_ms"], "query_ms": mean["query_ms"],
         "draw_ms": mean["draw_ms"],
+        "cpu_ms": mean["cpu_ms"], "cpu_ms_median": float(np.median([x.get("cpu_ms", 0.0) for x in rows])),
+        "gl_ms": mean["gl_ms"],
+        "gl_calls": counted["gl_calls"], "blocking_reads": counted["blocking_reads"],
         "triangles": mean["triangles_drawn"],
         "render_rate": 100.0 * mean["triangles_drawn"] / max(tri_total, 1),
         "queries": mean["queries"], "queries_skipped": mean["queries_skipped"],
         "multiple_queries": mean["multiple_queries"],
-        "query_pixels": mean["query_rect_pixels"],
+        "query_pixels": mean["query_raster_pixels"],
+        "query_rect_pixels": mean["query_rect_pixels"],
+        "nodes_visited": mean["nodes_visited"], "fresh_passes": mean["fresh"],
         "false_negatives": int(sum(x["false_negatives"] for x in rows)),
         "conservativity": kept / max(seen, 1),
         "objects_kept": mean["visible"], "objects_truly_visible": mean["truly_visible"],
@@ -173,10 +186,13 @@ def format_table(report, title=""):
              f"{report['frames']} frames at {report['resolution'][0]}x{report['resolution'][1]}, "
              f"device: {report['device']}", head, "-" * len(head)]
     for name, s in report["strategies"].items():
-        vals = [name, s["frame_ms_median"], s["frame_ms_p95"], s["culling_ms"], s["triangles"],
-                s["render_rate"], s["queries"], s["queries_skipped"], s["query_pixels"],
-                s["false_negatives"], s["conservativity"], s.get("speedup_over_vfc", float("nan")),
-                s.get("speedup_over_stopwait", float("nan"))]
+        nan = float("nan")
+        vals = [name, s["frame_ms_median"], s["frame_ms_p95"], s.get("cpu_ms", nan),
+                nan if s.get("gl_calls") is None else s["gl_calls"],
+                nan if s.get("blocking_reads") is None else s["blocking_reads"],
+                s["triangles"], s["render_rate"], s["queries"], s["queries_skipped"], s["query_pixels"],
+                s["false_negatives"], s["conservativity"], s.get("speedup_over_vfc", nan),
+                s.get("speedup_over_stopwait", nan)]
         lines.append(" ".join(fmt.format(v) for (_, fmt), v in zip(TABLE_COLUMNS, vals, strict=True)))
     return "\n".join(line for line in lines if line is not None)
 

@@ -6,6 +6,7 @@
 """
 
 import time
+import warnings
 from copy import copy
 from dataclasses import dataclass
 from types import SimpleNamespace
@@ -16,7 +17,7 @@ from .bounds import MAX, MIN
 from .errors import OccError
 from .hierarchy import build_hierarchy
 from .settings import CullOptions
-from .strategies import DEFAULT_STRATEGY, make_strategy
+from .strategies import DEFAULT_STRATEGY, REGISTRY, make_strategy
 from .traversal import STAT_KEYS, Frame, Visibility
 from .units import ChunkCache
 
@@ -55,8 +56,16 @@ def check_resolution(resolution):
     return w, h
 
 
+# The box of a unit that must never be reached (NaN or infinite values): the
+# identity of box union, so its ancestors' boxes are those of their valid
+# children, and outside every frustum plane by ~1e300 (no overflow in a plane test).
+EMPTY_BOX = np.array([[1e300] * 3, [-1e300] * 3])
+WARN_NAMES = 5           # names listed in the warning about invalid objects
+
+
 def _scene_size(bounds):
     """Largest coordinate or extent of the scene (the depth range's scale)."""
+    bounds = bounds[np.isfinite(bounds).all(axis=(1, 2))]
     if not len(bounds):
         return 1.0
     ext = bounds[:, MAX].max(axis=0) - bounds[:, MIN].min(axis=0)
@@ -77,7 +86,8 @@ def make_units(scene, builder="tree", chunk_triangles=None, chunk_min_triangles=
     """Draw units of a scene: whole objects, or chunks of meshes heavier than
     ``chunk_min_triangles`` (default 4 x chunk_triangles), built with ``builder``
     (pHBVO inside meshes when the builder is "tree"); ``cache``: a
-    :class:`core.units.ChunkCache` of earlier chunkings to reuse."""
+    :class:`core.units.ChunkCache` of earlier chunkings to reuse.  A mesh with
+    NaN or infinite values is never chunked."""
     from .units import chunked, whole_objects
     if not chunk_triangles:
         return whole_objects(scene)
@@ -85,7 +95,7 @@ def make_units(scene, builder="tree", chunk_triangles=None, chunk_min_triangles=
     leaf = int(chunk_triangles)
     minimum = int(chunk_min_triangles or 4 * leaf)
     inner = "pHBVO" if builder == "tree" else builder
-    return chunked(scene, lambda m, tris: tris >= minimum,
+    return chunked(scene, lambda m, tris: tris >= minimum and scene.mesh_valid[m],
                    lambda boxes: build_tree(boxes, inner, leaf_size=leaf, max_children=4, pull_up=True),
                    cache=cache)
 
@@ -104,14 +114,23 @@ class Culler:
     chunk_triangles: cut meshes of more than ``chunk_min_triangles`` triangles
     into chunks of about this many triangles (None: never); chunk_cache: a
     :class:`core.units.ChunkCache` shared with earlier cullers of the same
-    hierarchy and chunk settings, whose chunkings of unchanged meshes are reused.
+    hierarchy and chunk settings, whose chunkings of unchanged meshes are reused;
+    display: the display resolution ``(W, H)`` when it is above the query
+    resolution: the renderer then takes each query pixel's occluder depth as the
+    farthest of the display pixels it stands for, so a gap open on the display is
+    never closed by the query (where the renderer supports it; see
+    :attr:`conservative_display`).
+
+    Objects with NaN or infinite values (``scene.invalid``) are kept VISIBLE,
+    never drawn as occluders, and named in a warning and in ``invalid_names``.
     """
 
     def __init__(self, scene, resolution=DEFAULT_RESOLUTION, strategy=DEFAULT_STRATEGY,
                  options=None, max_tests=8, max_children=8, exact_bounds=False,
                  hierarchy="tree", chunk_triangles=None, chunk_min_triangles=None, ctx=None,
-                 chunk_cache=None):
+                 chunk_cache=None, display=None):
         self.resolution = check_resolution(resolution)
+        self.display = None if display is None else check_resolution(display)
         self.strategy_name = strategy
         self.max_tests = max_tests
         self.strategy = make_strategy(strategy, max_tests)
@@ -124,12 +143,11 @@ class Culler:
         self._build(scene, ctx)
 
     def _build(self, scene, ctx, previous=None):
-        from .gl import GLRenderer  # the GPU backend is the only moderngl user
-
         t = time.perf_counter()
         self.scene = scene
         self.units = make_units(scene, self.builder, *self.chunking, cache=self.chunk_cache)
         self.scene_size = _scene_size(scene.bounds)
+        self._warn_invalid()
         refit = previous is not None and _same_structure(previous, scene, self.units)
         if refit:              # the same objects, tree and chunk subtrees: the old hierarchy, refitted
             self.hierarchy = copy(previous.hierarchy)
@@ -139,13 +157,49 @@ class Culler:
             object_tree = None
             if self.builder != "tree" and len(scene):
                 from .subdivision import build_tree
-                object_tree = build_tree(scene.bounds, self.builder, leaf_size=1,
+                ob, ok = scene.bounds, ~scene.invalid
+                # invalid objects: a point at the scene's middle (the refit below gives them no extent)
+                ob[~ok] = 0.5 * (ob[ok].min(axis=(0, 1)) + ob[ok].max(axis=(0, 1))) if ok.any() else 0.0
+                object_tree = build_tree(ob, self.builder, leaf_size=1,
                                          max_children=max(2, self.max_children), pull_up=False)
             self.hierarchy = build_hierarchy(self.unit_bounds(), self.units.of_object, scene.tree_parent,
                                              scene.tree_object, self.max_children, self.units.trees, object_tree)
-        self.renderer = GLRenderer(scene, *self.resolution, ctx=ctx, units=self.units)
+        with np.errstate(invalid="ignore", over="ignore"):       # invalid objects: replaced just below
+            self.renderer = self._renderer(scene, ctx)
+        if scene.invalid.any():
+            bad = np.flatnonzero(scene.invalid)
+            self.renderer.set_matrices(bad, np.repeat(np.eye(4)[None], len(bad), axis=0))
         self.build_info = {"build_ms": 1e3 * (time.perf_counter() - t), "hierarchy": "refitted" if refit else "built",
                            "meshes_chunked": self.chunk_cache.misses, "chunkings_reused": self.chunk_cache.hits}
+
+    def _renderer(self, scene, ctx):
+        from .gl import GLRenderer  # the GPU backend is the only moderngl user
+        if self.display is not None and self.display != self.resolution:
+            try:
+                return GLRenderer(scene, *self.resolution, ctx=ctx, units=self.units, display=self.display)
+            except TypeError:           # a renderer without the conservative lower resolution
+                pass
+        return GLRenderer(scene, *self.resolution, ctx=ctx, units=self.units)
+
+    @property
+    def conservative_display(self):
+        """Whether the queries answer for the display resolution (``display`` given and
+        supported by the renderer), not only for the query resolution."""
+        return self.display is None or self.display == self.resolution or \
+            getattr(self.renderer, "display", None) is not None
+
+    @property
+    def invalid_names(self):
+        """Names of the objects kept visible because of NaN or infinite values."""
+        return self.scene.invalid_names
+
+    def _warn_invalid(self):
+        names = self.scene.invalid_names
+        if names:
+            shown = ", ".join(f"'{x}'" for x in names[:WARN_NAMES])
+            more = f" and {len(names) - WARN_NAMES} more" if len(names) > WARN_NAMES else ""
+            warnings.warn(f"objects with NaN or infinite values in their matrix or vertices are kept "
+                          f"visible and not used as occluders: {shown}{more}", stacklevel=3)
 
     def structure_mb(self):
         """Memory held by the culling structure (hierarchy, draw units, chunk orders), MiB."""
@@ -189,40 +243,62 @@ class Culler:
         m = np.asarray(matrices, dtype=np.float64).reshape(-1, 4, 4)
         if len(idx) != len(m):
             raise OccError(f"{len(idx)} indices but {len(m)} matrices")
-        if not np.all(np.isfinite(m)):
-            raise OccError("new world matrices contain NaN or infinite values")
+        bad = ~np.all(np.isfinite(m), axis=(1, 2))
+        was = self.scene.invalid[idx].copy()
         self.scene.matrices[idx] = m
-        self.renderer.set_matrices(idx, m)
-        forget = getattr(self.strategy, "forget", None)
-        if forget is not None:            # what was visible before the move proves nothing now
-            forget()
+        self.scene.invalid[idx] = bad | ~self.scene.mesh_valid[self.scene.mesh_of[idx]]
+        if (self.scene.invalid[idx] & ~was).any():
+            self._warn_invalid()
+        # never drawn (see unit_bounds); identity keeps NaN out of the GPU's arrays
+        self.renderer.set_matrices(idx, np.where(bad[:, None, None], np.eye(4), m))
+        self.strategy.reset()             # what was visible before the move proves nothing now
         if self.hierarchy is not None:
             self.hierarchy.refit(self.unit_bounds())
 
     def unit_bounds(self):
-        """World boxes of the draw units, ``(u, 2, 3)``."""
-        ub = self.units.world_bounds(self.scene.matrices)
+        """World boxes of the draw units, ``(u, 2, 3)``; :data:`EMPTY_BOX` for the
+        units of invalid objects."""
+        invalid = self.scene.invalid
+        ub = self.units.world_bounds(np.where(invalid[:, None, None], np.eye(4), self.scene.matrices))
         if self.exact_bounds:
-            whole = np.flatnonzero([t is None for t in self.units.trees])
-            ub[np.concatenate([self.units.of_object[o] for o in whole])] = self.scene.exact_bounds()[whole]
+            whole = np.flatnonzero([t is None for t in self.units.trees] & ~invalid)
+            if len(whole):
+                ub[np.concatenate([self.units.of_object[o] for o in whole])] = self.scene.exact_bounds()[whole]
+        ub[invalid[self.units.object]] = EMPTY_BOX
         return ub
 
     def truth(self, camera):
-        """Exact visible set at the query resolution from an object-ID buffer, ``(n,) bool``."""
-        return self.renderer.visible_truth(camera)
+        """Exact visible set at the query resolution from an object-ID buffer, ``(n,) bool``.
 
-    def cull(self, camera, truth=None):
-        """One culling pass from ``camera``; ``truth`` is needed by the oracle only."""
+        Invalid objects (NaN or infinite values) count as visible: nothing can be
+        known about them, and the engine keeps them."""
+        invalid = self.scene.invalid
+        if not invalid.any():
+            return self.renderer.visible_truth(camera)
+        ids = self.renderer.object_ids(camera, np.flatnonzero(~invalid))
+        out = invalid.copy()
+        out[ids[ids >= 0]] = True
+        return out
+
+    def cull(self, camera, truth=None, fresh=False):
+        """One culling pass from ``camera``; ``truth`` is needed by the oracle only;
+        ``fresh``: forget what earlier passes taught the strategy (its answer is
+        then that of a new engine's first pass)."""
         n = len(self.scene)
+        if fresh:
+            self.strategy.reset()
         if self.hierarchy is None:
             return CullResult(np.zeros(0, dtype=np.uint8), {**dict.fromkeys(STAT_KEYS, 0),
                               **self._counts(np.zeros(0, np.uint8))}, np.zeros((0, 0), bool))
-        if self.strategy_name == "oracle" and truth is None:
+        if REGISTRY[self.strategy_name].needs_truth and truth is None:
             truth = self.truth(camera)
         frame = Frame(self.hierarchy, self.renderer, camera, self.options, self.scene_size)
         self.strategy(frame, chunk=self.options.chunk, truth=truth)
         stats = frame.finish()
         state = frame.object_state()
+        invalid = self.scene.invalid
+        state[invalid] = Visibility.VISIBLE       # conservative: nothing is known about them
+        stats["invalid_objects"] = int(invalid.sum())
         stats.update(self._counts(state))
         assert len(state) == n
         return CullResult(state, stats, frame.om.grid.copy())

@@ -19,6 +19,7 @@ objects can carry a subtree of chunks below them (:func:`graft_tree`).
 """
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -40,8 +41,9 @@ class Hierarchy:
     def __len__(self):
         return len(self.first_child)
 
-    @property
+    @cached_property
     def is_leaf(self):
+        """``(N,) bool`` (computed once: a refit changes boxes, never the structure)."""
         return self.leaf_unit >= 0
 
     def children(self, nodes):

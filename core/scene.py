@@ -27,8 +27,6 @@ def _mesh_arrays(vertices, faces, label):
     if f.ndim != 2 or f.shape[1] != 3:
         raise OccError(f"{label}: faces must be (f, 3), got {f.shape}")
     f = f.astype(np.int64, copy=False)
-    if not np.all(np.isfinite(v)):
-        raise OccError(f"{label}: vertices contain NaN or infinite values")
     if len(f) and (f.min() < 0 or f.max() >= len(v)):
         raise OccError(f"{label}: face indices out of range 0..{len(v) - 1}")
     return v, f
@@ -52,6 +50,8 @@ class Scene:
     tree_parent: np.ndarray
     tree_object: np.ndarray
     mesh_bounds: np.ndarray = field(init=False)
+    invalid: np.ndarray = field(init=False)
+    mesh_valid: np.ndarray = field(init=False)
     _tri: np.ndarray = field(init=False, default=None, repr=False)
 
     def __post_init__(self):
@@ -63,16 +63,22 @@ class Scene:
                            f"{len(self.matrices)} matrices")
         if n and (self.mesh_of.min() < 0 or self.mesh_of.max() >= len(self.meshes)):
             raise OccError(f"mesh_of must index the {len(self.meshes)} meshes")
-        bad = ~np.all(np.isfinite(self.matrices), axis=(1, 2))
-        if bad.any():
-            raise OccError(f"object '{self.names[int(np.argmax(bad))]}' has a NaN or infinite "
-                           f"world matrix ({int(bad.sum())} such objects)")
         self.meshes = [_mesh_arrays(v, f, f"mesh {i}") for i, (v, f) in enumerate(self.meshes)]
         mb = np.zeros((len(self.meshes), 2, 3))
+        mesh_ok = np.ones(len(self.meshes), dtype=bool)
         for i, (v, _) in enumerate(self.meshes):      # once per unique mesh
             if len(v):
                 mb[i] = v.min(axis=0), v.max(axis=0)
+                mesh_ok[i] = np.isfinite(mb[i]).all()   # min/max carry any NaN or inf of v
+        mb[~mesh_ok] = 0.0
         self.mesh_bounds = mb
+        self.mesh_valid = mesh_ok
+        # NaN or infinite values in an object's matrix or mesh: the object is kept
+        # (the engine keeps it visible and never draws it as an occluder) rather
+        # than failing the whole scene; see invalid_names.
+        self.invalid = ~np.all(np.isfinite(self.matrices), axis=(1, 2))
+        if n:
+            self.invalid |= ~mesh_ok[self.mesh_of]
         self.tree_parent = np.asarray(self.tree_parent, dtype=np.int64).reshape(-1)
         self.tree_object = np.asarray(self.tree_object, dtype=np.int64).reshape(-1)
         t = len(self.tree_parent)
@@ -97,6 +103,11 @@ class Scene:
 
     def __len__(self):
         return len(self.names)
+
+    @property
+    def invalid_names(self):
+        """Names of the objects with NaN or infinite values in their matrix or mesh."""
+        return [self.names[i] for i in np.flatnonzero(self.invalid)]
 
     @property
     def triangle_counts(self):

@@ -1,6 +1,10 @@
-"""Traversal strategies.  Each takes a :class:`core.traversal.Frame`, draws what it
-finds visible into the frame's depth buffer, marks what it proves occluded, and
-leaves its counters in ``frame.stats``.
+"""Traversal strategies, registered in one place (:data:`REGISTRY`) that the CLI,
+the add-on's choices and the benchmark read.  Each strategy is an object made
+per engine by its factory; it takes a :class:`core.traversal.Frame`, draws what
+it finds visible into the frame's depth buffer, marks what it proves occluded,
+and leaves its counters in ``frame.stats``.  Whatever it keeps from one pass to
+the next (the 0.7 m rule's ``max_tests``, last pass's visible leaves) lives in
+the strategy object; ``reset()`` drops it.
 
 Correctness is the same for all of them and does not depend on the occupancy
 map: an object is culled only when it is outside the frustum or when an
@@ -10,69 +14,136 @@ less before a query can only make it say "visible" more often.
 
 - ``vfc``      hierarchical frustum culling, draws everything inside.
 - ``stopwait`` front to back, one query per node, waiting for each answer.
-- ``om``       Staneker et al. 2003: leaves front to back; the occupancy map skips
-               queries in still-empty screen regions; the rest go into at most
+- ``leaf_stopwait`` the leaves in the frustum front to back, one query per leaf,
+               waiting for each (no hierarchy, no map): the papers' plain baseline.
+- ``om_single`` Staneker et al. 2003 as published: leaves front to back; the
+               occupancy map skips queries in still-empty screen regions; every
+               other leaf gets its own query, awaited before the next.
+- ``om``       the 2003 map with the queries that remain batched: at most
                ``OM_MAX_BATCHES`` occupancy-map-arranged multiple queries.
 - ``om_multi`` Staneker et al. 2004: hierarchical.  Stage 1 draws or opens what the
                occupancy map proves visible and defers the rest; stage 2 fills test
-               lists through one cleared occupancy map (no two boxes of a list
-               overlap on screen) and issues each as one multiple query, at most
-               ``max_tests`` rounds, ``max_tests(f + 1) = 0.7 m(f)``; stage 3 queries
-               all that remain.
-- ``om_coherent`` om_multi that draws last frame's visible leaves first, without
-               queries, re-checking each every few frames (temporal coherence).
+               lists through one cleared occupancy map per list (a box joins while
+               one of its tiles is still free there) and issues each as one multiple
+               query, at most ``max_tests`` rounds, ``max_tests(f + 1) = 0.7 m(f)``;
+               stage 3 queries all that remain.
+- ``om_coherent`` om_multi that draws last pass's visible leaves first, without
+               queries, re-checking each every few passes (temporal coherence);
+               after a camera cut or a sparse pass it starts fresh.
+- ``two_pass`` GPU-driven: last pass's visible leaves drawn first, every other leaf
+               of the frustum tested in one batch, the nearer half of those that pass
+               drawn and the rest tested once more (a handful of GL calls a pass);
+               after a camera cut, an ``om_multi`` pass.
+- ``auto``     the default candidate: ``om_coherent`` where occlusion tests pay on this
+               machine (costs measured), frustum culling alone where they cannot.
 - ``oracle``   draws exactly the ground-truth set, no queries: the physical limit.
 """
 
 import heapq
 import math
+import time
+from dataclasses import dataclass
 
 import numpy as np
 
 from .errors import OccError
-from .occupancy import X0, X1, Y0, Y1, non_overlapping_first
+from .occupancy import X0, X1, Y0, Y1, free_tile_first
+from .tolerance import tol
 from .traversal import Visibility
 
 OM_MAX_BATCHES = 5
-MAX_TEST_CANDIDATES = 512      # bounds the pairwise overlap matrix of one test list
+MAX_TEST_CANDIDATES = 512      # bounds the pairwise work of one test list
 
 
-def vfc(frame, **_):
-    leaves = np.flatnonzero(frame.in_frustum & frame.h.is_leaf)
-    frame.draw_leaves(leaves)
+class Strategy:
+    """Base of the strategies: stateless unless a subclass keeps something."""
+
+    def __call__(self, frame, chunk=16, truth=None):
+        raise NotImplementedError
+
+    def reset(self):
+        """Forget what earlier passes taught (objects moved, a camera cut, a new scene)."""
+
+    forget = reset                   # the engine's older name
 
 
-def oracle(frame, truth=None, **_):
-    if truth is None:
-        raise OccError("the oracle strategy needs the ground-truth visible set")
-    h = frame.h
-    leaves = np.flatnonzero(frame.in_frustum & h.is_leaf)
-    # a chunk of a truly visible object is drawn: the truth is per object
-    seen = truth[frame.unit_object[h.leaf_unit[leaves]]]
-    frame.draw_leaves(frame.sort_near(leaves[seen]))
-    frame.state[h.leaf_unit[leaves[~seen]]] = Visibility.OCCLUDED
+class Vfc(Strategy):
+    def __call__(self, frame, chunk=16, truth=None):
+        frame.draw_leaves(frame.frustum_leaves())
 
 
-def stopwait(frame, **_):
+class Oracle(Strategy):
+    def __call__(self, frame, chunk=16, truth=None):
+        if truth is None:
+            raise OccError("the oracle strategy needs the ground-truth visible set")
+        h = frame.h
+        leaves = frame.frustum_leaves()
+        # a chunk of a truly visible object is drawn: the truth is per object
+        seen = truth[frame.unit_object[h.leaf_unit[leaves]]]
+        frame.ensure_geometry(leaves[seen])
+        frame.draw_leaves(frame.sort_near(leaves[seen]))
+        frame.state[h.leaf_unit[leaves[~seen]]] = Visibility.OCCLUDED
+
+
+class StopWait(Strategy):
     """One query per node, answer awaited before the next (the baseline to beat)."""
-    h = frame.h
-    if not frame.in_frustum[0]:
-        return
-    heap = [(frame.dist[0], 0)]
-    while heap:                        # per node by design: this is the slow baseline
-        _, node = heapq.heappop(heap)
-        one = np.array([node])
-        if not frame.crosses[node]:
-            if not frame.query(one)[0]:
+
+    def __call__(self, frame, chunk=16, truth=None):
+        h = frame.h
+        if not len(frame.root()):
+            return
+        heap = [(frame.dist[0], 0)]
+        while heap:                        # per node by design: this is the slow baseline
+            _, node = heapq.heappop(heap)
+            one = np.array([node])
+            if not frame.crosses[node]:
+                if not frame.query(one)[0]:
+                    frame.occlude(one)
+                    continue
+            else:
+                frame.stats["near_visible"] += 1
+            if h.is_leaf[node]:
+                frame.draw_leaves(one)
+            else:
+                for c in frame.children_in_frustum(one):
+                    heapq.heappush(heap, (frame.dist[c], int(c)))
+
+
+class LeafStopWait(Strategy):
+    """The leaves in the frustum front to back, one awaited query each (no
+    hierarchy above them, no occupancy map)."""
+
+    def __call__(self, frame, chunk=16, truth=None):
+        leaves = frame.frustum_leaves()
+        frame.ensure_geometry(leaves)
+        for leaf in frame.sort_near(leaves):     # per leaf by design: a baseline
+            one = np.array([leaf])
+            if frame.crosses[leaf]:
+                frame.stats["near_visible"] += 1
+            elif not frame.query(one)[0]:
                 frame.occlude(one)
                 continue
-        else:
-            frame.stats["near_visible"] += 1
-        if h.is_leaf[node]:
             frame.draw_leaves(one)
-        else:
-            for c in frame.children_in_frustum(one):
-                heapq.heappush(heap, (frame.dist[c], int(c)))
+
+
+class OmSingle(Strategy):
+    """Staneker et al. 2003 with single queries: leaves front to back; a leaf
+    whose rectangle still has an empty tile is drawn without a query, any other
+    gets its own query, awaited before the next leaf."""
+
+    def __call__(self, frame, chunk=16, truth=None):
+        leaves = frame.frustum_leaves()
+        frame.ensure_geometry(leaves)
+        for leaf in frame.sort_near(leaves):     # per leaf by design: a baseline
+            one = np.array([leaf])
+            if frame.crosses[leaf]:
+                frame.stats["near_visible"] += 1
+            elif frame.om.any_empty_tiles(frame.tiles[one])[0]:
+                frame.stats["queries_skipped"] += 1
+            elif not frame.query(one)[0]:
+                frame.occlude(one)
+                continue
+            frame.draw_leaves(one)
 
 
 def _stage1(frame, front, chunk):
@@ -122,14 +193,11 @@ def _nearer(tiles, marked, inside):
 
 
 def _test_list(frame, pending):
-    """Split sorted ``pending`` into (test list, rest): greedy, no two overlapping."""
+    """Split sorted ``pending`` into (test list, rest) by the papers' rule: a box
+    joins while one of its tiles is free in the list's own (cleared) map."""
     cand = pending[:MAX_TEST_CANDIDATES]
-    taken = _non_overlapping(frame, cand)
+    taken = free_tile_first(frame.tiles[cand], frame.om.rows, frame.om.cols)
     return cand[taken], np.concatenate([cand[~taken], pending[MAX_TEST_CANDIDATES:]])
-
-
-def _non_overlapping(frame, nodes):
-    return non_overlapping_first(frame.tiles[nodes])
 
 
 def _resolve(frame, nodes, visible):
@@ -142,29 +210,57 @@ def _resolve(frame, nodes, visible):
     return frame.children_in_frustum(vis[~leaf])
 
 
-def om(frame, chunk=16, **_):
-    """Staneker et al. 2003 over the leaves of the frustum."""
-    leaves = np.flatnonzero(frame.in_frustum & frame.h.is_leaf)
-    pending = _stage1(frame, leaves, chunk)
-    for batch in range(OM_MAX_BATCHES):
-        if not len(pending):
-            break
-        pending = frame.sort_near(pending)
-        if batch == OM_MAX_BATCHES - 1:
-            test, pending = pending, pending[:0]
-        else:
-            test, pending = _test_list(frame, pending)
-        _resolve(frame, test, frame.query(test))
+class Om(Strategy):
+    """Staneker et al. 2003 over the leaves of the frustum, remaining queries batched."""
+
+    def __call__(self, frame, chunk=16, truth=None):
+        leaves = frame.frustum_leaves()
+        frame.ensure_geometry(leaves)
+        pending = _stage1(frame, leaves, chunk)
+        for batch in range(OM_MAX_BATCHES):
+            if not len(pending):
+                break
+            pending = frame.sort_near(pending)
+            if batch == OM_MAX_BATCHES - 1:
+                test, pending = pending, pending[:0]
+            else:
+                test, pending = _test_list(frame, pending)
+            _resolve(frame, test, frame.query(test))
 
 
-class OmMulti:
+def camera_signature(camera):
+    """What a coherent strategy compares between passes: eye, view rotation, projection."""
+    return camera.eye, camera.view[:3, :3].copy(), camera.projection.copy()
+
+
+def camera_cut(before, after, scene_size):
+    """Whether the camera moved, turned or changed projection beyond the
+    coherence thresholds of :mod:`core.tolerance` between two signatures."""
+    if before is None:
+        return True
+    (e0, r0, p0), (e1, r1, p1) = before, after
+    if np.linalg.norm(e1 - e0) > tol.coherence_move_rel * max(scene_size, 1e-300):
+        return True
+    # rotation angle of r1 @ r0.T from its trace (rows of a view rotation are orthonormal)
+    cos = np.clip((np.trace(r1 @ r0.T) - 1.0) / 2.0, -1.0, 1.0)
+    if math.degrees(math.acos(cos)) > tol.coherence_turn_deg:
+        return True
+    scale = np.abs(p0).max()
+    return bool(np.abs(p1 - p0).max() > tol.coherence_projection_rel * scale)
+
+
+class OmMulti(Strategy):
     """Staneker et al. 2004; keeps ``max_tests`` across frames (the 0.7 m rule).
 
     With ``coherent`` (this project's addition, after Bittner et al.'s CHC): the
-    leaves found visible last frame are drawn first, without a query, and their
+    leaves found visible last pass are drawn first, without a query, and their
     ancestors are opened without one; each such leaf is queried again every
-    ``RECHECK`` frames (staggered), so one that became hidden is culled soon.
+    ``RECHECK`` passes (staggered), so one that became hidden is culled soon.
     Only skipping queries, never culling without one, it stays conservative.
+    The memory is used only when the camera barely moved since the last pass
+    (:func:`camera_cut`): after a cut, or a sparse pass (the add-on's), the pass
+    starts fresh, so memory never makes a pass worse than a fresh one by more
+    than what the last small move uncovered.
     """
 
     RECHECK = 8
@@ -173,10 +269,17 @@ class OmMulti:
         self.max_tests = max(1, int(max_tests))
         self.coherent = coherent
         self.assumed = None
+        self.last_camera = None
         self.frame_no = 0
 
-    def __call__(self, frame, chunk=16, **_):
-        if not frame.in_frustum[0]:
+    def __call__(self, frame, chunk=16, truth=None):
+        if self.coherent:
+            sig = camera_signature(frame.camera)
+            if camera_cut(self.last_camera, sig, frame.scene_size):
+                self.assumed = None
+                frame.stats["fresh"] = 1
+            self.last_camera = sig
+        if not len(frame.root()):
             return
         if self.coherent:
             self._draw_assumed(frame)
@@ -184,15 +287,19 @@ class OmMulti:
         if self.coherent:
             self._remember(frame)
 
-    def forget(self):
-        """Drop the memory of visible leaves (objects moved)."""
+    def reset(self):
+        """Drop the memory of visible leaves (objects moved, or a fresh pass asked)."""
         self.assumed = None
+        self.last_camera = None
+
+    forget = reset
 
     def _draw_assumed(self, frame):
         h = frame.h
         if self.assumed is None or len(self.assumed) != len(h):
             self.assumed = np.zeros(len(h), dtype=bool)
-        pre = np.flatnonzero(self.assumed & frame.in_frustum)
+            return
+        pre = frame.reach(np.flatnonzero(self.assumed))
         frame.draw_leaves(frame.sort_near(pre))
         frame.predrawn[pre] = True
         frame.stats["queries_skipped"] += len(pre)
@@ -227,15 +334,208 @@ class OmMulti:
         self.max_tests = max(1, math.ceil(0.7 * rounds)) if rounds else self.max_tests
 
 
-STRATEGIES = ("vfc", "stopwait", "om", "om_multi", "om_coherent", "oracle")
-DEFAULT_STRATEGY = "om_coherent"
+class TwoPass(Strategy):
+    """GPU-driven two passes (as nvpro's temporal culling and zeux's niagara do):
+    last pass's visible leaves are drawn first, without a test; every other leaf
+    in the frustum is tested in ONE multiple query against that depth; of those
+    that pass, the nearer half is drawn and the farther half tested once more
+    against it; whatever fails a test is occluded.  A handful of GL calls and at
+    most two read-backs a pass, whatever the scene's size; the per-leaf work is
+    numpy over the frustum's leaves, none per node of the traversal.
+
+    Each remembered leaf is tested again every ``RECHECK`` passes (staggered), so
+    one that became hidden is culled soon; after a camera cut (see
+    :func:`camera_cut`) there is no memory, and the pass is an ``om_multi`` pass
+    (the occupancy map finds the first occluders) whose visible leaves the next
+    pass starts from.  Conservative: a test only fails against geometry really
+    drawn.
+    """
+
+    RECHECK = 8
+
+    def __init__(self, max_tests=8):
+        self.assumed = None
+        self.last_camera = None
+        self.frame_no = 0
+        self.fresh = OmMulti(max_tests)
+
+    def reset(self):
+        self.assumed = None
+        self.last_camera = None
+
+    forget = reset
+
+    def __call__(self, frame, chunk=16, truth=None):
+        sig = camera_signature(frame.camera)
+        if camera_cut(self.last_camera, sig, frame.scene_size):
+            self.assumed = None
+            frame.stats["fresh"] = 1
+        self.last_camera = sig
+        h = frame.h
+        if self.assumed is None or len(self.assumed) != len(h):
+            self.assumed = np.zeros(len(h), dtype=bool)
+        if not self.assumed.any():
+            self.fresh(frame, chunk)                         # no memory: the occupancy map's pass
+        else:
+            self._two_passes(frame)
+        self.frame_no += 1
+        seen = h.is_leaf & frame.in_frustum
+        seen[seen] = frame.state[h.leaf_unit[seen]] == Visibility.VISIBLE
+        self.assumed = seen
+
+
+    def _two_passes(self, frame):
+        leaves = frame.frustum_leaves()
+        frame.ensure_distance(leaves)
+        # the recheck slot of remembered leaves is tested like the rest
+        known = self.assumed[leaves] & ((leaves + self.frame_no) % self.RECHECK != 0)
+        first, rest = leaves[known], leaves[~known]
+        frame.draw_leaves(frame.sort_near(first))
+        frame.stats["queries_skipped"] += len(first)
+        visible = frame.query(rest)
+        frame.occlude(rest[~visible])
+        passed = frame.sort_near(rest[visible])
+        half = (len(passed) + 1) // 2
+        frame.draw_leaves(passed[:half])
+        second = passed[half:]
+        visible = frame.query(second)
+        frame.occlude(second[~visible])
+        frame.draw_leaves(second[visible])
+
+
+class Auto(Strategy):
+    """The default: occlusion tests (``om_coherent``) where they pay on this machine,
+    frustum culling alone where they cannot (few or cheap triangles behind what is
+    seen, or a GPU that draws everything faster than the tests' round trips).
+
+    Costs are measured, not assumed: on its first pass it times drawing about
+    ``CALIBRATE_TRIANGLES`` triangles and a query batch's round trip (then clears
+    the depth buffer), and it keeps learning the cost of a triangle from every
+    frustum-only pass.  After each occlusion pass it compares the pass's time with
+    what frustum culling would have cost -- the triangles drawn plus those the
+    tests proved hidden, at the measured cost, plus the frustum-only overhead last
+    seen -- and after ``LOSSES`` passes in a row where the tests did not pay it
+    switches to frustum culling, probing occlusion again every ``PROBE_EVERY``
+    passes.  Both modes are conservative, so the choice changes speed only.
+    """
+
+    CALIBRATE_TRIANGLES = 200_000
+    LOSSES = 2
+    PROBE_EVERY = 16
+    PROBE_SLOWER = 1.5           # a frustum-only pass this much slower than the last test pass: probe at once
+    LEARN = 0.3                  # weight of a new measurement in the running cost
+
+    def __init__(self, max_tests=8, costs=None):
+        self.occlusion = OmMulti(max_tests, coherent=True)
+        # tri_ms: ms per triangle drawn; round_trip_ms: one query batch; vfc_cpu_ms:
+        # a frustum-only pass's time beyond its drawing
+        self.costs = dict(costs) if costs is not None else None
+        self.use_tests = True
+        self.losses = 0
+        self.since_probe = 0
+        self.last_test_ms = None         # the last occlusion pass's time
+        self.learned = False             # the triangle cost measured on a real frustum-only pass
+
+    def reset(self):
+        self.occlusion.reset()
+
+    forget = reset
+
+    def _calibrate(self, frame):
+        r = frame.r
+        tri = np.asarray(r.tri_counts)
+        order = np.argsort(tri)[::-1]
+        units = order[:max(1, int(np.searchsorted(np.cumsum(tri[order]), self.CALIBRATE_TRIANGLES)) + 1)]
+        r.finish()
+        t = time.perf_counter()
+        drawn = r.draw(units)
+        r.finish()
+        tri_ms = 1e3 * (time.perf_counter() - t) / max(drawn, 1)
+        box = frame.boxes(np.zeros(1, dtype=np.int64))
+        trips = []
+        for _ in range(3):
+            t = time.perf_counter()
+            r.query(box)
+            trips.append(1e3 * (time.perf_counter() - t))
+        r.begin_frame(frame.camera)        # the calibration's depth is no occluder
+        self.costs = {"tri_ms": tri_ms, "round_trip_ms": float(np.median(trips)), "vfc_cpu_ms": 0.0}
+
+    def __call__(self, frame, chunk=16, truth=None):
+        if self.costs is None:
+            self._calibrate(frame)
+        c = self.costs
+        probe = not self.use_tests and self.since_probe >= self.PROBE_EVERY
+        if self.use_tests or probe:
+            self.since_probe = 0
+            frame.stats["occlusion_pass"] = 1
+            self.occlusion(frame, chunk)
+            frame.flush()
+            frame.r.finish()
+            spent = self.last_test_ms = 1e3 * (time.perf_counter() - frame.t0)
+            s = frame.stats
+            frustum_only = (s["triangles_drawn"] + s["triangles_occluded"]) * c["tri_ms"] + c["vfc_cpu_ms"]
+            paid = spent < frustum_only
+            self.losses = 0 if paid else self.losses + 1
+            self.use_tests = paid if probe else self.losses < self.LOSSES
+            return
+        self.since_probe += 1
+        leaves = frame.frustum_leaves()
+        t = time.perf_counter()
+        frame.draw_leaves(leaves)
+        frame.flush()
+        frame.r.finish()
+        end = time.perf_counter()
+        drawn = frame.stats["triangles_drawn"]
+        learn = self.LEARN if self.learned else 1.0
+        if drawn:
+            c["tri_ms"] += learn * (1e3 * (end - t) / drawn - c["tri_ms"])
+        c["vfc_cpu_ms"] += learn * (1e3 * (t - frame.t0) - c["vfc_cpu_ms"])
+        self.learned = True
+        if self.last_test_ms is not None and 1e3 * (end - frame.t0) > self.PROBE_SLOWER * self.last_test_ms:
+            self.since_probe = self.PROBE_EVERY          # the view got heavier: test again next pass
+
+
+@dataclass(frozen=True)
+class StrategyInfo:
+    """One registered strategy: its factory ``(max_tests) -> Strategy``, a short
+    label and description (the add-on's menu), and whether the default may pick it."""
+
+    name: str
+    factory: object
+    label: str
+    description: str
+    default_candidate: bool = False
+    needs_truth: bool = False
+
+
+REGISTRY = {info.name: info for info in (
+    StrategyInfo("vfc", lambda m: Vfc(), "Frustum only", "Hide only what is outside the view", True),
+    StrategyInfo("stopwait", lambda m: StopWait(), "Stop and wait",
+                 "Hierarchical, one query per node, waiting for each"),
+    StrategyInfo("leaf_stopwait", lambda m: LeafStopWait(), "Leaf queries",
+                 "One query per object part, waiting for each (baseline)"),
+    StrategyInfo("om_single", lambda m: OmSingle(), "Occupancy map, single queries",
+                 "Staneker et al. 2003 as published: occupancy map, one query at a time"),
+    StrategyInfo("om", lambda m: Om(), "Occupancy map",
+                 "Staneker et al. 2003: occupancy map, remaining queries batched"),
+    StrategyInfo("om_multi", lambda m: OmMulti(m), "Multiple queries",
+                 "Staneker et al. 2004: occupancy-map-arranged multiple queries", True),
+    StrategyInfo("om_coherent", lambda m: OmMulti(m, coherent=True), "Coherent",
+                 "Occupancy map, multiple queries, last pass's visible first", True),
+    StrategyInfo("two_pass", lambda m: TwoPass(m), "Two passes",
+                 "Last pass's visible first, every other leaf tested in one batch (GPU-driven)", True),
+    StrategyInfo("auto", lambda m: Auto(m), "Automatic",
+                 "Occlusion tests where they pay on this machine, frustum culling where they cannot", True),
+    StrategyInfo("oracle", lambda m: Oracle(), "Oracle",
+                 "Draws exactly the truly visible set (benchmark limit, needs the truth)",
+                 needs_truth=True),
+)}
+STRATEGIES = tuple(REGISTRY)
+DEFAULT_STRATEGY = "auto"
 
 
 def make_strategy(name, max_tests=8):
-    """A callable ``strategy(frame, **options)`` for a strategy name."""
-    table = {"vfc": vfc, "stopwait": stopwait, "om": om, "oracle": oracle}
-    if name in ("om_multi", "om_coherent"):
-        return OmMulti(max_tests, coherent=name == "om_coherent")
-    if name not in table:
+    """A strategy object (``strategy(frame, chunk=, truth=)``) for a registered name."""
+    if name not in REGISTRY:
         raise OccError(f"unknown strategy '{name}'; choose one of {', '.join(STRATEGIES)}")
-    return table[name]
+    return REGISTRY[name].factory(max_tests)

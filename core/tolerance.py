@@ -27,6 +27,33 @@ class Tolerance:
     # treated as crossing the near plane (visible without a query): it guards
     # the clip-space division from w values that are near zero.
     near_guard_rel: float = 1e-6
+    # Every query box grows by at least this many query pixels, measured at its
+    # farthest point (so by at least as much everywhere on screen): a box whose
+    # projection covers no pixel centre of this renderer but would cover one of
+    # a renderer that samples up to half a pixel away (another GPU, another
+    # rasteriser's rounding, the viewport) is still tested at a centre it reaches.
+    # The query decides alone, so its answer must not hang on sample rounding.
+    query_guard_px: float = 0.5
+    # Bits of the depth buffer the queries test against (moderngl's depth
+    # textures and renderbuffers are DEPTH_COMPONENT24).
+    depth_bits: int = 24
+    # Query boxes also grow by this many depth-buffer steps at their distance:
+    # the occluder's stored depth and the box fragment's depth are each rounded
+    # to the 24-bit grid (half a step each) and float32 interpolation adds up to
+    # about one more, so a surface tied with the occluder (ties count as
+    # visible) is never pushed behind it by rounding.  Perspective: one step in
+    # eye-space depth at distance d is d^2 (far - near) / (near far 2^bits);
+    # orthographic: (far - near) / 2^bits.
+    depth_guard_steps: float = 2.0
+    # The coherent strategies' memory of last pass's visible leaves is used only
+    # when the camera moved less than this fraction of the scene's size ...
+    coherence_move_rel: float = 0.01
+    # ... and turned less than this many degrees, with the same projection
+    # (relative change of any entry below 1e-9); otherwise the pass starts fresh
+    # (a camera cut or a sparse pass: memory would keep visible what a fresh
+    # pass hides).
+    coherence_turn_deg: float = 3.0
+    coherence_projection_rel: float = 1e-9
 
 
 tol = Tolerance()

@@ -14,15 +14,15 @@ from pathlib import Path
 
 import numpy as np
 
-NAMES = ("city", "assembly", "vessels", "cathedral", "isosurface")
+NAMES = ("city", "assembly", "vessels", "cathedral", "isosurface", "city-xl")
 VERSION = 1           # bump when a generator changes: old cache entries are ignored
-SEEDS = {"city": 1, "assembly": 2, "vessels": 3, "cathedral": 4, "isosurface": 5}
+SEEDS = {"city": 1, "assembly": 2, "vessels": 3, "cathedral": 4, "isosurface": 5, "city-xl": 1}
 
 
 def _module(name):
     if name not in NAMES:
         raise ValueError(f"unknown sample scene '{name}'; choose one of {', '.join(NAMES)}")
-    return importlib.import_module(f".{name}", __name__)
+    return importlib.import_module(f".{name.replace('-', '_')}", __name__)
 
 
 def cache_dir():

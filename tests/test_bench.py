@@ -41,7 +41,8 @@ def test_bench_cli_json(tmp_path):
         s.add_geometry(trimesh.creation.box((1, 1, 2)), node_name=f"b{i}", geom_name="box",
                        transform=trimesh.transformations.translation_matrix((3 * i, 0, 0)))
     s.export(tmp_path / "row.glb")
-    frames = [{"eye": [-5, 0.2 * k, 1], "target": [10, 0, 1]} for k in range(4)]
+    # eye below the boxes' tops: at their height exactly the row behind would be a tie on screen
+    frames = [{"eye": [-5, 0.2 * k, 0.5], "target": [10, 0, 0.5]} for k in range(4)]
     (tmp_path / "path.json").write_text(json.dumps({"frames": frames}))
     p = subprocess.run([sys.executable, "-m", "core", "bench", str(tmp_path / "row.glb"),
                         "--camera", str(tmp_path / "path.json"), "--strategies", "vfc,om_multi",

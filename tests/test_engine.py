@@ -7,6 +7,9 @@ import pytest
 from core import STRATEGIES, Culler, Visibility
 from tests import scenes
 
+# Tests of what the engine culls name a strategy that always tests occlusion: the
+# default (auto) may rightly draw everything in a tiny scene, where tests cannot pay.
+CULLS = "om_coherent"
 OFFSETS = {"origin": (0.0, 0.0, 0.0), "far1e6": (1e6, -1e6, 1e6)}
 RESOLUTION = {"slit1px": scenes.SLIT_RESOLUTION, "slit2px": scenes.SLIT_RESOLUTION}
 
@@ -37,19 +40,19 @@ def test_no_false_negatives_and_real_culling(ctx, name, strategy, offset):
             f"{strategy} culled truly visible objects "
             f"{[scene.names[i] for i in np.flatnonzero(missed)]}")
         assert result.state.dtype == np.uint8 and len(result.state) == len(scene)
-        if strategy not in ("vfc",):
+        if strategy not in ("vfc", "auto"):     # auto may rightly draw all of a tiny scene
             culled_any |= bool((result.state == Visibility.OCCLUDED).any())
         # R/V': reported over truly visible; the oracle is exact
         if strategy == "oracle":
             assert np.array_equal(result.visible, truth)
-    if expect and strategy != "vfc":
+    if expect and strategy not in ("vfc", "auto"):
         assert culled_any, f"{strategy} culled nothing on {name}"
 
 
 def test_slit_is_seen_through(ctx):
     """The thin post behind a 1-pixel slit is visible in truth and kept by every strategy."""
     scene, (cam,), _ = scenes.slit_wall(1)
-    with Culler(scene, scenes.SLIT_RESOLUTION, ctx=ctx) as culler:
+    with Culler(scene, scenes.SLIT_RESOLUTION, strategy=CULLS, ctx=ctx) as culler:
         truth = culler.truth(cam)
         assert truth[scene.names.index("post_slit")]
         assert not truth[scene.names.index("post_hidden")]
@@ -92,7 +95,7 @@ def test_stats_are_consistent(ctx):
 def test_moving_objects_refits(ctx):
     """After set_matrices moves the hidden box into view, it is visible again."""
     scene, (cam,), _ = scenes.near_plane_crossing()
-    with Culler(scene, (64, 64), ctx=ctx) as culler:
+    with Culler(scene, (64, 64), strategy=CULLS, ctx=ctx) as culler:
         hidden = scene.names.index("behind_wall")
         assert culler.cull(cam).state[hidden] == Visibility.OCCLUDED
         moved = scene.matrices[hidden].copy()
@@ -120,7 +123,7 @@ def test_chunked_joined_mesh_is_culled_without_misses(ctx, builder):
     """One joined mesh cut into chunks: never a missed pixel of it, and most chunks culled."""
     scene, cams, _ = scenes.random_city(4, 300)
     one = joined(scene)
-    with Culler(one, (96, 64), hierarchy=builder, chunk_triangles=24, ctx=ctx) as culler:
+    with Culler(one, (96, 64), strategy=CULLS, hierarchy=builder, chunk_triangles=24, ctx=ctx) as culler:
         assert len(culler.units) > 50 and culler.units.object.max() == 0
         for cam in cams:
             truth = culler.truth(cam)
@@ -142,7 +145,7 @@ def assert_depth_complete(culler, cam):
 @pytest.mark.parametrize("builder", ["pHBVO", "DBVS", "octree", "balanced"])
 def test_object_level_builders_keep_every_visible_object(ctx, builder):
     scene, cams, _ = scenes.random_city(6, 300)
-    with Culler(scene, (96, 64), hierarchy=builder, ctx=ctx) as culler:
+    with Culler(scene, (96, 64), strategy=CULLS, hierarchy=builder, ctx=ctx) as culler:
         for cam in cams:
             truth = culler.truth(cam)
             r = culler.cull(cam, truth=truth)
@@ -192,13 +195,13 @@ def test_replace_scene_rechunks_only_edited_meshes(ctx):
                                  np.array([np.eye(4), np.eye(4), behind]))
 
     lowered = (wall[0] * [1.0, 1.0, 0.0] + [0.0, 0.0, -2.0], wall[1])    # the wall sinks below the floor
-    with Culler(scene(wall), (96, 64), chunk_triangles=24, ctx=ctx) as culler:
+    with Culler(scene(wall), (96, 64), strategy=CULLS, chunk_triangles=24, ctx=ctx) as culler:
         assert culler.build_info["meshes_chunked"] == 2 and culler.build_info["chunkings_reused"] == 0
         assert culler.cull(cam).state[2] == Visibility.OCCLUDED
         culler.replace_scene(scene(lowered))
         assert culler.build_info["meshes_chunked"] == 1 and culler.build_info["chunkings_reused"] == 1
         assert culler.cull(cam).state[2] == Visibility.VISIBLE
-        with Culler(culler.scene, (96, 64), chunk_triangles=24, ctx=ctx) as fresh:
+        with Culler(culler.scene, (96, 64), strategy=CULLS, chunk_triangles=24, ctx=ctx) as fresh:
             assert np.array_equal(culler.units.first, fresh.units.first)        # the same build
             assert np.array_equal(culler.hierarchy.bounds, fresh.hierarchy.bounds)
             for c in [cam, *cams]:
@@ -251,7 +254,7 @@ def test_replace_scene_refits_when_only_geometry_changed(ctx):
     def scene(wall):
         return Scene.from_arrays(["wall", "a", "b"], [wall, box], [0, 1, 1], mats)
 
-    with Culler(scene(box), (96, 64), ctx=ctx) as culler:
+    with Culler(scene(box), (96, 64), strategy=CULLS, ctx=ctx) as culler:
         assert culler.build_info["hierarchy"] == "built"
         assert (culler.cull(cam).state[1:] == Visibility.OCCLUDED).all()
         culler.replace_scene(scene(lowered))

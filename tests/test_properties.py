@@ -8,7 +8,7 @@ from core import Camera
 from core.bounds import MAX, MIN, contains, corners, transform_boxes
 from core.frustum import classify, corners_outside_brute, planes_from_matrix
 from core.hierarchy import build_from_tree
-from core.occupancy import OccupancyMap, non_overlapping_first, project_rects
+from core.occupancy import OccupancyMap, free_tile_first, non_overlapping_first, project_rects
 
 SETTINGS = settings(max_examples=60, deadline=None, derandomize=True)
 seeds = st.integers(0, 2**31 - 1)
@@ -191,7 +191,38 @@ def test_rects_contain_every_covered_pixel_centre(seed):
     r = rects[ok]
     assert np.all(r[:, 0] <= i0) and np.all(i1 <= r[:, 2])
     assert np.all(r[:, 1] <= j0) and np.all(j1 <= r[:, 3])
-    assert np.all(rects[crosses] == [0, 0, w - 1, h - 1])
+    # boxes crossing the near plane: every point of the box in front of the plane
+    # (sampled on a grid through the box) projects inside the clipped rectangle
+    near = planes_from_matrix(clip)[4]
+    g = np.linspace(0.0, 1.0, 9)
+    t = np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3)
+    for b, r in zip(boxes[crosses], rects[crosses], strict=True):
+        p = b[0] + t * (b[1] - b[0])
+        p = p[p @ near[:3] + near[3] > 1e-9 * np.abs(p).max()]
+        if not len(p):
+            continue
+        hp = np.concatenate([p, np.ones((len(p), 1))], axis=1) @ clip.T
+        qx = (hp[:, 0] / hp[:, 3] + 1) * 0.5 * w
+        qy = (hp[:, 1] / hp[:, 3] + 1) * 0.5 * h
+        assert np.all(r[0] <= np.clip(np.floor(qx - 0.5), 0, w - 1))
+        assert np.all(np.clip(np.ceil(qx - 0.5), 0, w - 1) <= r[2])
+        assert np.all(r[1] <= np.clip(np.floor(qy - 0.5), 0, h - 1))
+        assert np.all(np.clip(np.ceil(qy - 0.5), 0, h - 1) <= r[3])
+
+
+def test_floor_crossing_the_near_plane_is_clipped_not_the_whole_screen():
+    """Issue 10: a floor that passes under the eye (it crosses the near plane)
+    gets the rectangle of its part in front of the near plane -- the lower half of
+    a level view -- not the whole screen, so it does not fill the occupancy map."""
+    cam = Camera.look_at((0, 0, 1.7), (10, 0, 1.7), up=(0, 0, 1), fov_y_deg=60, aspect=1.5,
+                         near=0.1, far=100)
+    floor = np.array([[[-50.0, -50.0, -0.1], [50.0, 50.0, 0.0]]]) - cam.eye
+    w, h = 96, 64
+    rects, crosses = project_rects(floor, cam.relative_view_projection(), w, h)
+    assert crosses[0]
+    x0, y0, x1, y1 = rects[0]
+    assert (x0, x1, y0) == (0, w - 1, 0)
+    assert y1 < h // 2                     # nothing of a floor below the eye is above the horizon
 
 
 @SETTINGS
@@ -210,3 +241,31 @@ def test_non_overlapping_first_is_the_sequential_greedy(seed):
         if free:
             grid[r[1]:r[3] + 1, r[0]:r[2] + 1] = True
     assert np.array_equal(non_overlapping_first(t), np.array(expect, dtype=bool))
+
+
+@SETTINGS
+@given(seeds)
+def test_free_tile_first_is_the_papers_sequential_rule(seed):
+    """A rectangle joins the test list while one of its tiles is still free in the
+    list's own map (Staneker et al. 2004), not only when it overlaps nothing taken."""
+    rng = np.random.default_rng(seed)
+    k = int(rng.integers(0, 60))
+    x = np.sort(rng.integers(0, 40, (k, 2)), axis=1)
+    y = np.sort(rng.integers(0, 40, (k, 2)), axis=1)
+    t = np.column_stack([x[:, 0], y[:, 0], x[:, 1], y[:, 1]]).reshape(-1, 4)
+    grid = np.zeros((41, 41), bool)
+    expect = []
+    for r in t:                              # reference: one cleared map, filled in order
+        free = not grid[r[1]:r[3] + 1, r[0]:r[2] + 1].all()
+        expect.append(free)
+        if free:
+            grid[r[1]:r[3] + 1, r[0]:r[2] + 1] = True
+    assert np.array_equal(free_tile_first(t, 41, 41), np.array(expect, dtype=bool))
+
+
+def test_test_list_takes_a_box_that_still_has_a_free_tile():
+    """Two boxes overlapping by one tile column: the old rule sent the second to a
+    later list, the papers' rule takes both in one multiple query."""
+    t = np.array([[0, 0, 4, 4], [4, 0, 8, 4], [1, 1, 3, 3]])
+    assert free_tile_first(t, 10, 10).tolist() == [True, True, False]
+    assert non_overlapping_first(t).tolist() == [True, False, False]

@@ -1,0 +1,121 @@
+"""The strategy registry, the adaptive default and the per-pass counters."""
+
+import numpy as np
+import pytest
+
+from core import Culler, Visibility
+from core.strategies import DEFAULT_STRATEGY, REGISTRY, STRATEGIES, Auto, Strategy, make_strategy
+from tests import scenes
+
+
+def test_registry_is_the_one_list():
+    assert STRATEGIES == tuple(REGISTRY)
+    assert DEFAULT_STRATEGY in REGISTRY and REGISTRY[DEFAULT_STRATEGY].default_candidate
+    for name, info in REGISTRY.items():
+        assert info.name == name and info.label and info.description
+        s = make_strategy(name)
+        assert isinstance(s, Strategy)
+    assert {"leaf_stopwait", "om_single", "auto"} <= set(STRATEGIES)
+    assert [n for n, i in REGISTRY.items() if i.needs_truth] == ["oracle"]
+
+
+def test_each_engine_has_its_own_strategy_state():
+    a, b = make_strategy("om_coherent"), make_strategy("om_coherent")
+    assert a is not b
+    a.max_tests = 3
+    assert b.max_tests == 8
+
+
+def culled(result):
+    return int((result.state == Visibility.OCCLUDED).sum())
+
+
+def test_auto_tests_occlusion_where_triangles_are_dear(ctx):
+    scene, cams, _ = scenes.random_city(11, 300)
+    with Culler(scene, (128, 96), strategy="auto", ctx=ctx) as c:
+        c.strategy.costs = {"tri_ms": 1e3, "round_trip_ms": 0.0, "vfc_cpu_ms": 0.0}
+        for _ in range(2):
+            for cam in cams:
+                truth = c.truth(cam)
+                r = c.cull(cam)
+                assert r.stats["occlusion_pass"] == 1 and culled(r) > 0
+                assert not (truth & ~r.visible).any()
+
+
+def test_auto_falls_back_to_frustum_culling_where_tests_cannot_pay(ctx):
+    """Triangles that cost nothing: after ``LOSSES`` passes the tests do not pay,
+    frustum culling alone, with one occlusion probe every ``PROBE_EVERY`` passes."""
+    scene, cams, _ = scenes.random_city(11, 300)
+    cam = cams[0]
+    with Culler(scene, (128, 96), strategy="auto", ctx=ctx) as c:
+        c.strategy.costs = {"tri_ms": 0.0, "round_trip_ms": 1.0, "vfc_cpu_ms": 0.0}
+        c.strategy.learned, c.strategy.LEARN = True, 0.0            # keep the costs given (no timing in tests)
+        c.strategy.PROBE_SLOWER = float("inf")
+        modes = [c.cull(cam).stats["occlusion_pass"] for _ in range(Auto.LOSSES + Auto.PROBE_EVERY + 2)]
+    assert modes[:Auto.LOSSES] == [1] * Auto.LOSSES
+    assert modes[Auto.LOSSES:Auto.LOSSES + Auto.PROBE_EVERY] == [0] * Auto.PROBE_EVERY
+    assert modes[Auto.LOSSES + Auto.PROBE_EVERY] == 1                     # the probe
+    assert modes[-1] == 0
+
+
+def test_auto_calibrates_on_its_first_pass_without_harm(ctx):
+    """The first pass measures costs by drawing and querying, then clears the depth
+    buffer: its answer equals a fresh om_coherent pass's."""
+    scene, cams, _ = scenes.random_city(5, 300)
+    with Culler(scene, (96, 64), strategy="auto", ctx=ctx) as c:
+        a = c.cull(cams[0])
+        costs = c.strategy.costs
+        assert costs["tri_ms"] > 0.0 and costs["round_trip_ms"] > 0.0
+    with Culler(scene, (96, 64), strategy="om_coherent", ctx=ctx) as c:
+        b = c.cull(cams[0])
+    assert np.array_equal(a.state, b.state)
+
+
+@pytest.mark.parametrize("strategy", ["vfc", "om_multi", "oracle"])
+def test_pass_counters(ctx, strategy):
+    """CPU time outside GL, GL calls and blocking reads (where the renderer counts
+    them), and the query pixels the boxes rasterise (never more than their
+    rectangles')."""
+    scene, cams, _ = scenes.random_city(11, 300)
+    with Culler(scene, (128, 96), strategy=strategy, ctx=ctx) as c:
+        r = c.cull(cams[0], truth=c.truth(cams[0]))
+    s = r.stats
+    assert 0.0 <= s["cpu_ms"] <= s["total_ms"]
+    assert s["gl_ms"] + s["cpu_ms"] == pytest.approx(s["total_ms"], rel=1e-6, abs=1e-6)
+    assert s["nodes_visited"] > 0
+    if hasattr(c.renderer, "counters"):
+        assert s["gl_calls"] >= 1 and s["blocking_reads"] >= 0
+    if strategy == "om_multi":
+        assert 0 < s["query_raster_pixels"] <= s["query_rect_pixels"]
+        assert s["triangles_occluded"] > 0
+    else:
+        assert s["queries"] == 0 and s["query_raster_pixels"] == 0
+
+
+def test_outline_pixels_of_a_box_facing_the_camera(ctx):
+    """A box seen straight on rasterises its front face's area, in pixels."""
+    scene = scenes.boxes_scene([((0, -20, -20), (0.2, 20, 20))])
+    cam = scenes.cam((-10, 0, 0), (0, 0, 0), up=(0, 0, 1), aspect=1.0, far=100, ortho_height=8.0)
+    from core.traversal import Frame
+    with Culler(scene, (64, 64), strategy="vfc", ctx=ctx) as c:
+        f = Frame(c.hierarchy, c.renderer, cam, c.options, c.scene_size)
+        box = np.array([[[5.0, -1.0, -1.0], [6.0, 1.0, 1.0]]]) - cam.eye        # 2 x 2 units = 16 x 16 px
+        assert f.outline_pixels(box)[0] == pytest.approx(256.0)
+
+
+def test_two_pass_uses_at_most_two_batches_once_coherent(ctx):
+    """After its first (om_multi) pass, two_pass tests everything in at most two
+    multiple queries a pass, never culls what the truth shows, and still culls."""
+    from core import Camera
+    scene, cams, _ = scenes.random_city(11, 300)
+    eye, d = cams[0].eye, cams[0].direction
+    with Culler(scene, (128, 96), strategy="two_pass", ctx=ctx) as c:
+        for k in range(5):
+            cam = Camera.look_at(eye + 0.02 * k * d, eye + (10 + 0.02 * k) * d, up=(0, 0, 1),
+                                 fov_y_deg=60, aspect=1.5, near=0.1, far=1000)
+            truth = c.truth(cam)
+            r = c.cull(cam)
+            assert not (truth & ~r.visible).any()
+            assert culled(r) > 0
+            if k:
+                assert r.stats["fresh"] == 0 and r.stats["multiple_queries"] <= 2
