@@ -1,7 +1,10 @@
 """Command line: ``python -m core cull | truth | bench | tradeoff | demo``.
 
-Output shapes are the contract of DESIGN.md; every user error is an
-:class:`OccError` printed as one line on stderr with exit status 2.
+The command front-ends live here and only here; the work is in libraries
+(:mod:`core.jobs` loads a job, :mod:`core.bench`, :mod:`core.tradeoff` and
+:mod:`core.reports` measure and write).  Output shapes are the contract of
+DESIGN.md; every user error is an :class:`OccError` printed as one line on
+stderr with exit status 2.
 """
 
 import argparse
@@ -9,63 +12,13 @@ import json
 import os
 import sys
 
-from .camera import cameras_from_json, load_cameras
 from .engine import DEFAULT_RESOLUTION, Culler, parse_resolution
 from .errors import OccError
+from .jobs import load_job, log_for, resolve_cameras, resolve_scene
 from .scene import load_scene
 from .strategies import DEFAULT_STRATEGY, STRATEGIES
 
 EXIT_USER_ERROR = 2
-
-
-def resolve_scene(spec):
-    """A scene file path, or the name of a bundled sample scene -> (path, sample name or None)."""
-    if os.path.exists(spec):
-        return spec, None
-    try:
-        import sample_scenes
-        names = tuple(sample_scenes.NAMES)
-    except (ImportError, AttributeError):
-        names = ()
-    base, small, joined = spec, False, False
-    if base.endswith("-joined"):
-        base, joined = base[:-7], True
-    if base.endswith("-small"):
-        base, small = base[:-6], True
-    if base in names:
-        return str(sample_scenes.scene_path(base, small=small, joined=joined)), base
-    hint = (f" (or a sample scene: {', '.join(names)}; -small for the small variant, -joined for "
-            "all objects merged into one mesh)" if names else "")
-    raise OccError(f"scene file not found: {spec}{hint}")
-
-
-def resolve_cameras(camera_arg, sample_name):
-    if camera_arg:
-        return load_cameras(camera_arg)
-    if sample_name is None:
-        raise OccError("--camera CAM.json is required for a scene file")
-    import sample_scenes
-    return cameras_from_json(sample_scenes.default_camera_path(sample_name))
-
-
-def spread(items, k):
-    """At most ``k`` items, evenly spread over the list (all of them when k is falsy)."""
-    if not k:
-        return items
-    return items[:: max(1, len(items) // k)][:k]
-
-
-def load_job(scene_spec, camera_arg, frames=None):
-    """Scene, cameras (at most ``frames`` of them, evenly spread) and a title for reports."""
-    path, sample = resolve_scene(scene_spec)
-    cameras = spread(resolve_cameras(camera_arg, sample), frames)
-    title = scene_spec if sample else os.path.splitext(os.path.basename(path))[0]
-    return load_scene(path), cameras, title
-
-
-def log_for(as_json):
-    """Progress goes to stderr when stdout carries JSON."""
-    return (lambda *a: print(*a, file=sys.stderr)) if as_json else print
 
 
 def _frames(culler, cameras, names_of, run):
@@ -113,7 +66,88 @@ def _print_frames(frames, as_json):
         print(f"frame {i}: {len(f['visible'])} of {s['objects']} visible{extra}{ms}")
 
 
+def _dump_json(report):
+    json.dump(report, sys.stdout, indent=1)
+    sys.stdout.write("\n")
+
+
+def cmd_bench(args):
+    if args.hierarchies:
+        return cmd_hierarchies(args)
+    from .reports import bench_scene
+    strategies = [s.strip() for s in args.strategies.split(",") if s.strip()]
+    out = args.out or ((args.plot or args.snapshot) and "reports") or None
+    log = log_for(args.json)
+    report, table = bench_scene(args.scene, args.camera, strategies, parse_resolution(args.resolution),
+                                args.frames, out, args.plot, args.snapshot, log)
+    if args.json:
+        _dump_json({**report, "strategies": {k: {kk: vv for kk, vv in v.items() if kk != "per_frame"}
+                                             for k, v in report["strategies"].items()}})
+    else:
+        print(table)
+
+
+def cmd_hierarchies(args):
+    from .bench import format_hierarchy_table, run_hierarchies
+    builders = [b.strip() for b in args.hierarchies.split(",") if b.strip()]
+    scene, cameras, title = load_job(args.scene, args.camera, args.frames)
+    log = log_for(args.json)
+    report = run_hierarchies(scene, cameras, builders, parse_resolution(args.resolution),
+                             progress=lambda n, s: log(f"  {n:<9} median {s['frame_ms_median']:.2f} ms"))
+    report["scene"] = title
+    table = format_hierarchy_table(report, f"== {title}: hierarchies ==")
+    if args.out:
+        os.makedirs(args.out, exist_ok=True)
+        with open(os.path.join(args.out, f"{title}_hierarchies.json"), "w") as f:
+            json.dump(report, f, indent=1)
+        with open(os.path.join(args.out, f"{title}_hierarchies.txt"), "w") as f:
+            f.write(table + "\n")
+    if args.json:
+        _dump_json(report)
+    else:
+        print(table)
+
+
+def cmd_demo(args):
+    """The main job: generate the sample scene(s), benchmark them, write the report folder."""
+    import sample_scenes
+
+    from .reports import bench_scene
+    names = sample_scenes.NAMES if args.all else ("city",)
+    out = args.out
+    tables = []
+    for name in names:
+        _, table = bench_scene(name, None, STRATEGIES, parse_resolution(args.resolution),
+                               args.frames, out, plot=True, snapshot=True)
+        print(table)
+        tables.append(table)
+    with open(os.path.join(out, "README.txt"), "w") as f:
+        f.write("\n\n".join(tables) + "\n")
+    print(f"report written to {out}/")
+
+
+def cmd_tradeoff(args):
+    from .tradeoff import KNOBS, plot_tradeoff, run_tradeoff
+    scene, cameras, title = load_job(args.scene, args.camera, args.frames)
+    log = log_for(args.json)
+    knobs = [k.strip() for k in args.knobs.split(",")] if args.knobs else list(KNOBS)
+    log(f"{title}: {len(scene)} objects, {len(cameras)} frames, display {args.display}")
+    report = run_tradeoff(scene, cameras, parse_resolution(args.display), knobs, log)
+    report["scene"] = title
+    if args.out:
+        os.makedirs(args.out, exist_ok=True)
+        with open(os.path.join(args.out, f"{title}_tradeoff.json"), "w") as f:
+            json.dump(report, f, indent=1)
+        if args.plot:
+            plot_tradeoff(report, os.path.join(args.out, f"{title}_tradeoff.png"), title)
+    if args.json:
+        _dump_json(report)
+    else:
+        log(f"Pareto front: {', '.join(report['pareto'])}")
+
+
 def build_parser():
+    from .tradeoff import KNOBS
     p = argparse.ArgumentParser(prog="python -m core", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True)
     res = f"{DEFAULT_RESOLUTION[0]}x{DEFAULT_RESOLUTION[1]}"
@@ -133,9 +167,37 @@ def build_parser():
     t.add_argument("--json", action="store_true")
     t.set_defaults(func=cmd_truth)
 
-    from . import bench, tradeoff
-    bench.add_commands(sub)
-    tradeoff.add_commands(sub)
+    b = sub.add_parser("bench", help="every strategy over a camera path, against the truth")
+    b.add_argument("scene", help="scene file or sample scene name (city, assembly, ...)")
+    b.add_argument("--camera", help="camera path JSON (default: the sample scene's own path)")
+    b.add_argument("--strategies", default=",".join(STRATEGIES))
+    b.add_argument("--resolution", default=res)
+    b.add_argument("--frames", type=int, help="use only this many frames, evenly spread")
+    b.add_argument("--out", help="report folder (default reports/ with --plot or --snapshot)")
+    b.add_argument("--plot", action="store_true", help="PNG plots along the path")
+    b.add_argument("--snapshot", action="store_true", help="pictures of one frame")
+    b.add_argument("--hierarchies", help="compare hierarchy builders instead of strategies: "
+                   "comma list of tree, pHBVO, DBVS, octree, balanced, auto")
+    b.add_argument("--json", action="store_true")
+    b.set_defaults(func=cmd_bench)
+
+    d = sub.add_parser("demo", help="generate the sample scene(s) and benchmark them")
+    d.add_argument("--all", action="store_true", help="every sample scene, not only city")
+    d.add_argument("--out", default="reports")
+    d.add_argument("--resolution", default=res)
+    d.add_argument("--frames", type=int)
+    d.set_defaults(func=cmd_demo)
+
+    o = sub.add_parser("tradeoff", help="sweep the speed/accuracy knobs against display truth")
+    o.add_argument("scene")
+    o.add_argument("--camera")
+    o.add_argument("--display", default="1920x1080", help="display resolution for the truth")
+    o.add_argument("--frames", type=int, default=24, help="frames of the path, evenly spread")
+    o.add_argument("--knobs", help=f"comma list of {', '.join(KNOBS)} (default all)")
+    o.add_argument("--out", help="folder for the JSON and the Pareto plot")
+    o.add_argument("--plot", action="store_true")
+    o.add_argument("--json", action="store_true")
+    o.set_defaults(func=cmd_tradeoff)
     return p
 
 

@@ -1,4 +1,4 @@
-"""``python -m core tradeoff``: speed against accuracy, one knob at a time.
+"""Speed against accuracy (``python -m core tradeoff``), one knob at a time.
 
 Culling runs at its query resolution; misses are counted against the object-ID
 truth at the *display* resolution: objects missed (visible on the display but
@@ -7,13 +7,9 @@ R/V'.  Each knob is swept from the default (conservative) settings; the Pareto
 front of frame time against pixels missed is plotted per scene.
 """
 
-import json
-import os
-import sys
-
 import numpy as np
 
-from .engine import Culler, parse_resolution
+from .engine import Culler
 from .errors import OccError
 from .settings import PRESETS, CullOptions, query_resolution
 
@@ -123,37 +119,3 @@ def plot_tradeoff(report, path, title):
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     plt.close(fig)
-
-
-def cmd_tradeoff(args):
-    from .cli import load_job, log_for
-    scene, cameras, title = load_job(args.scene, args.camera, args.frames)
-    log = log_for(args.json)
-    knobs = [k.strip() for k in args.knobs.split(",")] if args.knobs else list(KNOBS)
-    log(f"{title}: {len(scene)} objects, {len(cameras)} frames, display {args.display}")
-    report = run_tradeoff(scene, cameras, parse_resolution(args.display), knobs, log)
-    report["scene"] = title
-    if args.out:
-        os.makedirs(args.out, exist_ok=True)
-        with open(os.path.join(args.out, f"{title}_tradeoff.json"), "w") as f:
-            json.dump(report, f, indent=1)
-        if args.plot:
-            plot_tradeoff(report, os.path.join(args.out, f"{title}_tradeoff.png"), title)
-    if args.json:
-        json.dump(report, sys.stdout, indent=1)
-        sys.stdout.write("\n")
-    else:
-        log(f"Pareto front: {', '.join(report['pareto'])}")
-
-
-def add_commands(sub):
-    t = sub.add_parser("tradeoff", help="sweep the speed/accuracy knobs against display truth")
-    t.add_argument("scene")
-    t.add_argument("--camera")
-    t.add_argument("--display", default="1920x1080", help="display resolution for the truth")
-    t.add_argument("--frames", type=int, default=24, help="frames of the path, evenly spread")
-    t.add_argument("--knobs", help=f"comma list of {', '.join(KNOBS)} (default all)")
-    t.add_argument("--out", help="folder for the JSON and the Pareto plot")
-    t.add_argument("--plot", action="store_true")
-    t.add_argument("--json", action="store_true")
-    t.set_defaults(func=cmd_tradeoff)
