@@ -12,44 +12,63 @@ import json
 import os
 import sys
 
+import numpy as np
+
 from .engine import DEFAULT_RESOLUTION, Culler, parse_resolution
 from .errors import OccError
 from .jobs import load_job, log_for, resolve_cameras, resolve_scene
 from .scene import load_scene
 from .strategies import DEFAULT_STRATEGY, STRATEGIES
+from .traversal import Visibility
 
 EXIT_USER_ERROR = 2
 
 
-def _frames(culler, cameras, names_of, run):
-    out = []
-    for cam in cameras:
-        visible, stats = run(culler, cam)
-        out.append({"visible": names_of(visible), "stats": stats})
-    return out
+STATE_NAMES = {Visibility.VISIBLE: "visible", Visibility.OCCLUDED: "occluded",
+               Visibility.VIEW_CULLED: "view_culled"}
+
+
+def _frame(scene, state, stats):
+    """One frame of the ``--json`` contract: the visible names, every object's state, stats."""
+    visible = np.flatnonzero(state == Visibility.VISIBLE)
+    return {"visible": [scene.names[i] for i in visible],
+            "objects": [{"index": i, "name": name, "state": STATE_NAMES[Visibility(s)]}
+                        for i, (name, s) in enumerate(zip(scene.names, state.tolist(), strict=True))],
+            "stats": stats}
+
+
+def _job(args):
+    """Scene and cameras of ``cull`` / ``truth``, every input checked before the GL work."""
+    path, sample = resolve_scene(args.scene)
+    cameras = resolve_cameras(args.camera, sample)
+    resolution = parse_resolution(args.resolution)
+    return load_scene(path), cameras, resolution
 
 
 def cmd_cull(args):
-    path, sample = resolve_scene(args.scene)
-    cameras = resolve_cameras(args.camera, sample)
-    scene = load_scene(path)
-    with Culler(scene, parse_resolution(args.resolution), strategy=args.strategy) as culler:
-        def run(c, cam):
-            r = c.cull(cam)
-            return r.visible, r.stats
-        frames = _frames(culler, cameras, lambda m: [scene.names[i] for i in m.nonzero()[0]], run)
+    scene, cameras, resolution = _job(args)
+    with Culler(scene, resolution, strategy=args.strategy) as culler:
+        frames = []
+        for cam in cameras:
+            r = culler.cull(cam)
+            frames.append(_frame(scene, r.state, r.stats))
     _print_frames(frames, args.json)
 
 
 def cmd_truth(args):
-    path, sample = resolve_scene(args.scene)
-    cameras = resolve_cameras(args.camera, sample)
-    scene = load_scene(path)
-    with Culler(scene, parse_resolution(args.resolution), strategy="vfc") as culler:
-        def run(c, cam):
-            t = c.truth(cam)
-            return t, {"objects": len(t), "visible": int(t.sum())}
-        frames = _frames(culler, cameras, lambda m: [scene.names[i] for i in m.nonzero()[0]], run)
+    scene, cameras, resolution = _job(args)
+    with Culler(scene, resolution, strategy="vfc") as culler:
+        frames = []
+        for cam in cameras:
+            truth = culler.truth(cam)
+            # not seen: outside the view volume (by box, as vfc decides) or hidden by others
+            state = np.where(truth, Visibility.VISIBLE, np.where(
+                culler.cull(cam).state == Visibility.VIEW_CULLED, Visibility.VIEW_CULLED,
+                Visibility.OCCLUDED)).astype(np.uint8)
+            frames.append(_frame(scene, state, {
+                "objects": len(scene), "visible": int(truth.sum()),
+                "occluded": int((state == Visibility.OCCLUDED).sum()),
+                "view_culled": int((state == Visibility.VIEW_CULLED).sum())}))
     _print_frames(frames, args.json)
 
 
