@@ -16,7 +16,7 @@ import numpy as np
 
 from .engine import DEFAULT_RESOLUTION, Culler, parse_resolution
 from .errors import OccError
-from .jobs import load_job, log_for, resolve_cameras, resolve_scene
+from .jobs import load_job, log_for, parse_names, prepare_out, require_matplotlib, resolve_cameras, resolve_scene
 from .scene import load_scene
 from .strategies import DEFAULT_STRATEGY, STRATEGIES
 from .traversal import Visibility
@@ -94,10 +94,15 @@ def cmd_bench(args):
     if args.hierarchies:
         return cmd_hierarchies(args)
     from .reports import bench_scene
-    strategies = [s.strip() for s in args.strategies.split(",") if s.strip()]
+    strategies = parse_names(args.strategies, STRATEGIES, "strategies")
+    resolution = parse_resolution(args.resolution)
     out = args.out or ((args.plot or args.snapshot) and "reports") or None
+    if args.plot:
+        require_matplotlib()
+    if out:
+        prepare_out(out)
     log = log_for(args.json)
-    report, table = bench_scene(args.scene, args.camera, strategies, parse_resolution(args.resolution),
+    report, table = bench_scene(args.scene, args.camera, strategies, resolution,
                                 args.frames, out, args.plot, args.snapshot, log)
     if args.json:
         _dump_json({**report, "strategies": {k: {kk: vv for kk, vv in v.items() if kk != "per_frame"}
@@ -108,15 +113,18 @@ def cmd_bench(args):
 
 def cmd_hierarchies(args):
     from .bench import format_hierarchy_table, run_hierarchies
-    builders = [b.strip() for b in args.hierarchies.split(",") if b.strip()]
+    from .hierarchy_choice import CANDIDATES
+    builders = parse_names(args.hierarchies, CANDIDATES + ("auto",), "hierarchy builders")
+    resolution = parse_resolution(args.resolution)
+    if args.out:
+        prepare_out(args.out)
     scene, cameras, title = load_job(args.scene, args.camera, args.frames)
     log = log_for(args.json)
-    report = run_hierarchies(scene, cameras, builders, parse_resolution(args.resolution),
+    report = run_hierarchies(scene, cameras, builders, resolution,
                              progress=lambda n, s: log(f"  {n:<9} median {s['frame_ms_median']:.2f} ms"))
     report["scene"] = title
     table = format_hierarchy_table(report, f"== {title}: hierarchies ==")
     if args.out:
-        os.makedirs(args.out, exist_ok=True)
         with open(os.path.join(args.out, f"{title}_hierarchies.json"), "w") as f:
             json.dump(report, f, indent=1)
         with open(os.path.join(args.out, f"{title}_hierarchies.txt"), "w") as f:
@@ -132,12 +140,13 @@ def cmd_demo(args):
     import sample_scenes
 
     from .reports import bench_scene
+    resolution = parse_resolution(args.resolution)
+    require_matplotlib()
+    out = prepare_out(args.out)
     names = sample_scenes.NAMES if args.all else ("city",)
-    out = args.out
     tables = []
     for name in names:
-        _, table = bench_scene(name, None, STRATEGIES, parse_resolution(args.resolution),
-                               args.frames, out, plot=True, snapshot=True)
+        _, table = bench_scene(name, None, STRATEGIES, resolution, args.frames, out, plot=True, snapshot=True)
         print(table)
         tables.append(table)
     with open(os.path.join(out, "README.txt"), "w") as f:
@@ -147,27 +156,51 @@ def cmd_demo(args):
 
 def cmd_tradeoff(args):
     from .tradeoff import KNOBS, plot_tradeoff, run_tradeoff
+    display = parse_resolution(args.display)
+    knobs = parse_names(args.knobs, tuple(KNOBS), "knobs") if args.knobs is not None else list(KNOBS)
+    out = args.out or (args.plot and "reports") or None
+    if args.plot:
+        require_matplotlib()
+    if out:
+        prepare_out(out)
     scene, cameras, title = load_job(args.scene, args.camera, args.frames)
     log = log_for(args.json)
-    knobs = [k.strip() for k in args.knobs.split(",")] if args.knobs else list(KNOBS)
     log(f"{title}: {len(scene)} objects, {len(cameras)} frames, display {args.display}")
-    report = run_tradeoff(scene, cameras, parse_resolution(args.display), knobs, log)
+    report = run_tradeoff(scene, cameras, display, knobs, log)
     report["scene"] = title
-    if args.out:
-        os.makedirs(args.out, exist_ok=True)
-        with open(os.path.join(args.out, f"{title}_tradeoff.json"), "w") as f:
+    if out:
+        with open(os.path.join(out, f"{title}_tradeoff.json"), "w") as f:
             json.dump(report, f, indent=1)
         if args.plot:
-            plot_tradeoff(report, os.path.join(args.out, f"{title}_tradeoff.png"), title)
+            plot_tradeoff(report, os.path.join(out, f"{title}_tradeoff.png"), title)
     if args.json:
         _dump_json(report)
     else:
         log(f"Pareto front: {', '.join(report['pareto'])}")
 
 
+def positive_int(text):
+    """``--frames``: a whole number >= 1 (0 would silently mean 'all' or 'none')."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a whole number >= 1, got '{text}'") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a whole number >= 1, got {value} "
+                                         "(leave it out for every frame)")
+    return value
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse whose errors are one line ``error: ...`` and exit status 2, like every other."""
+
+    def error(self, message):
+        self.exit(EXIT_USER_ERROR, f"error: {message}; see {self.prog} --help\n")
+
+
 def build_parser():
     from .tradeoff import KNOBS
-    p = argparse.ArgumentParser(prog="python -m core", description=__doc__.splitlines()[0])
+    p = OneLineParser(prog="python -m core", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True)
     res = f"{DEFAULT_RESOLUTION[0]}x{DEFAULT_RESOLUTION[1]}"
 
@@ -191,7 +224,7 @@ def build_parser():
     b.add_argument("--camera", help="camera path JSON (default: the sample scene's own path)")
     b.add_argument("--strategies", default=",".join(STRATEGIES))
     b.add_argument("--resolution", default=res)
-    b.add_argument("--frames", type=int, help="use only this many frames, evenly spread")
+    b.add_argument("--frames", type=positive_int, help="use only this many frames, evenly spread")
     b.add_argument("--out", help="report folder (default reports/ with --plot or --snapshot)")
     b.add_argument("--plot", action="store_true", help="PNG plots along the path")
     b.add_argument("--snapshot", action="store_true", help="pictures of one frame")
@@ -204,16 +237,16 @@ def build_parser():
     d.add_argument("--all", action="store_true", help="every sample scene, not only city")
     d.add_argument("--out", default="reports")
     d.add_argument("--resolution", default=res)
-    d.add_argument("--frames", type=int)
+    d.add_argument("--frames", type=positive_int, help="use only this many frames, evenly spread")
     d.set_defaults(func=cmd_demo)
 
     o = sub.add_parser("tradeoff", help="sweep the speed/accuracy knobs against display truth")
     o.add_argument("scene")
     o.add_argument("--camera")
     o.add_argument("--display", default="1920x1080", help="display resolution for the truth")
-    o.add_argument("--frames", type=int, default=24, help="frames of the path, evenly spread")
+    o.add_argument("--frames", type=positive_int, default=24, help="frames of the path, evenly spread")
     o.add_argument("--knobs", help=f"comma list of {', '.join(KNOBS)} (default all)")
-    o.add_argument("--out", help="folder for the JSON and the Pareto plot")
+    o.add_argument("--out", help="folder for the JSON and the Pareto plot (default reports/ with --plot)")
     o.add_argument("--plot", action="store_true")
     o.add_argument("--json", action="store_true")
     o.set_defaults(func=cmd_tradeoff)

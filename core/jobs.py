@@ -7,6 +7,7 @@ checks its input before any long work starts and raises :class:`OccError`.
 
 import os
 import sys
+import tempfile
 
 from .camera import cameras_from_json, load_cameras
 from .errors import OccError
@@ -82,3 +83,36 @@ def load_job(scene_spec, camera_arg, frames=None):
 def log_for(as_json):
     """Progress goes to stderr when stdout carries JSON."""
     return (lambda *a: print(*a, file=sys.stderr)) if as_json else print
+
+
+def parse_names(text, allowed, what):
+    """``"a,b"`` -> ``["a", "b"]``, each one of ``allowed``; an empty list is an error."""
+    names = [s.strip() for s in str(text).split(",") if s.strip()]
+    if not names:
+        raise OccError(f"no {what} given in '{text}'; choose from {', '.join(allowed)}")
+    unknown = [s for s in names if s not in allowed]
+    if unknown:
+        raise OccError(f"unknown {what} {', '.join(unknown)}; choose from {', '.join(allowed)}")
+    return names
+
+
+def prepare_out(path):
+    """Create the report folder ``path`` now, so that a bad one fails before the work, not after."""
+    if os.path.exists(path) and not os.path.isdir(path):
+        raise OccError(f"--out {path} is a file; give a folder for the report")
+    try:
+        os.makedirs(path, exist_ok=True)
+    except OSError as e:
+        raise OccError(f"cannot create the report folder {path}: {e.strerror}") from None
+    try:                                     # the real test (root ignores permission bits)
+        tempfile.TemporaryFile(dir=path).close()
+    except OSError as e:
+        raise OccError(f"cannot write to the report folder {path}: {e.strerror}") from None
+    return path
+
+
+def require_matplotlib():
+    """Plots need matplotlib: say so before the work, not after it."""
+    import importlib.util
+    if importlib.util.find_spec("matplotlib") is None:
+        raise OccError("--plot needs matplotlib: pip install matplotlib")
