@@ -93,17 +93,19 @@ def _dump_json(report):
 def cmd_bench(args):
     if args.hierarchies:
         return cmd_hierarchies(args)
-    from .reports import bench_scene
+    from .reports import bench_scene, write_index
     strategies = parse_names(args.strategies, STRATEGIES, "strategies")
     resolution = parse_resolution(args.resolution)
     out = args.out or ((args.plot or args.snapshot) and "reports") or None
-    if args.plot:
+    if args.plot or args.snapshot:
         require_matplotlib()
     if out:
         prepare_out(out)
     log = log_for(args.json)
     report, table = bench_scene(args.scene, args.camera, strategies, resolution,
                                 args.frames, out, args.plot, args.snapshot, log)
+    if out:
+        write_index(out)
     if args.json:
         _dump_json({**report, "strategies": {k: {kk: vv for kk, vv in v.items() if kk != "per_frame"}
                                              for k, v in report["strategies"].items()}})
@@ -129,6 +131,8 @@ def cmd_hierarchies(args):
             json.dump(report, f, indent=1)
         with open(os.path.join(args.out, f"{title}_hierarchies.txt"), "w") as f:
             f.write(table + "\n")
+        from .reports import write_index
+        write_index(args.out)
     if args.json:
         _dump_json(report)
     else:
@@ -139,19 +143,16 @@ def cmd_demo(args):
     """The main job: generate the sample scene(s), benchmark them, write the report folder."""
     import sample_scenes
 
-    from .reports import bench_scene
+    from .reports import bench_scene, write_index
     resolution = parse_resolution(args.resolution)
     require_matplotlib()
     out = prepare_out(args.out)
     names = sample_scenes.NAMES if args.all else ("city",)
-    tables = []
     for name in names:
         _, table = bench_scene(name, None, STRATEGIES, resolution, args.frames, out, plot=True, snapshot=True)
         print(table)
-        tables.append(table)
-    with open(os.path.join(out, "README.txt"), "w") as f:
-        f.write("\n\n".join(tables) + "\n")
-    print(f"report written to {out}/")
+    print(f"report written to {out}/ (README.txt says what each file holds)")
+    write_index(out)
 
 
 def cmd_tradeoff(args):
@@ -166,13 +167,15 @@ def cmd_tradeoff(args):
     scene, cameras, title = load_job(args.scene, args.camera, args.frames)
     log = log_for(args.json)
     log(f"{title}: {len(scene)} objects, {len(cameras)} frames, display {args.display}")
-    report = run_tradeoff(scene, cameras, display, knobs, log)
+    report = run_tradeoff(scene, cameras, display, knobs, log, repeats=args.repeats)
     report["scene"] = title
     if out:
         with open(os.path.join(out, f"{title}_tradeoff.json"), "w") as f:
             json.dump(report, f, indent=1)
         if args.plot:
             plot_tradeoff(report, os.path.join(out, f"{title}_tradeoff.png"), title)
+        from .reports import write_index
+        write_index(out)
     if args.json:
         _dump_json(report)
     else:
@@ -245,6 +248,8 @@ def build_parser():
     o.add_argument("--camera")
     o.add_argument("--display", default="1920x1080", help="display resolution for the truth")
     o.add_argument("--frames", type=positive_int, default=24, help="frames of the path, evenly spread")
+    o.add_argument("--repeats", type=positive_int, default=3,
+                   help="runs of the path per setting; times are medians with their spread (default 3)")
     o.add_argument("--knobs", help=f"comma list of {', '.join(KNOBS)} (default all)")
     o.add_argument("--out", help="folder for the JSON and the Pareto plot (default reports/ with --plot)")
     o.add_argument("--plot", action="store_true")
