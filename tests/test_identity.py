@@ -108,3 +108,18 @@ def test_cull_and_truth_json_give_every_objects_state(messy_gltf, tmp_path):
     # what truth sees, cull keeps (conservative), object by object
     for t, c in zip(out["truth"], out["cull"], strict=True):
         assert set(t["visible"]) <= set(c["visible"])
+
+
+def test_gltf_with_external_buffers_loads_like_glb(tmp_path):
+    import trimesh
+    s = trimesh.Scene()
+    s.add_geometry(trimesh.creation.box((1, 1, 1)), node_name="a", geom_name="g")
+    s.add_geometry(trimesh.creation.icosphere(), node_name="b", geom_name="h",
+                   transform=trimesh.transformations.translation_matrix((3, 0, 0)))
+    for name, data in s.export(file_type="gltf").items():
+        (tmp_path / name).write_bytes(data)
+    s.export(tmp_path / "same.glb")
+    a, b = load_scene(tmp_path / "model.gltf"), load_scene(tmp_path / "same.glb")
+    assert a.names == b.names == ["a", "b"]
+    assert np.array_equal(a.triangle_counts, b.triangle_counts)
+    assert np.allclose(a.bounds, b.bounds) and np.allclose(a.bounds[1], [[2, -1, -1], [4, 1, 1]])
