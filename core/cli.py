@@ -24,16 +24,15 @@ from .traversal import Visibility
 EXIT_USER_ERROR = 2
 
 
-STATE_NAMES = {Visibility.VISIBLE: "visible", Visibility.OCCLUDED: "occluded",
-               Visibility.VIEW_CULLED: "view_culled"}
+STATE_NAMES = np.array([v.name.lower() for v in sorted(Visibility)])   # "visible", "occluded", "view_culled"
 
 
 def _frame(scene, state, stats):
     """One frame of the ``--json`` contract: the visible names, every object's state, stats."""
-    visible = np.flatnonzero(state == Visibility.VISIBLE)
-    return {"visible": [scene.names[i] for i in visible],
-            "objects": [{"index": i, "name": name, "state": STATE_NAMES[Visibility(s)]}
-                        for i, (name, s) in enumerate(zip(scene.names, state.tolist(), strict=True))],
+    labels = STATE_NAMES[state].tolist()
+    return {"visible": [name for name, s in zip(scene.names, labels, strict=True) if s == "visible"],
+            "objects": [{"index": i, "name": name, "state": s}
+                        for i, (name, s) in enumerate(zip(scene.names, labels, strict=True))],
             "stats": stats}
 
 

@@ -23,7 +23,6 @@ from .occupancy import OccupancyMap
 from .strategies import STRATEGIES
 from .traversal import Visibility
 
-STATE_LABELS = ("visible", "occluded (hidden by others)", "outside the view (frustum-culled)", "background")
 # file name pattern (after the scene title) -> what the index says about it
 FILES = (
     (".json", "the benchmark report: per strategy the summary and every frame's time and triangles "
@@ -31,7 +30,8 @@ FILES = (
     (".txt", "the benchmark table as printed (columns explained in the README)"),
     ("_frame_ms.png", "frame time along the camera path per strategy, log scale"),
     ("_triangles.png", "triangles drawn along the camera path per strategy, log scale"),
-    ("_view.png", "the middle frame, each object coloured by its state (legend on the picture)"),
+    ("_view.png", "the middle frame as the camera sees it, one shade per visible object, with the counts of "
+                  "visible, occluded and outside-the-view objects"),
     ("_occluded_xray.png", "the same frame: where the occluded objects lie (red) behind the visible view"),
     ("_occupancy.png", "the occupancy map of that frame's pass: when each tile was first covered, "
                        "front to back, while the map decided which queries to skip"),
@@ -160,13 +160,14 @@ def write_snapshot(scene, camera, out_dir, title, resolution, strategy="om_multi
              "occupancy": os.path.join(out_dir, f"{title}_occupancy.png")}
     aspect = resolution[0] / resolution[1]
     for key, image, labels, colours, head in (
-            ("view", view, STATE_LABELS, STATE_COLOURS, "objects by state"),
+            ("view", view, ("visible (a shade per object)", "background"),
+             (STATE_COLOURS[Visibility.VISIBLE], STATE_COLOURS[-1]), "what the camera sees"),
             ("xray", xr, ("occluded objects, seen through what hides them",
                           "the visible view, dimmed (colours as in _view.png)"),
              (STATE_COLOURS[Visibility.OCCLUDED], (70, 70, 80)), "what culling hid")):
         fig, ax = plt.subplots(figsize=(7, 7 / aspect + 0.6))
         _legend_image(ax, image, labels, colours, f"{title}: {head}")
-        _caption(fig, f"{where}: {counts}.")
+        _caption(fig, f"{where}: {counts}; the occluded ones are in _occluded_xray.png.")
         fig.tight_layout(rect=(0, 0.05, 1, 1))
         fig.savefig(paths[key], dpi=90)
         plt.close(fig)
@@ -213,10 +214,12 @@ def _occupancy_figure(plt, om, result, stats, path, title, where, aspect):
         ax.set_xticks([])
         ax.set_yticks([])
     filled = 100.0 * float(np.mean(om.first_set >= 0))
+    first = 100.0 * float(np.mean(om.first_set == 0))
     fig.suptitle(f"{title}: the occupancy map during the pass", fontsize=11)
-    _caption(fig, f"{where}: {om.cols}x{om.rows} tiles, {om.sets} draw batches, {filled:.0f}% covered at the "
-                  f"end (dark: never covered); asked about {om.asks} boxes, {om.said_empty} 'still empty'; "
-                  f"{stats['queries']} queries issued.  A box's screen rectangle covers its tiles when drawn.")
+    _caption(fig, f"{where}: {om.cols}x{om.rows} tiles, {om.sets} draw batches; the first covered {first:.0f}%, "
+                  f"{filled:.0f}% at the end (dark: never covered); asked about {om.asks} boxes, "
+                  f"{om.said_empty} 'still empty'; {stats['queries']} queries issued.  A drawn box's screen "
+                  "rectangle covers its tiles.")
     fig.tight_layout(rect=(0, 0.06, 1, 0.96))
     fig.savefig(path, dpi=90)
     plt.close(fig)
