@@ -150,8 +150,8 @@ def cmd_demo(args):
     for name in names:
         _, table = bench_scene(name, None, STRATEGIES, resolution, args.frames, out, plot=True, snapshot=True)
         print(table)
-    print(f"report written to {out}/ (README.txt says what each file holds)")
     write_index(out)
+    print(f"report written to {out}/ (README.txt says what each file holds)")
 
 
 def cmd_tradeoff(args):
@@ -264,4 +264,7 @@ def main(argv=None):
     except OccError as e:
         print(f"error: {e}", file=sys.stderr)
         return EXIT_USER_ERROR
+    except BrokenPipeError:          # the reader (e.g. `| head`) stopped reading: stop quietly
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
     return 0

@@ -211,3 +211,18 @@ def test_bad_input_is_one_line_before_any_work(wall_scene, tmp_path, case):
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and words in lines[0], p.stderr
     assert p.stdout == ""            # no progress line: it stopped before loading or measuring
+
+
+def test_closed_pipe_is_not_a_traceback(wall_scene, tmp_path):
+    """``python -m core cull ... --json | head -c 10``: the reader stops early, the tool stops quietly."""
+    path, cam, _ = wall_scene
+    many = tmp_path / "many.json"          # more output than a pipe buffers
+    many.write_text(json.dumps({"frames": json.loads(cam.read_text())["frames"] * 400}))
+    p = subprocess.Popen([sys.executable, "-m", "core", "cull", str(path), "--camera", str(many), "--json",
+                          "--resolution", "32x24"],
+                         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, bufsize=0)
+    p.stdout.read(10)
+    p.stdout.close()
+    err = p.stderr.read().decode()
+    p.wait(timeout=120)
+    assert "Traceback" not in err, err
