@@ -123,3 +123,29 @@ def test_gltf_with_external_buffers_loads_like_glb(tmp_path):
     assert a.names == b.names == ["a", "b"]
     assert np.array_equal(a.triangle_counts, b.triangle_counts)
     assert np.allclose(a.bounds, b.bounds) and np.allclose(a.bounds[1], [[2, -1, -1], [4, 1, 1]])
+
+
+def test_node_transforms_match_trimesh(tmp_path):
+    """Translation, rotation (xyzw quaternion) and scale, under a parent with a matrix: the
+    world matrices equal those trimesh's own loader computes."""
+    import trimesh
+
+    from core.scene import scene_from_trimesh
+    s = trimesh.Scene()
+    s.add_geometry(trimesh.creation.box((1, 2, 3)), node_name="child", geom_name="g")
+    header, binary = _split_glb(s.export(file_type="glb"))
+    child = next(i for i, n in enumerate(header["nodes"]) if n.get("name") == "child")
+    header["nodes"][child].pop("matrix", None)
+    header["nodes"][child].update(translation=[1.0, 2.0, 3.0], rotation=[0.1, 0.7, 0.2, 0.68],
+                                  scale=[2.0, 0.5, 1.5])
+    parent = {"name": "parent", "children": [child],
+              "matrix": trimesh.transformations.rotation_matrix(0.7, (1, 1, 0), (4, 0, 0)).T.ravel().tolist()}
+    header["nodes"].append(parent)
+    header["scenes"][header.get("scene", 0)]["nodes"] = [len(header["nodes"]) - 1]
+    path = tmp_path / "trs.glb"
+    path.write_bytes(_glb(header, binary))
+    ours = load_scene(path)
+    theirs = scene_from_trimesh(trimesh.load(path, force="scene"))
+    assert ours.names == theirs.names == ["child"]
+    assert np.allclose(ours.matrices, theirs.matrices, atol=1e-12)
+    assert np.allclose(ours.bounds, theirs.bounds)
