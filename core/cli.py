@@ -22,6 +22,8 @@ from .strategies import DEFAULT_STRATEGY, STRATEGIES
 from .traversal import Visibility
 
 EXIT_USER_ERROR = 2
+CAMERA_HELP = 'camera JSON: one camera or {"frames": [camera, ...]}'
+JSON_HELP = "JSON on stdout: per frame the visible names and every object's index, name and state"
 
 
 STATE_NAMES = np.array([v.name.lower() for v in sorted(Visibility)])   # "visible", "occluded", "view_culled"
@@ -201,58 +203,61 @@ class OneLineParser(argparse.ArgumentParser):
 
 
 def build_parser():
+    from .jobs import sample_names
     from .tradeoff import KNOBS
+    scene_help = (f"scene file (glTF/GLB, OBJ, PLY, ...) or a sample scene: "
+                  f"{', '.join(sample_names()) or 'none in this install'} (-small, -joined)")
     p = OneLineParser(prog="python -m core", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True)
     res = f"{DEFAULT_RESOLUTION[0]}x{DEFAULT_RESOLUTION[1]}"
 
     c = sub.add_parser("cull", help="visible objects per camera frame")
-    c.add_argument("scene", help="scene file (glTF/GLB, OBJ, PLY, ...) or a sample scene name")
-    c.add_argument("--camera", help="camera JSON (one camera or {\"frames\": [...]})")
+    c.add_argument("scene", help=scene_help)
+    c.add_argument("--camera", help=CAMERA_HELP)
     c.add_argument("--strategy", default=DEFAULT_STRATEGY, choices=STRATEGIES)
     c.add_argument("--resolution", default=res, help=f"query resolution WxH (default {res})")
-    c.add_argument("--json", action="store_true")
+    c.add_argument("--json", action="store_true", help=JSON_HELP)
     c.set_defaults(func=cmd_cull)
 
     t = sub.add_parser("truth", help="exact visible set from an object-ID buffer")
-    t.add_argument("scene")
-    t.add_argument("--camera")
-    t.add_argument("--resolution", default=res)
-    t.add_argument("--json", action="store_true")
+    t.add_argument("scene", help=scene_help)
+    t.add_argument("--camera", help=CAMERA_HELP)
+    t.add_argument("--resolution", default=res, help=f"ID-buffer resolution WxH (default {res})")
+    t.add_argument("--json", action="store_true", help=JSON_HELP)
     t.set_defaults(func=cmd_truth)
 
     b = sub.add_parser("bench", help="every strategy over a camera path, against the truth")
-    b.add_argument("scene", help="scene file or sample scene name (city, assembly, ...)")
+    b.add_argument("scene", help=scene_help)
     b.add_argument("--camera", help="camera path JSON (default: the sample scene's own path)")
-    b.add_argument("--strategies", default=",".join(STRATEGIES))
-    b.add_argument("--resolution", default=res)
+    b.add_argument("--strategies", default=",".join(STRATEGIES), help="comma list (default: all)")
+    b.add_argument("--resolution", default=res, help=f"query resolution WxH (default {res})")
     b.add_argument("--frames", type=positive_int, help="use only this many frames, evenly spread")
     b.add_argument("--out", help="report folder (default reports/ with --plot or --snapshot)")
     b.add_argument("--plot", action="store_true", help="PNG plots along the path")
     b.add_argument("--snapshot", action="store_true", help="pictures of one frame")
     b.add_argument("--hierarchies", help="compare hierarchy builders instead of strategies: "
                    "comma list of tree, pHBVO, DBVS, octree, balanced, auto")
-    b.add_argument("--json", action="store_true")
+    b.add_argument("--json", action="store_true", help="the report as JSON on stdout (progress on stderr)")
     b.set_defaults(func=cmd_bench)
 
     d = sub.add_parser("demo", help="generate the sample scene(s) and benchmark them")
     d.add_argument("--all", action="store_true", help="every sample scene, not only city")
-    d.add_argument("--out", default="reports")
-    d.add_argument("--resolution", default=res)
+    d.add_argument("--out", default="reports", help="report folder (default reports/)")
+    d.add_argument("--resolution", default=res, help=f"query resolution WxH (default {res})")
     d.add_argument("--frames", type=positive_int, help="use only this many frames, evenly spread")
     d.set_defaults(func=cmd_demo)
 
     o = sub.add_parser("tradeoff", help="sweep the speed/accuracy knobs against display truth")
-    o.add_argument("scene")
-    o.add_argument("--camera")
+    o.add_argument("scene", help=scene_help)
+    o.add_argument("--camera", help=CAMERA_HELP + " (default: a sample scene's own path)")
     o.add_argument("--display", default="1920x1080", help="display resolution for the truth")
     o.add_argument("--frames", type=positive_int, default=24, help="frames of the path, evenly spread")
     o.add_argument("--repeats", type=positive_int, default=3,
                    help="runs of the path per setting; times are medians with their spread (default 3)")
     o.add_argument("--knobs", help=f"comma list of {', '.join(KNOBS)} (default all)")
     o.add_argument("--out", help="folder for the JSON and the Pareto plot (default reports/ with --plot)")
-    o.add_argument("--plot", action="store_true")
-    o.add_argument("--json", action="store_true")
+    o.add_argument("--plot", action="store_true", help="the speed/accuracy plot (PNG)")
+    o.add_argument("--json", action="store_true", help="the report as JSON on stdout (progress on stderr)")
     o.set_defaults(func=cmd_tradeoff)
     return p
 
