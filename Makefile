@@ -38,8 +38,11 @@ test-numpy2: $(VENV2)/.installed-v2
 lint: $(STAMP)
 	$(VPY) -m ruff check core occ_addon tests sample_scenes
 
-extension: $(STAMP)
-	$(VPY) tools/build_extension.py
+# The extension zips into dist/, one per platform: needs only python3 with pip (no venv);
+# built and validated by Blender's own CLI when $(BLENDER) or `blender` on PATH exists.
+EXT_PY ?= python3
+extension:
+	$(EXT_PY) tools/build_extension.py $(if $(BLENDER),--blender $(BLENDER))
 
 clean:
 	rm -rf $(VENV) $(VENV2) dist build .cache

@@ -1,5 +1,6 @@
-"""``python -m core bench`` and ``python -m core demo``: every strategy over a camera
-path in one process, measured against the object-ID truth.
+"""The benchmark as a library: every strategy over a camera path in one process,
+measured against the object-ID truth (``python -m core bench`` is its front-end in
+:mod:`core.cli`; the report folder is written by :mod:`core.reports`).
 
 Per strategy, over the whole path: median and p95 frame ms, culling overhead
 (traversal + queries), triangles drawn and the render rate, queries issued and
@@ -7,18 +8,14 @@ skipped by the occupancy map, query rectangle pixels, false negatives and R/V'
 (objects kept over objects truly visible).  Speed-ups are ratios within one run.
 """
 
-import json
-import os
 import resource
-import sys
 import time
 
 import numpy as np
 
-from .engine import DEFAULT_RESOLUTION, Culler, parse_resolution
+from .engine import DEFAULT_RESOLUTION, Culler
 from .errors import OccError
 from .strategies import STRATEGIES
-from .traversal import Visibility
 
 TABLE_COLUMNS = (
     ("strategy", "{:<13}"), ("median ms", "{:>9.2f}"), ("p95 ms", "{:>8.2f}"),
@@ -195,159 +192,3 @@ def format_table(report, title=""):
                 s.get("speedup_over_stopwait", nan)]
         lines.append(" ".join(fmt.format(v) for (_, fmt), v in zip(TABLE_COLUMNS, vals, strict=True)))
     return "\n".join(line for line in lines if line is not None)
-
-
-def write_plots(report, out_dir, title):
-    """Frame time and triangles along the path per strategy (the papers' Figures 5-11)."""
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        raise OccError("--plot needs matplotlib: pip install matplotlib") from None
-    os.makedirs(out_dir, exist_ok=True)
-    paths = []
-    for key, label in (("frame_ms", "frame time (ms)"), ("triangles", "triangles drawn")):
-        fig, ax = plt.subplots(figsize=(8, 4))
-        for name, s in report["strategies"].items():
-            ax.plot(s["per_frame"][key], label=name)
-        ax.set_xlabel("frame")
-        ax.set_ylabel(label)
-        ax.set_title(f"{title}: {label}")
-        if key == "triangles":
-            ax.set_yscale("symlog")
-        ax.legend()
-        fig.tight_layout()
-        path = os.path.join(out_dir, f"{title}_{key}.png")
-        fig.savefig(path, dpi=90)
-        plt.close(fig)
-        paths.append(path)
-    return paths
-
-
-def write_snapshot(scene, camera, out_dir, title, resolution, strategy="om_multi"):
-    """One frame: the view coloured by state, the occluded objects x-rayed, the occupancy map."""
-    from .images import STATE_COLOURS, colour_by_state, write_png
-    os.makedirs(out_dir, exist_ok=True)
-    with Culler(scene, resolution, strategy=strategy) as c:
-        result = c.cull(camera)
-        ids = c.renderer.object_ids(camera)
-        hidden = np.flatnonzero(result.state == Visibility.OCCLUDED)
-        xray = c.renderer.object_ids(camera, hidden)
-    view = colour_by_state(ids, result.state)
-    # x-ray: where occluded objects lie (red) over the visible view, dimmed
-    xr = (view // 3).copy()
-    xr[(xray >= 0)[::-1]] = STATE_COLOURS[Visibility.OCCLUDED]
-    paths = {"view": os.path.join(out_dir, f"{title}_view.png"),
-             "xray": os.path.join(out_dir, f"{title}_occluded_xray.png"),
-             "occupancy": os.path.join(out_dir, f"{title}_occupancy.png")}
-    write_png(paths["view"], view)
-    write_png(paths["xray"], xr)
-    write_png(paths["occupancy"], np.kron(np.where(result.occupancy[::-1], 255, 40).astype(np.uint8),
-                                          np.ones((4, 4), np.uint8)))
-    return paths
-
-
-def bench_scene(spec, camera=None, strategies=STRATEGIES, resolution=DEFAULT_RESOLUTION,
-                frames=None, out_dir=None, plot=False, snapshot=False, log=print):
-    """Load a scene (file or sample name), run the benchmark, optionally write a report folder."""
-    from .cli import load_job
-    t = time.perf_counter()
-    scene, cameras, title = load_job(spec, camera, frames)
-    log(f"{title}: loaded {len(scene)} objects, {int(scene.triangle_counts.sum()):,} triangles "
-        f"in {time.perf_counter() - t:.1f} s; {len(cameras)} frames")
-    report = run_bench(scene, cameras, list(strategies), resolution,
-                       progress=lambda n, s: log(f"  {n:<9} median {s['frame_ms_median']:.2f} ms"))
-    report["scene"] = title
-    table = format_table(report, f"== {title} ==")
-    if out_dir:
-        os.makedirs(out_dir, exist_ok=True)
-        with open(os.path.join(out_dir, f"{title}.json"), "w") as f:
-            json.dump(report, f, indent=1)
-        with open(os.path.join(out_dir, f"{title}.txt"), "w") as f:
-            f.write(table + "\n")
-        if plot:
-            write_plots(report, out_dir, title)
-        if snapshot:
-            write_snapshot(scene, cameras[len(cameras) // 2], out_dir, title, resolution)
-    return report, table
-
-
-def cmd_bench(args):
-    if args.hierarchies:
-        return cmd_hierarchies(args)
-    from .cli import log_for
-    strategies = [s.strip() for s in args.strategies.split(",") if s.strip()]
-    out = args.out or ((args.plot or args.snapshot) and "reports") or None
-    log = log_for(args.json)
-    report, table = bench_scene(args.scene, args.camera, strategies, parse_resolution(args.resolution),
-                                args.frames, out, args.plot, args.snapshot, log)
-    if args.json:
-        slim = {**report, "strategies": {k: {kk: vv for kk, vv in v.items() if kk != "per_frame"}
-                                         for k, v in report["strategies"].items()}}
-        json.dump(slim, sys.stdout, indent=1)
-        sys.stdout.write("\n")
-    else:
-        print(table)
-
-
-def cmd_hierarchies(args):
-    from .cli import load_job, log_for
-    builders = [b.strip() for b in args.hierarchies.split(",") if b.strip()]
-    scene, cameras, title = load_job(args.scene, args.camera, args.frames)
-    log = log_for(args.json)
-    report = run_hierarchies(scene, cameras, builders, parse_resolution(args.resolution),
-                             progress=lambda n, s: log(f"  {n:<9} median {s['frame_ms_median']:.2f} ms"))
-    report["scene"] = title
-    table = format_hierarchy_table(report, f"== {title}: hierarchies ==")
-    if args.out:
-        os.makedirs(args.out, exist_ok=True)
-        with open(os.path.join(args.out, f"{title}_hierarchies.json"), "w") as f:
-            json.dump(report, f, indent=1)
-        with open(os.path.join(args.out, f"{title}_hierarchies.txt"), "w") as f:
-            f.write(table + "\n")
-    if args.json:
-        json.dump(report, sys.stdout, indent=1)
-        sys.stdout.write("\n")
-    else:
-        print(table)
-
-
-def cmd_demo(args):
-    """The main job: generate the sample scene(s), benchmark them, write the report folder."""
-    import sample_scenes
-    names = sample_scenes.NAMES if args.all else ("city",)
-    out = args.out
-    tables = []
-    for name in names:
-        _, table = bench_scene(name, None, STRATEGIES, parse_resolution(args.resolution),
-                               args.frames, out, plot=True, snapshot=True)
-        print(table)
-        tables.append(table)
-    with open(os.path.join(out, "README.txt"), "w") as f:
-        f.write("\n\n".join(tables) + "\n")
-    print(f"report written to {out}/")
-
-
-def add_commands(sub):
-    res = f"{DEFAULT_RESOLUTION[0]}x{DEFAULT_RESOLUTION[1]}"
-    b = sub.add_parser("bench", help="every strategy over a camera path, against the truth")
-    b.add_argument("scene", help="scene file or sample scene name (city, assembly, ...)")
-    b.add_argument("--camera", help="camera path JSON (default: the sample scene's own path)")
-    b.add_argument("--strategies", default=",".join(STRATEGIES))
-    b.add_argument("--resolution", default=res)
-    b.add_argument("--frames", type=int, help="use only this many frames, evenly spread")
-    b.add_argument("--out", help="report folder (default reports/ with --plot or --snapshot)")
-    b.add_argument("--plot", action="store_true", help="PNG plots along the path")
-    b.add_argument("--snapshot", action="store_true", help="pictures of one frame")
-    b.add_argument("--hierarchies", help="compare hierarchy builders instead of strategies: "
-                   "comma list of tree, pHBVO, DBVS, octree, balanced, auto")
-    b.add_argument("--json", action="store_true")
-    b.set_defaults(func=cmd_bench)
-
-    d = sub.add_parser("demo", help="generate the sample scene(s) and benchmark them")
-    d.add_argument("--all", action="store_true", help="every sample scene, not only city")
-    d.add_argument("--out", default="reports")
-    d.add_argument("--resolution", default=res)
-    d.add_argument("--frames", type=int)
-    d.set_defaults(func=cmd_demo)

@@ -31,6 +31,26 @@ def _finite(value, name, shape=None):
     return a
 
 
+def _json_type(value):
+    return {bool: "true/false", str: "a string", list: "a list", dict: "an object",
+            type(None): "null"}.get(type(value), type(value).__name__)
+
+
+def _json_number(value, name, where="camera"):
+    """A JSON number as float; true/false and strings are not numbers (Python says they are)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise OccError(f"{where} {name} must be a number, got {_json_type(value)} {json.dumps(value)}")
+    return float(value)
+
+
+def _json_vector(value, name, where="camera"):
+    """A JSON list of three numbers as ``(3,) float64``."""
+    if (not isinstance(value, list) or len(value) != 3
+            or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in value)):
+        raise OccError(f"{where} {name} must be a list of 3 numbers [x, y, z], got {json.dumps(value)}")
+    return np.array(value, dtype=np.float64)
+
+
 def look_at(eye, target, up):
     """gluLookAt as a ``(4, 4) float64`` view matrix."""
     eye = _finite(eye, "eye", (3,))
@@ -41,6 +61,8 @@ def look_at(eye, target, up):
     if fn <= 1e-12 * scale:
         raise OccError(f"camera eye and target coincide at {eye.tolist()}")
     f = f / fn
+    if not up.any():                             # an input, not a computed value: exact zero
+        raise OccError(f"camera up {up.tolist()} has zero length; give a direction such as [0, 0, 1]")
     s = np.cross(f, up)
     sn = np.linalg.norm(s)
     if sn <= 1e-9 * max(np.linalg.norm(up), 1e-300):
@@ -125,23 +147,25 @@ class Camera:
         return cls(np.array(view, dtype=np.float64), np.array(projection, dtype=np.float64))
 
     @classmethod
-    def from_dict(cls, d):
-        """From one camera of the camera JSON contract."""
+    def from_dict(cls, d, where="camera"):
+        """From one camera of the camera JSON contract (numbers must be JSON numbers)."""
         if not isinstance(d, dict):
-            raise OccError(f"a camera must be a JSON object, got {type(d).__name__}")
+            raise OccError(f"{where} must be a JSON object, got {_json_type(d)}")
         unknown = set(d) - set(CAMERA_KEYS)
         if unknown:
-            raise OccError(f"unknown camera keys {sorted(unknown)}; expected {list(CAMERA_KEYS)}")
+            raise OccError(f"{where}: unknown camera keys {sorted(unknown)}; expected {list(CAMERA_KEYS)}")
         for key in ("eye", "target"):
             if key not in d:
-                raise OccError(f"camera needs '{key}'")
-        try:
-            return cls.look_at(d["eye"], d["target"], d.get("up", (0.0, 0.0, 1.0)),
-                               d.get("fov_y_deg", 60.0), d.get("aspect", 1.5),
-                               d.get("near", 0.1), d.get("far", 1000.0),
-                               d.get("ortho_height"))
-        except (TypeError, ValueError) as e:
-            raise OccError(f"camera values must be numbers: {e}") from None
+                raise OccError(f"{where} needs '{key}'")
+        vec = {k: _json_vector(d[k], k, where) for k in ("eye", "target", "up") if k in d}
+        num = {k: _json_number(d[k], k, where) for k in ("fov_y_deg", "aspect", "near", "far")
+               if k in d}
+        ortho = d.get("ortho_height")
+        if ortho is not None:
+            ortho = _json_number(ortho, "ortho_height", where)
+        return cls.look_at(vec["eye"], vec["target"], vec.get("up", (0.0, 0.0, 1.0)),
+                           num.get("fov_y_deg", 60.0), num.get("aspect", 1.5),
+                           num.get("near", 0.1), num.get("far", 1000.0), ortho)
 
     @property
     def is_orthographic(self):
@@ -180,6 +204,8 @@ def load_cameras(path):
             data = json.load(f)
     except OSError as e:
         raise OccError(f"cannot read camera file {path}: {e.strerror}") from None
+    except UnicodeDecodeError as e:
+        raise OccError(f"camera file {path} is not UTF-8 text (byte {e.start}); save it as UTF-8 JSON") from None
     except json.JSONDecodeError as e:
         raise OccError(f"camera file {path} is not valid JSON: {e}") from None
     return cameras_from_json(data)
@@ -191,5 +217,5 @@ def cameras_from_json(data):
         frames = data["frames"]
         if not isinstance(frames, list) or not frames:
             raise OccError("camera 'frames' must be a non-empty list")
-        return [Camera.from_dict(f) for f in frames]
+        return [Camera.from_dict(f, f"camera frame {i}") for i, f in enumerate(frames)]
     return [Camera.from_dict(data)]

@@ -1,7 +1,10 @@
 """Command line: ``python -m core cull | truth | bench | tradeoff | demo``.
 
-Output shapes are the contract of DESIGN.md; every user error is an
-:class:`OccError` printed as one line on stderr with exit status 2.
+The command front-ends live here and only here; the work is in libraries
+(:mod:`core.jobs` loads a job, :mod:`core.bench`, :mod:`core.tradeoff` and
+:mod:`core.reports` measure and write).  Output shapes are the contract of
+DESIGN.md; every user error is an :class:`OccError` printed as one line on
+stderr with exit status 2.
 """
 
 import argparse
@@ -9,94 +12,64 @@ import json
 import os
 import sys
 
-from .camera import cameras_from_json, load_cameras
+import numpy as np
+
 from .engine import DEFAULT_RESOLUTION, Culler, parse_resolution
 from .errors import OccError
+from .jobs import load_job, log_for, parse_names, prepare_out, require_matplotlib, resolve_cameras, resolve_scene
 from .scene import load_scene
 from .strategies import DEFAULT_STRATEGY, STRATEGIES
+from .traversal import Visibility
 
 EXIT_USER_ERROR = 2
+CAMERA_HELP = 'camera JSON: one camera or {"frames": [camera, ...]}'
+JSON_HELP = "JSON on stdout: per frame the visible names and every object's index, name and state"
 
 
-def resolve_scene(spec):
-    """A scene file path, or the name of a bundled sample scene -> (path, sample name or None)."""
-    if os.path.exists(spec):
-        return spec, None
-    try:
-        import sample_scenes
-        names = tuple(sample_scenes.NAMES)
-    except (ImportError, AttributeError):
-        names = ()
-    base, small, joined = spec, False, False
-    if base.endswith("-joined"):
-        base, joined = base[:-7], True
-    if base.endswith("-small"):
-        base, small = base[:-6], True
-    if base in names:
-        return str(sample_scenes.scene_path(base, small=small, joined=joined)), base
-    hint = (f" (or a sample scene: {', '.join(names)}; -small for the small variant, -joined for "
-            "all objects merged into one mesh)" if names else "")
-    raise OccError(f"scene file not found: {spec}{hint}")
+STATE_NAMES = np.array([v.name.lower() for v in sorted(Visibility)])   # "visible", "occluded", "view_culled"
 
 
-def resolve_cameras(camera_arg, sample_name):
-    if camera_arg:
-        return load_cameras(camera_arg)
-    if sample_name is None:
-        raise OccError("--camera CAM.json is required for a scene file")
-    import sample_scenes
-    return cameras_from_json(sample_scenes.default_camera_path(sample_name))
+def _frame(scene, state, stats):
+    """One frame of the ``--json`` contract: the visible names, every object's state, stats."""
+    labels = STATE_NAMES[state].tolist()
+    return {"visible": [name for name, s in zip(scene.names, labels, strict=True) if s == "visible"],
+            "objects": [{"index": i, "name": name, "state": s}
+                        for i, (name, s) in enumerate(zip(scene.names, labels, strict=True))],
+            "stats": stats}
 
 
-def spread(items, k):
-    """At most ``k`` items, evenly spread over the list (all of them when k is falsy)."""
-    if not k:
-        return items
-    return items[:: max(1, len(items) // k)][:k]
-
-
-def load_job(scene_spec, camera_arg, frames=None):
-    """Scene, cameras (at most ``frames`` of them, evenly spread) and a title for reports."""
-    path, sample = resolve_scene(scene_spec)
-    cameras = spread(resolve_cameras(camera_arg, sample), frames)
-    title = scene_spec if sample else os.path.splitext(os.path.basename(path))[0]
-    return load_scene(path), cameras, title
-
-
-def log_for(as_json):
-    """Progress goes to stderr when stdout carries JSON."""
-    return (lambda *a: print(*a, file=sys.stderr)) if as_json else print
-
-
-def _frames(culler, cameras, names_of, run):
-    out = []
-    for cam in cameras:
-        visible, stats = run(culler, cam)
-        out.append({"visible": names_of(visible), "stats": stats})
-    return out
+def _job(args):
+    """Scene and cameras of ``cull`` / ``truth``, every input checked before the GL work."""
+    path, sample = resolve_scene(args.scene)
+    cameras = resolve_cameras(args.camera, sample)
+    resolution = parse_resolution(args.resolution)
+    return load_scene(path), cameras, resolution
 
 
 def cmd_cull(args):
-    path, sample = resolve_scene(args.scene)
-    cameras = resolve_cameras(args.camera, sample)
-    scene = load_scene(path)
-    with Culler(scene, parse_resolution(args.resolution), strategy=args.strategy) as culler:
-        def run(c, cam):
-            r = c.cull(cam)
-            return r.visible, r.stats
-        frames = _frames(culler, cameras, lambda m: [scene.names[i] for i in m.nonzero()[0]], run)
+    scene, cameras, resolution = _job(args)
+    with Culler(scene, resolution, strategy=args.strategy) as culler:
+        frames = []
+        for cam in cameras:
+            r = culler.cull(cam)
+            frames.append(_frame(scene, r.state, r.stats))
     _print_frames(frames, args.json)
 
 
 def cmd_truth(args):
-    path, sample = resolve_scene(args.scene)
-    cameras = resolve_cameras(args.camera, sample)
-    scene = load_scene(path)
-    with Culler(scene, parse_resolution(args.resolution), strategy="vfc") as culler:
-        def run(c, cam):
-            t = c.truth(cam)
-            return t, {"objects": len(t), "visible": int(t.sum())}
-        frames = _frames(culler, cameras, lambda m: [scene.names[i] for i in m.nonzero()[0]], run)
+    scene, cameras, resolution = _job(args)
+    with Culler(scene, resolution, strategy="vfc") as culler:
+        frames = []
+        for cam in cameras:
+            truth = culler.truth(cam)
+            # not seen: outside the view volume (by box, as vfc decides) or hidden by others
+            state = np.where(truth, Visibility.VISIBLE, np.where(
+                culler.cull(cam).state == Visibility.VIEW_CULLED, Visibility.VIEW_CULLED,
+                Visibility.OCCLUDED)).astype(np.uint8)
+            frames.append(_frame(scene, state, {
+                "objects": len(scene), "visible": int(truth.sum()),
+                "occluded": int((state == Visibility.OCCLUDED).sum()),
+                "view_culled": int((state == Visibility.VIEW_CULLED).sum())}))
     _print_frames(frames, args.json)
 
 
@@ -113,29 +86,179 @@ def _print_frames(frames, as_json):
         print(f"frame {i}: {len(f['visible'])} of {s['objects']} visible{extra}{ms}")
 
 
+def _dump_json(report):
+    json.dump(report, sys.stdout, indent=1)
+    sys.stdout.write("\n")
+
+
+def cmd_bench(args):
+    if args.hierarchies:
+        return cmd_hierarchies(args)
+    from .reports import bench_scene, write_index
+    strategies = parse_names(args.strategies, STRATEGIES, "strategies")
+    resolution = parse_resolution(args.resolution)
+    out = args.out or ((args.plot or args.snapshot) and "reports") or None
+    if args.plot or args.snapshot:
+        require_matplotlib()
+    if out:
+        prepare_out(out)
+    log = log_for(args.json)
+    report, table = bench_scene(args.scene, args.camera, strategies, resolution,
+                                args.frames, out, args.plot, args.snapshot, log)
+    if out:
+        write_index(out)
+    if args.json:
+        _dump_json({**report, "strategies": {k: {kk: vv for kk, vv in v.items() if kk != "per_frame"}
+                                             for k, v in report["strategies"].items()}})
+    else:
+        print(table)
+
+
+def cmd_hierarchies(args):
+    from .bench import format_hierarchy_table, run_hierarchies
+    from .hierarchy_choice import CANDIDATES
+    builders = parse_names(args.hierarchies, CANDIDATES + ("auto",), "hierarchy builders")
+    resolution = parse_resolution(args.resolution)
+    if args.out:
+        prepare_out(args.out)
+    scene, cameras, title = load_job(args.scene, args.camera, args.frames)
+    log = log_for(args.json)
+    report = run_hierarchies(scene, cameras, builders, resolution,
+                             progress=lambda n, s: log(f"  {n:<9} median {s['frame_ms_median']:.2f} ms"))
+    report["scene"] = title
+    table = format_hierarchy_table(report, f"== {title}: hierarchies ==")
+    if args.out:
+        with open(os.path.join(args.out, f"{title}_hierarchies.json"), "w") as f:
+            json.dump(report, f, indent=1)
+        with open(os.path.join(args.out, f"{title}_hierarchies.txt"), "w") as f:
+            f.write(table + "\n")
+        from .reports import write_index
+        write_index(args.out)
+    if args.json:
+        _dump_json(report)
+    else:
+        print(table)
+
+
+def cmd_demo(args):
+    """The main job: generate the sample scene(s), benchmark them, write the report folder."""
+    import sample_scenes
+
+    from .reports import bench_scene, write_index
+    resolution = parse_resolution(args.resolution)
+    require_matplotlib()
+    out = prepare_out(args.out)
+    names = sample_scenes.NAMES if args.all else ("city",)
+    for name in names:
+        _, table = bench_scene(name, None, STRATEGIES, resolution, args.frames, out, plot=True, snapshot=True)
+        print(table)
+    write_index(out)
+    print(f"report written to {out}/ (README.txt says what each file holds)")
+
+
+def cmd_tradeoff(args):
+    from .tradeoff import KNOBS, plot_tradeoff, run_tradeoff
+    display = parse_resolution(args.display)
+    knobs = parse_names(args.knobs, tuple(KNOBS), "knobs") if args.knobs is not None else list(KNOBS)
+    out = args.out or (args.plot and "reports") or None
+    if args.plot:
+        require_matplotlib()
+    if out:
+        prepare_out(out)
+    scene, cameras, title = load_job(args.scene, args.camera, args.frames)
+    log = log_for(args.json)
+    log(f"{title}: {len(scene)} objects, {len(cameras)} frames, display {args.display}")
+    report = run_tradeoff(scene, cameras, display, knobs, log, repeats=args.repeats)
+    report["scene"] = title
+    if out:
+        with open(os.path.join(out, f"{title}_tradeoff.json"), "w") as f:
+            json.dump(report, f, indent=1)
+        if args.plot:
+            plot_tradeoff(report, os.path.join(out, f"{title}_tradeoff.png"), title)
+        from .reports import write_index
+        write_index(out)
+    if args.json:
+        _dump_json(report)
+    else:
+        log(f"Pareto front: {', '.join(report['pareto'])}")
+
+
+def positive_int(text):
+    """``--frames``: a whole number >= 1 (0 would silently mean 'all' or 'none')."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a whole number >= 1, got '{text}'") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a whole number >= 1, got {value} "
+                                         "(leave it out for every frame)")
+    return value
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse whose errors are one line ``error: ...`` and exit status 2, like every other."""
+
+    def error(self, message):
+        self.exit(EXIT_USER_ERROR, f"error: {message}; see {self.prog} --help\n")
+
+
 def build_parser():
-    p = argparse.ArgumentParser(prog="python -m core", description=__doc__.splitlines()[0])
+    from .jobs import sample_names
+    from .tradeoff import KNOBS
+    scene_help = (f"scene file (glTF/GLB, OBJ, PLY, ...) or a sample scene: "
+                  f"{', '.join(sample_names()) or 'none in this install'} (-small, -joined)")
+    p = OneLineParser(prog="python -m core", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True)
     res = f"{DEFAULT_RESOLUTION[0]}x{DEFAULT_RESOLUTION[1]}"
 
     c = sub.add_parser("cull", help="visible objects per camera frame")
-    c.add_argument("scene", help="scene file (glTF/GLB, OBJ, PLY, ...) or a sample scene name")
-    c.add_argument("--camera", help="camera JSON (one camera or {\"frames\": [...]})")
+    c.add_argument("scene", help=scene_help)
+    c.add_argument("--camera", help=CAMERA_HELP)
     c.add_argument("--strategy", default=DEFAULT_STRATEGY, choices=STRATEGIES)
     c.add_argument("--resolution", default=res, help=f"query resolution WxH (default {res})")
-    c.add_argument("--json", action="store_true")
+    c.add_argument("--json", action="store_true", help=JSON_HELP)
     c.set_defaults(func=cmd_cull)
 
     t = sub.add_parser("truth", help="exact visible set from an object-ID buffer")
-    t.add_argument("scene")
-    t.add_argument("--camera")
-    t.add_argument("--resolution", default=res)
-    t.add_argument("--json", action="store_true")
+    t.add_argument("scene", help=scene_help)
+    t.add_argument("--camera", help=CAMERA_HELP)
+    t.add_argument("--resolution", default=res, help=f"ID-buffer resolution WxH (default {res})")
+    t.add_argument("--json", action="store_true", help=JSON_HELP)
     t.set_defaults(func=cmd_truth)
 
-    from . import bench, tradeoff
-    bench.add_commands(sub)
-    tradeoff.add_commands(sub)
+    b = sub.add_parser("bench", help="every strategy over a camera path, against the truth")
+    b.add_argument("scene", help=scene_help)
+    b.add_argument("--camera", help="camera path JSON (default: the sample scene's own path)")
+    b.add_argument("--strategies", default=",".join(STRATEGIES), help="comma list (default: all)")
+    b.add_argument("--resolution", default=res, help=f"query resolution WxH (default {res})")
+    b.add_argument("--frames", type=positive_int, help="use only this many frames, evenly spread")
+    b.add_argument("--out", help="report folder (default reports/ with --plot or --snapshot)")
+    b.add_argument("--plot", action="store_true", help="PNG plots along the path")
+    b.add_argument("--snapshot", action="store_true", help="pictures of one frame")
+    b.add_argument("--hierarchies", help="compare hierarchy builders instead of strategies: "
+                   "comma list of tree, pHBVO, DBVS, octree, balanced, auto")
+    b.add_argument("--json", action="store_true", help="the report as JSON on stdout (progress on stderr)")
+    b.set_defaults(func=cmd_bench)
+
+    d = sub.add_parser("demo", help="generate the sample scene(s) and benchmark them")
+    d.add_argument("--all", action="store_true", help="every sample scene, not only city")
+    d.add_argument("--out", default="reports", help="report folder (default reports/)")
+    d.add_argument("--resolution", default=res, help=f"query resolution WxH (default {res})")
+    d.add_argument("--frames", type=positive_int, help="use only this many frames, evenly spread")
+    d.set_defaults(func=cmd_demo)
+
+    o = sub.add_parser("tradeoff", help="sweep the speed/accuracy knobs against display truth")
+    o.add_argument("scene", help=scene_help)
+    o.add_argument("--camera", help=CAMERA_HELP + " (default: a sample scene's own path)")
+    o.add_argument("--display", default="1920x1080", help="display resolution for the truth")
+    o.add_argument("--frames", type=positive_int, default=24, help="frames of the path, evenly spread")
+    o.add_argument("--repeats", type=positive_int, default=3,
+                   help="runs of the path per setting; times are medians with their spread (default 3)")
+    o.add_argument("--knobs", help=f"comma list of {', '.join(KNOBS)} (default all)")
+    o.add_argument("--out", help="folder for the JSON and the Pareto plot (default reports/ with --plot)")
+    o.add_argument("--plot", action="store_true", help="the speed/accuracy plot (PNG)")
+    o.add_argument("--json", action="store_true", help="the report as JSON on stdout (progress on stderr)")
+    o.set_defaults(func=cmd_tradeoff)
     return p
 
 
@@ -146,4 +269,7 @@ def main(argv=None):
     except OccError as e:
         print(f"error: {e}", file=sys.stderr)
         return EXIT_USER_ERROR
+    except BrokenPipeError:          # the reader (e.g. `| head`) stopped reading: stop quietly
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
     return 0

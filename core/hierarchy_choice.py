@@ -15,6 +15,7 @@ import time
 import numpy as np
 
 from .engine import Culler
+from .jobs import spread
 
 CANDIDATES = ("tree", "pHBVO", "DBVS", "octree", "balanced")
 PROBE_FRAMES = 8
@@ -68,7 +69,6 @@ def build_culler(scene, resolution, strategy, builder, cameras, chunk_triangles=
         chunks = None if builder == "tree" else (chunk_triangles or DEFAULT_CHUNK_TRIANGLES)
         return Culler(scene, resolution, strategy=strategy, hierarchy=builder,
                       chunk_triangles=chunks, **kw), builder
-    from .cli import spread
     probe = spread(cameras, PROBE_FRAMES)
     base = Culler(scene, resolution, strategy="vfc", **kw)
     try:

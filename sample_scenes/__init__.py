@@ -3,6 +3,7 @@
     import sample_scenes
     path = sample_scenes.scene_path("city")            # a .glb under .cache/scenes/
     cams = sample_scenes.default_camera_path("city")   # {"frames": [camera, ...]}
+    cams = sample_scenes.default_camera_path("city", small=True)   # the path of city-small
 
 Nothing generated is committed: the cache lives in ``$OCC_CACHE_DIR`` or
 ``<repo>/.cache/scenes`` (git-ignored), keyed by name, size and generator version.
@@ -64,4 +65,5 @@ def camera_paths(name, small=False):
 
 
 def default_camera_path(name, small=False):
+    """The scene's first camera path, fitted to its size (``small=True`` for the -small scene)."""
     return next(iter(camera_paths(name, small).values()))

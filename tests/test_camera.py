@@ -49,7 +49,11 @@ def test_relative_view_projection_equals_world_form():
     ({"eye": [0, 0, 0], "target": [1, 0, 0], "aspect": 0}, "aspect"),
     ({"eye": [0, 0, 0], "target": [1, 0, 0], "ortho_height": -1}, "ortho_height"),
     ({"eye": [0, 0, 0], "target": [1, 0, 0], "zoom": 2}, "unknown camera keys"),
-    ({"eye": [0, 0], "target": [1, 0, 0]}, "shape"),
+    ({"eye": [0, 0], "target": [1, 0, 0]}, "list of 3 numbers"),
+    ({"eye": [0, 0, 0], "target": [1, 0, 0], "up": [0, 0, 0]}, "up .* has zero length"),
+    ({"eye": [0, 0, 0], "target": [1, 0, 0], "fov_y_deg": True}, "fov_y_deg must be a number, got true"),
+    ({"eye": [0, 0, 0], "target": [1, 0, 0], "near": "0.1"}, "near must be a number, got a string"),
+    ({"eye": [0, "1", 0], "target": [1, 0, 0]}, "eye must be a list of 3 numbers"),
     ({"target": [1, 0, 0]}, "needs 'eye'"),
     ({"eye": "here", "target": [1, 0, 0]}, "camera"),
 ])

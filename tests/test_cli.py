@@ -127,3 +127,102 @@ def test_missing_egl_names_the_packages(wall_scene):
                        env={**os.environ, "OCC_LIBEGL": "libEGL-missing.so.1"})
     assert p.returncode == 2, p.stderr
     assert "libegl1 libegl-mesa0 libgl1-mesa-dri" in p.stderr and "Traceback" not in p.stderr
+
+
+def _glb_with(path, tmp_path, **top):
+    """A copy of the GLB at ``path`` with keys added to its glTF header."""
+    import struct
+    data = path.read_bytes()
+    n = struct.unpack_from("<I", data, 12)[0]
+    header = {**json.loads(data[20:20 + n]), **top}
+    js = json.dumps(header).encode()
+    js += b" " * (-len(js) % 4)
+    rest = data[20 + n:]
+    body = struct.pack("<II", len(js), 0x4E4F534A) + js + rest
+    out = tmp_path / "flagged.glb"
+    out.write_bytes(b"glTF" + struct.pack("<II", 2, 12 + len(body)) + body)
+    return out
+
+
+def _camera_file(tmp_path, name, text=None, data=None, **changes):
+    f = tmp_path / name
+    if data is not None:
+        f.write_bytes(data)
+    else:
+        cam = {"eye": [-20, 0, 0], "target": [0, 0, 0], **changes}
+        f.write_text(text if text is not None else json.dumps(cam))
+    return f
+
+
+def _bad_input(case, scene, cam, tmp_path):
+    """Arguments of one bad command line of issue 12 -> (argv, expected words in the error)."""
+    s, c = str(scene), str(cam)
+    a_file = tmp_path / "a_file.txt"
+    a_file.write_text("not a folder")
+    return {
+        "camera_not_utf8": (["cull", s, "--camera", str(_camera_file(
+            tmp_path, "latin1.json", data='{"eye": [-20, 0, 0], "target": [0, 0, 0], "é": 1}'.encode("latin-1")))],
+            "not UTF-8"),
+        "frames_negative": (["bench", s, "--camera", c, "--frames", "-3"], "--frames: must be a whole number >= 1"),
+        "frames_zero": (["bench", s, "--camera", c, "--frames", "0"], "--frames: must be a whole number >= 1"),
+        "tradeoff_frames_zero": (["tradeoff", s, "--camera", c, "--frames", "0"], ">= 1"),
+        "strategies_comma": (["bench", s, "--camera", c, "--strategies", ","], "no strategies given"),
+        "strategies_unknown": (["bench", s, "--camera", c, "--strategies", "vfc,fast"], "unknown strategies fast"),
+        "knobs_comma": (["tradeoff", s, "--camera", c, "--knobs", ","], "no knobs given"),
+        "hierarchies_unknown": (["bench", s, "--camera", c, "--hierarchies", "tree,kd"],
+                                "unknown hierarchy builders kd"),
+        "out_unwritable": (["bench", s, "--camera", c, "--out", "/proc/occ-report"], "report folder /proc/occ-report"),
+        "out_is_a_file": (["bench", s, "--camera", c, "--out", str(a_file)], "is a file; give a folder"),
+        "tradeoff_out_is_a_file": (["tradeoff", s, "--camera", c, "--out", str(a_file)], "is a file"),
+        "fov_true": (["cull", s, "--camera", str(_camera_file(tmp_path, "fov.json", fov_y_deg=True))],
+                     "fov_y_deg must be a number, got true/false true"),
+        "near_string": (["cull", s, "--camera", str(_camera_file(tmp_path, "near.json", near="0.1"))],
+                        "near must be a number, got a string"),
+        "eye_strings": (["cull", s, "--camera", str(_camera_file(tmp_path, "eye.json", eye=["1", "2", "3"]))],
+                        "eye must be a list of 3 numbers"),
+        "up_zero": (["cull", s, "--camera", str(_camera_file(tmp_path, "up.json", up=[0, 0, 0]))],
+                    "up [0.0, 0.0, 0.0] has zero length"),
+        "scene_is_a_directory": (["cull", str(tmp_path), "--camera", c], "is a directory"),
+        "draco": (["cull", str(_glb_with(scene, tmp_path, extensionsUsed=["KHR_draco_mesh_compression"],
+                                         extensionsRequired=["KHR_draco_mesh_compression"])), "--camera", c],
+                  "pip install DracoPy"),
+        "collada": (["cull", str(_camera_file(tmp_path, "model.dae", text="<COLLADA/>")), "--camera", c],
+                    "pip install pycollada"),
+        "strategy_choice": (["cull", s, "--camera", c, "--strategy", "fast"], "invalid choice: 'fast'"),
+    }[case]
+
+
+@pytest.mark.parametrize("case", [
+    "camera_not_utf8", "frames_negative", "frames_zero", "tradeoff_frames_zero", "strategies_comma",
+    "strategies_unknown", "knobs_comma", "hierarchies_unknown", "out_unwritable", "out_is_a_file",
+    "tradeoff_out_is_a_file", "fov_true", "near_string", "eye_strings", "up_zero", "scene_is_a_directory",
+    "draco", "collada", "strategy_choice"])
+def test_bad_input_is_one_line_before_any_work(wall_scene, tmp_path, case):
+    """Issue 12's bad inputs: one line ``error: ...``, exit 2, nothing run before it."""
+    import importlib.util
+    if case == "draco" and importlib.util.find_spec("DracoPy"):
+        pytest.skip("DracoPy is installed: the file is decoded, not refused")
+    if case == "collada" and importlib.util.find_spec("collada"):
+        pytest.skip("pycollada is installed")
+    path, cam, _ = wall_scene
+    argv, words = _bad_input(case, path, cam, tmp_path)
+    p = run(*argv)
+    assert p.returncode == 2, (p.stdout, p.stderr)
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and words in lines[0], p.stderr
+    assert p.stdout == ""            # no progress line: it stopped before loading or measuring
+
+
+def test_closed_pipe_is_not_a_traceback(wall_scene, tmp_path):
+    """``python -m core cull ... --json | head -c 10``: the reader stops early, the tool stops quietly."""
+    path, cam, _ = wall_scene
+    many = tmp_path / "many.json"          # more output than a pipe buffers
+    many.write_text(json.dumps({"frames": json.loads(cam.read_text())["frames"] * 400}))
+    p = subprocess.Popen([sys.executable, "-m", "core", "cull", str(path), "--camera", str(many), "--json",
+                          "--resolution", "32x24"],
+                         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, bufsize=0)
+    p.stdout.read(10)
+    p.stdout.close()
+    err = p.stderr.read().decode()
+    p.wait(timeout=120)
+    assert "Traceback" not in err, err
