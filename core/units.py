@@ -16,7 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .bounds import MAX, MIN, transform_boxes
+from .bounds import transform_boxes
+from .subdivision import ItemBoxes
 
 
 @dataclass(eq=False)
@@ -39,16 +40,43 @@ class Units:
         return transform_boxes(self.local_bounds, matrices[self.object])
 
 
-def triangle_boxes(vertices, faces):
-    """Boxes of triangles: ``(v, 3)``, ``(f, 3)`` -> ``(f, 2, 3) float64``."""
-    corner = np.ascontiguousarray(np.asarray(faces).T)   # (3, f): the three corners' vertex indices
-    out = np.empty((corner.shape[1], 2, 3))
-    for k in range(3):                                    # per axis, over all triangles at once
-        c = np.ascontiguousarray(vertices[:, k])
-        a, b, d = c[corner[0]], c[corner[1]], c[corner[2]]
-        out[:, MIN, k] = np.minimum(np.minimum(a, b), d)
-        out[:, MAX, k] = np.maximum(np.maximum(a, b), d)
-    return out
+BLOCK = 1 << 18      # triangles (or vertices) per step of triangle_bounds: temporaries of a few MB
+
+
+def _outward(exact):
+    """float32 copies of float64 coordinates rounded down and up: ``(lo, hi)``."""
+    near = exact.astype(np.float32)
+    wide = near.astype(np.float64)
+    down = np.where(wide > exact, np.nextafter(near, np.float32(-np.inf)), near)
+    up = np.where(wide < exact, np.nextafter(near, np.float32(np.inf)), near)
+    return down, up
+
+
+def triangle_bounds(vertices, faces):
+    """Boxes of triangles as axis-major float32 corner arrays: ``(v, 3)``, ``(f, 3)`` ->
+    ``lo, hi`` ``(3, f) float32`` (a quarter of the float64 ``(f, 2, 3)`` boxes'
+    memory), built in blocks of ``BLOCK`` triangles with temporaries of a few MB.
+
+    Conservative: every vertex coordinate is rounded outward to float32 (down for
+    ``lo``, up for ``hi``), so each box contains its float64 triangle.
+    """
+    v = np.asarray(vertices)
+    f = np.ascontiguousarray(faces)
+    down = np.empty((3, len(v)), dtype=np.float32)   # axis-major: one flat gather per axis
+    up = np.empty((3, len(v)), dtype=np.float32)
+    with np.errstate(over="ignore", invalid="ignore"):     # beyond float32's range: inf, refused by the builder
+        for s in range(0, len(v), BLOCK):
+            down[:, s:s + BLOCK], up[:, s:s + BLOCK] = _outward(v[s:s + BLOCK].T)
+    lo = np.empty((3, len(f)), dtype=np.float32)
+    hi = np.empty((3, len(f)), dtype=np.float32)
+    for s in range(0, len(f), BLOCK):
+        corner = f[s:s + BLOCK].T.ravel()            # (3b,) vertex indices, corner-major
+        for k in range(3):
+            g = np.take(down[k], corner).reshape(3, -1)
+            np.minimum(np.minimum(g[0], g[1]), g[2], out=lo[k, s:s + BLOCK])
+            g = np.take(up[k], corner).reshape(3, -1)
+            np.maximum(np.maximum(g[0], g[1]), g[2], out=hi[k, s:s + BLOCK])
+    return lo, hi
 
 
 def whole_objects(scene):
@@ -93,14 +121,22 @@ class ChunkCache:
 
 
 def _chunk_mesh(v, f, build_tree):
-    """(face order, chunk first, chunk count, chunk local boxes, chunk tree) of one mesh."""
-    boxes = triangle_boxes(v, f)
-    tree = build_tree(boxes)
+    """(face order, chunk first, chunk count, chunk local boxes, chunk tree) of one mesh.
+
+    The triangles' boxes are float32 corner arrays that the build reorders in
+    place (:class:`core.subdivision.ItemBoxes`); a chunk's box is the union of its
+    triangles' outward-rounded boxes, so it contains the chunk.
+    """
+    items = ItemBoxes(*triangle_bounds(v, f))
+    tree = build_tree(items)
     owners = np.flatnonzero(tree.item_count > 0)
     first, count = tree.item_start[owners], tree.item_count[owners]
-    ordered = boxes[tree.order]
-    lo = np.minimum.reduceat(ordered[:, MIN], first, axis=0)
-    hi = np.maximum.reduceat(ordered[:, MAX], first, axis=0)
+    # the owned ranges tile the item order: reduce them in order of their starts
+    by_start = np.argsort(first, kind="stable")
+    lo = np.empty((len(owners), 3))
+    hi = np.empty((len(owners), 3))
+    lo[by_start] = np.minimum.reduceat(items.lo, first[by_start], axis=1).T
+    hi[by_start] = np.maximum.reduceat(items.hi, first[by_start], axis=1).T
     # item i of the chunk tree (as the hierarchy sees it) is chunk i
     return tree.order, first, count, np.stack([lo, hi], axis=1), _tree_over_chunks(tree, owners)
 
@@ -109,8 +145,10 @@ def chunked(scene, should_chunk, build_tree, cache=None):
     """Units with heavy meshes cut into chunks.
 
     should_chunk(mesh_index, triangles) -> bool decides per mesh;
-    build_tree(triangle_boxes (f, 2, 3)) -> a :class:`core.subdivision.Tree` over
-    the triangles, whose nodes that own triangles become the chunks;
+    build_tree(triangle boxes) -> a :class:`core.subdivision.Tree` over the
+    triangles, whose nodes that own triangles become the chunks; the boxes come
+    as :class:`core.subdivision.ItemBoxes` (float32, reordered in place), which
+    :func:`core.subdivision.build_tree` takes as it takes ``(f, 2, 3)`` arrays;
     cache: a :class:`ChunkCache` whose chunkings of unchanged meshes are reused
     (the caller keeps ``build_tree`` the same between builds that share it).
     """
