@@ -264,7 +264,7 @@ def _build(items, split, leaf_size, max_children, pull_up):
     node is a contiguous range of the item order, its pulled-up items first."""
     lo, hi = items.lo, items.hi
     k = lo.shape[1]
-    perm = np.arange(k, dtype=np.int64)
+    perm = np.arange(k, dtype=np.int32 if k < 2**31 else np.int64)    # 4 bytes a move where they suffice
     partition = _Partitioner([*lo, *hi, perm])
     own, kids, box = [], [], []
     stack = [(0, k, -1)]
@@ -298,7 +298,8 @@ def _build(items, split, leaf_size, max_children, pull_up):
             stack.append((int(starts[part]), int(starts[part] + counts[part]), node))
     if max_children > 2:
         _collapse(kids, own, box, max_children)
-    return _flatten(own, kids, box, perm)
+    del partition                                  # its scratch rows go before the int64 order comes
+    return _flatten(own, kids, box, perm.astype(np.int64))
 
 
 def _collapse(kids, own, box, max_children):

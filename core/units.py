@@ -161,34 +161,26 @@ def chunked(scene, should_chunk, build_tree, cache=None):
             continue
         per_mesh.append(cache.get(v, f, lambda v=v, f=f: _chunk_mesh(v, f, build_tree)))
     cache.finish()
-    objects, firsts, counts, boxes, trees, of_object = [], [], [], [], [], []
-    tri = scene.triangle_counts
-    total = 0
-    for obj, m in enumerate(scene.mesh_of):       # bookkeeping once per object
-        pm = per_mesh[m]
-        if pm is None:
-            k = 1
-            firsts.append(np.zeros(1, np.int64))
-            counts.append(tri[obj:obj + 1])
-            boxes.append(scene.mesh_bounds[m][None])
-            trees.append(None)
-        else:
-            k = len(pm[1])
-            firsts.append(pm[1])
-            counts.append(pm[2])
-            boxes.append(pm[3])
-            trees.append(pm[4])
-        objects.append(np.full(k, obj, dtype=np.int64))
-        of_object.append(np.arange(total, total + k))
-        total += k
-
-    def cat(xs, shape):
-        return np.concatenate(xs) if xs else np.zeros(shape)
-
-    return Units(object=cat(objects, (0,)).astype(np.int64), first=cat(firsts, (0,)).astype(np.int64),
-                 count=cat(counts, (0,)).astype(np.int64), local_bounds=cat(boxes, (0, 2, 3)),
-                 face_order=[None if pm is None else pm[0] for pm in per_mesh], trees=trees,
-                 of_object=of_object)
+    # Per mesh, its units as rows of flat tables (one row for a mesh drawn whole);
+    # per object, its mesh's rows -- gathered at once, no loop over objects.
+    tri = np.array([len(f) for _, f in scene.meshes], dtype=np.int64)
+    k = np.array([1 if pm is None else len(pm[1]) for pm in per_mesh], dtype=np.int64)
+    row0 = np.cumsum(k) - k                                   # first row of each mesh
+    first = np.concatenate([np.zeros(1, np.int64) if pm is None else pm[1] for pm in per_mesh] or [[]])
+    count = np.concatenate([tri[m:m + 1] if pm is None else pm[2] for m, pm in enumerate(per_mesh)] or [[]])
+    boxes = np.concatenate([scene.mesh_bounds[m][None] if pm is None else pm[3]
+                            for m, pm in enumerate(per_mesh)] or [np.zeros((0, 2, 3))])
+    per_object = k[scene.mesh_of]                             # units of each object
+    total = int(per_object.sum())
+    start = np.cumsum(per_object) - per_object                # its first unit
+    rows = np.repeat(row0[scene.mesh_of] - start, per_object) + np.arange(total)
+    obj = np.repeat(np.arange(len(scene.mesh_of)), per_object)
+    tree_of_mesh = [None if pm is None else pm[4] for pm in per_mesh]
+    return Units(object=obj.astype(np.int64), first=first[rows].astype(np.int64),
+                 count=count[rows].astype(np.int64), local_bounds=boxes[rows].reshape(-1, 2, 3),
+                 face_order=[None if pm is None else pm[0] for pm in per_mesh],
+                 trees=[tree_of_mesh[m] for m in scene.mesh_of],
+                 of_object=np.split(np.arange(total), start[1:]) if total else [])
 
 
 def _tree_over_chunks(tree, owners):
