@@ -36,7 +36,7 @@ from .errors import OccError
 BUILDERS = ("pHBVO", "DBVS", "octree", "balanced")
 SAH_BINS = 32
 SAH_CHECK_ITEMS = 200_000  # up to here pHBVO also builds the balanced tree and keeps the cheaper
-SAH_SAMPLE = 32768     # items the SAH cost curve of one split is evaluated on
+SAH_SAMPLE = 4096      # items the SAH cost curve of one split is evaluated on
 PULL_UP = 0.5            # an item longer than half its node's longest side stays there
 FORCE_SPLIT = 4          # above FORCE_SPLIT * leaf_size items a node is split even if SAH says no
 TRAVERSAL_COST = 1.0     # SAH cost of visiting a node, in units of one item
@@ -58,99 +58,124 @@ class Tree:
         return len(self.first_child)
 
 
-def _box(lo, hi):
-    """Box of items from axis-major ``(3, m)`` min and max corner arrays."""
-    return np.stack([lo.min(axis=1), hi.max(axis=1)])
-
-
-def _bin_bounds(bins, lo, hi):
-    """Per-bin box of items ``(3, m)`` in ``bins (m,)``: ``(SAH_BINS, 2, 3)``,
-    empty bins inverted (+inf, -inf).  Sort-based (ufunc.at is slow)."""
-    order = np.argsort(bins.astype(np.uint8), kind="stable")    # radix sort: SAH_BINS <= 256
-    count = np.bincount(bins, minlength=SAH_BINS)
-    present = np.flatnonzero(count)
-    start = (np.cumsum(count) - count)[present]
-    out = np.empty((SAH_BINS, 2, 3))
-    out[:, MIN], out[:, MAX] = np.inf, -np.inf
-    out[present, MIN] = np.minimum.reduceat(lo[:, order], start, axis=1).T
-    out[present, MAX] = np.maximum.reduceat(hi[:, order], start, axis=1).T
-    return out
-
-
-def _split_sah(lo, hi, centre, box, leaf_size):
-    """Binned SAH over three axes -> part labels ``(m,)`` (nodes above leaf_size are
-    always split, so leaves hold at most leaf_size items as with every builder).
-
-    The cost curve is evaluated on at most ``SAH_SAMPLE`` items (a fixed-seed
-    sample), then every item is partitioned by the chosen plane: a 4-million
-    triangle mesh builds in seconds.
+class ItemBoxes:
+    """Item boxes as axis-major corner arrays, ``lo`` and ``hi`` ``(3, k)`` (float32 or
+    float64), that a build may reorder in place: afterwards ``lo[:, i]`` is the box
+    of item ``tree.order[i]``.  A heavy mesh's triangle boxes come this way (see
+    :func:`core.units.triangle_bounds`), so building its tree copies no item data.
     """
-    n = centre.shape[1]
-    sample = slice(None)
-    if n > SAH_SAMPLE:
-        sample = np.sort(np.random.default_rng(n).choice(n, SAH_SAMPLE, replace=False))
-    c, slo, shi = centre[:, sample], lo[:, sample], hi[:, sample]
+
+    def __init__(self, lo, hi):
+        if lo.shape != hi.shape or lo.ndim != 2 or lo.shape[0] != 3:
+            raise OccError(f"item corners must be two (3, k) arrays, got {lo.shape} and {hi.shape}")
+        self.lo, self.hi = lo, hi
+
+    def __len__(self):
+        return self.lo.shape[1]
+
+
+def _box(lo, hi):
+    """Box ``(2, 3) float64`` of items from axis-major ``(3, m)`` min and max corner arrays."""
+    return np.stack([lo.min(axis=1), hi.max(axis=1)]).astype(np.float64)
+
+
+def _centre(lo, hi, axis):
+    """Centres of items on one axis, ``(m,)`` in the corners' dtype."""
+    c = lo[axis] + hi[axis]
+    c *= 0.5
+    return c
+
+
+def _split_sah(lo, hi, box, leaf_size):
+    """Binned SAH over three axes -> part labels ``(m,) bool`` (nodes above leaf_size
+    are always split, so leaves hold at most leaf_size items as with every builder).
+
+    The cost curves of the three axes are evaluated at once on at most
+    ``SAH_SAMPLE`` items (every ``m / SAH_SAMPLE``-th of the node's, a spread
+    sample at no gather cost), then every item is partitioned by the chosen
+    plane: a 20-million-triangle mesh builds in seconds.
+    """
+    n = lo.shape[1]
+    step = -(-n // SAH_SAMPLE)
+    slo, shi = lo[:, ::step].astype(np.float64), hi[:, ::step].astype(np.float64)
+    c = 0.5 * (slo + shi)                                          # (3, m) centres of the sample
     m = c.shape[1]
     cmin, cmax = c.min(axis=1), c.max(axis=1)
     ext = cmax - cmin
-    area = max(surface_area(box[None])[0], 1e-300)
-    best, best_cost = None, np.inf
-    for axis in np.flatnonzero(ext > 0.0):
-        bins = np.minimum(((c[axis] - cmin[axis]) / ext[axis] * SAH_BINS).astype(np.int64), SAH_BINS - 1)
-        count = np.bincount(bins, minlength=SAH_BINS)
-        bb = _bin_bounds(bins, slo, shi)
-        lmin, lmax = np.minimum.accumulate(bb[:, MIN])[:-1], np.maximum.accumulate(bb[:, MAX])[:-1]
-        rmin = np.minimum.accumulate(bb[::-1, MIN])[::-1][1:]
-        rmax = np.maximum.accumulate(bb[::-1, MAX])[::-1][1:]
-        lc = np.cumsum(count)[:-1]
-        rc = m - lc
-        la = surface_area(np.stack([lmin, lmax], axis=1))
-        ra = surface_area(np.stack([rmin, rmax], axis=1))
-        cost = np.where((lc > 0) & (rc > 0), TRAVERSAL_COST + (la * lc + ra * rc) / area * (n / m), np.inf)
-        s = int(np.argmin(cost))
-        if cost[s] < best_cost:
-            best_cost, best = cost[s], (axis, cmin[axis] + (s + 1) / SAH_BINS * ext[axis])
-    if best is None:
-        return _split_median(lo, hi, centre, box, leaf_size)
-    axis, plane = best
-    right = centre[axis] >= plane
+    if not (ext > 0.0).any():
+        return _split_median(lo, hi, box, leaf_size)
+    scale = np.where(ext > 0.0, SAH_BINS / np.where(ext > 0.0, ext, 1.0), 0.0)
+    bins = np.minimum(((c - cmin[:, None]) * scale[:, None]).astype(np.int64), SAH_BINS - 1)
+    key = (bins + SAH_BINS * np.arange(3)[:, None]).ravel()        # (axis, bin) of each sample item, per axis
+    count = np.bincount(key, minlength=3 * SAH_BINS)
+    order = np.argsort(key.astype(np.uint8), kind="stable")       # radix sort: 3 * SAH_BINS <= 256
+    item = order % m
+    present = np.flatnonzero(count)
+    start = (np.cumsum(count) - count)[present]
+    bmin = np.full((3 * SAH_BINS, 3), np.inf)
+    bmax = np.full((3 * SAH_BINS, 3), -np.inf)
+    bmin[present] = np.minimum.reduceat(slo[:, item], start, axis=1).T
+    bmax[present] = np.maximum.reduceat(shi[:, item], start, axis=1).T
+    bmin, bmax = bmin.reshape(3, SAH_BINS, 3), bmax.reshape(3, SAH_BINS, 3)
+    count = count.reshape(3, SAH_BINS)
+
+    def area(lo_, hi_):
+        d = np.maximum(hi_ - lo_, 0.0)
+        return 2.0 * (d[..., 0] * d[..., 1] + d[..., 1] * d[..., 2] + d[..., 2] * d[..., 0])
+
+    la = area(np.minimum.accumulate(bmin, axis=1), np.maximum.accumulate(bmax, axis=1))[:, :-1]
+    ra = area(np.minimum.accumulate(bmin[:, ::-1], axis=1), np.maximum.accumulate(bmax[:, ::-1], axis=1))
+    ra = ra[:, ::-1][:, 1:]
+    lc = np.cumsum(count, axis=1)[:, :-1]
+    rc = m - lc
+    whole = max(surface_area(box[None])[0], 1e-300)
+    cost = np.where((lc > 0) & (rc > 0) & (ext > 0.0)[:, None],
+                    TRAVERSAL_COST + (la * lc + ra * rc) / whole * (n / m), np.inf)
+    axis, s = np.unravel_index(int(np.argmin(cost)), cost.shape)
+    if not np.isfinite(cost[axis, s]):
+        return _split_median(lo, hi, box, leaf_size)
+    plane = cmin[axis] + (s + 1) / SAH_BINS * ext[axis]
+    right = _centre(lo, hi, int(axis)) >= plane
     if right.all() or not right.any():           # the sample missed the rest's spread
-        return _split_median(lo, hi, centre, box, leaf_size)
-    return right.astype(np.int64)
+        return _split_median(lo, hi, box, leaf_size)
+    return right
 
 
-def _split_median(lo, hi, centre, box, leaf_size):
+def _split_median(lo, hi, box, leaf_size):
     """Median of the centres on the longest axis (balanced item counts)."""
-    axis = int(np.argmax(centre.max(axis=1) - centre.min(axis=1)))
-    n = centre.shape[1]
-    labels = np.zeros(n, dtype=np.int64)
-    labels[np.argpartition(centre[axis], n // 2)[n // 2:]] = 1
+    ext = [np.ptp(_centre(lo, hi, a)) for a in range(3)]      # one axis at a time: no (3, m) temporary
+    c = _centre(lo, hi, int(np.argmax(ext)))
+    n = len(c)
+    labels = np.zeros(n, dtype=bool)
+    labels[np.argpartition(c, n // 2)[n // 2:]] = True
     return labels
 
 
-def _split_dbvs(lo, hi, centre, box, leaf_size):
+def _split_dbvs(lo, hi, box, leaf_size):
     """round(largest / second largest) near-cubes along the largest dimension."""
     ext = box[MAX] - box[MIN]
     if ext.max() <= 0.0:                          # all items at one point
-        return _split_median(lo, hi, centre, box, leaf_size)
+        return _split_median(lo, hi, box, leaf_size)
     order = np.argsort(ext)[::-1]
     axis = int(order[0])
     k = min(16, max(2, int(round(ext[order[0]] / max(ext[order[1]], ext[order[0]] * 1e-3)))))
-    t = (centre[axis] - box[MIN, axis]) / max(ext[axis], 1e-300)
-    labels = np.minimum((t * k).astype(np.int64), k - 1)
+    t = (_centre(lo, hi, axis) - box[MIN, axis]) / max(ext[axis], 1e-300)
+    labels = np.minimum((t * k).astype(np.int64), k - 1).astype(np.uint8)
     if labels.min() != labels.max():
         return labels
-    return _split_median(lo, hi, centre, box, leaf_size)
+    return _split_median(lo, hi, box, leaf_size)
 
 
-def _split_octree(lo, hi, centre, box, leaf_size):
+def _split_octree(lo, hi, box, leaf_size):
     """Eight octants around the node centre; empty ones dropped."""
     mid = 0.5 * (box[MIN] + box[MAX])
-    labels = ((centre > mid[:, None]) * np.array([[1], [2], [4]])).sum(axis=0)
+    labels = np.zeros(lo.shape[1], dtype=np.uint8)
+    for a in range(3):
+        labels |= (_centre(lo, hi, a) > mid[a]).astype(np.uint8) << a
     if labels.min() != labels.max():
         return labels
-    n = centre.shape[1]
-    return _split_median(lo, hi, centre, box, leaf_size) if n > FORCE_SPLIT * leaf_size else None
+    n = lo.shape[1]
+    return _split_median(lo, hi, box, leaf_size) if n > FORCE_SPLIT * leaf_size else None
 
 
 SPLITTERS = {"pHBVO": _split_sah, "DBVS": _split_dbvs, "octree": _split_octree,
@@ -158,63 +183,123 @@ SPLITTERS = {"pHBVO": _split_sah, "DBVS": _split_dbvs, "octree": _split_octree,
 
 
 def build_tree(boxes, builder="pHBVO", leaf_size=64, max_children=2, pull_up=True):
-    """A subdivision of items with boxes ``(k, 2, 3)`` (k >= 1); see the module doc."""
+    """A subdivision of items (k >= 1); see the module doc.
+
+    boxes: ``(k, 2, 3)`` item boxes, or :class:`ItemBoxes` whose corner arrays
+    the build reorders in place into the tree's item order (no copy of them).
+    """
     t0 = time.perf_counter()
-    b = check_boxes(boxes, "item boxes")
-    if not len(b):
+    if isinstance(boxes, ItemBoxes):
+        items = boxes
+    else:
+        b = check_boxes(boxes, "item boxes")
+        items = ItemBoxes(np.ascontiguousarray(b[:, MIN].T), np.ascontiguousarray(b[:, MAX].T))
+    k = len(items)
+    if not k:
         raise OccError("cannot subdivide zero items")
-    if not np.all(np.isfinite(b)):
+    if not (np.isfinite(items.lo).all() and np.isfinite(items.hi).all()):
         raise OccError("item boxes contain NaN or infinite values")
     if builder not in SPLITTERS:
         raise OccError(f"unknown builder '{builder}'; choose one of {', '.join(BUILDERS)}")
     if leaf_size < 1 or max_children < 2:
         raise OccError(f"leaf_size must be >= 1 and max_children >= 2, got {leaf_size}, {max_children}")
-    split = SPLITTERS[builder]
-    # Each stack entry carries its items' data (axis-major copies), so every
-    # level reads memory in order instead of gathering from the whole input.
-    lo_all, hi_all = np.ascontiguousarray(b[:, MIN].T), np.ascontiguousarray(b[:, MAX].T)
-    size_all = (b[:, MAX] - b[:, MIN]).max(axis=1)            # largest side of each item, once
+    original = None
+    if builder == "pHBVO" and k <= SAH_CHECK_ITEMS:
+        original = (items.lo.copy(), items.hi.copy())       # small: the balanced build below needs them
+    tree = _build(items, SPLITTERS[builder], leaf_size, max_children, pull_up)
+    if original is not None:
+        # Greedy top-down SAH is not globally optimal: keep the balanced tree
+        # when it is cheaper, so pHBVO never costs more than a median split
+        # (checked up to SAH_CHECK_ITEMS items, where the second build is cheap).
+        other = ItemBoxes(*original)
+        balanced = _build(other, _split_median, leaf_size, max_children, pull_up)
+        if sah_cost(balanced) < sah_cost(tree):
+            tree = balanced
+            items.lo[...], items.hi[...] = other.lo, other.hi
+    tree.build_seconds = time.perf_counter() - t0
+    return tree
+
+
+class _Partitioner:
+    """Stable in-place partitions of ranges of the item arrays (corners and order),
+    through one scratch row per dtype: a node's items move, nothing is copied whole."""
+
+    def __init__(self, rows):
+        self.rows = rows
+        self.scratch = {}
+        for r in rows:
+            if r.dtype not in self.scratch:
+                self.scratch[r.dtype] = np.empty(len(r), dtype=r.dtype)
+
+    def __call__(self, s, e, labels):
+        """Order ``[s, e)`` by ``labels`` (bool or uint8, stable); returns the part counts."""
+        if labels.dtype == bool:
+            right = labels
+            nl = len(right) - int(np.count_nonzero(right))
+            left = ~right
+            for r in self.rows:
+                seg, tmp = r[s:e], self.scratch[r.dtype]
+                np.compress(left, seg, out=tmp[:nl])
+                np.compress(right, seg, out=tmp[nl:e - s])
+                seg[...] = tmp[:e - s]
+            return np.array([nl, e - s - nl])
+        order = np.argsort(labels, kind="stable")          # radix sort of uint8 labels
+        for r in self.rows:
+            seg, tmp = r[s:e], self.scratch[r.dtype][:e - s]
+            np.take(seg, order, out=tmp)
+            seg[...] = tmp
+        return np.bincount(labels)
+
+
+def _longest_side(lo, hi):
+    """Longest side of each item, ``(m,)``."""
+    size = hi[0] - lo[0]
+    for a in (1, 2):
+        np.maximum(size, hi[a] - lo[a], out=size)
+    return size
+
+
+def _build(items, split, leaf_size, max_children, pull_up):
+    """Top-down build over ``items`` (:class:`ItemBoxes`, reordered in place): every
+    node is a contiguous range of the item order, its pulled-up items first."""
+    lo, hi = items.lo, items.hi
+    k = lo.shape[1]
+    perm = np.arange(k, dtype=np.int32 if k < 2**31 else np.int64)    # 4 bytes a move where they suffice
+    partition = _Partitioner([*lo, *hi, perm])
     own, kids, box = [], [], []
-    stack = [(np.arange(len(b)), lo_all, hi_all, size_all, -1)]
+    stack = [(0, k, -1)]
     while stack:                                   # one iteration per node
-        idx, lo, hi, size, parent = stack.pop()
+        s, e, parent = stack.pop()
         node = len(own)
-        nb = _box(lo, hi)
+        nb = _box(lo[:, s:e], hi[:, s:e])
         own.append(None)
         kids.append([])
         box.append(nb)
         if parent >= 0:
             kids[parent].append(node)
-        rest = nb
-        if pull_up and len(idx) > leaf_size:
-            big = size > PULL_UP * (nb[MAX] - nb[MIN]).max()
-            if big.any() and not big.all():
-                own[node] = idx[big]
-                keep = ~big
-                idx, lo, hi, size = idx[keep], np.compress(keep, lo, axis=1), np.compress(keep, hi, axis=1), size[keep]
-                rest = _box(lo, hi)
+        rest, r = nb, s
+        if pull_up and e - s > leaf_size:
+            big = _longest_side(lo[:, s:e], hi[:, s:e]) > PULL_UP * (nb[MAX] - nb[MIN]).max()
+            nbig = int(np.count_nonzero(big))
+            if 0 < nbig < e - s:
+                partition(s, e, ~big)              # the big items first: the node owns them
+                own[node] = (s, nbig)
+                r = s + nbig
+                rest = _box(lo[:, r:e], hi[:, r:e])
         labels = None
-        if len(idx) > leaf_size:
-            labels = split(lo, hi, 0.5 * (lo + hi), rest, leaf_size)
+        if e - r > leaf_size:
+            labels = split(lo[:, r:e], hi[:, r:e], rest, leaf_size)
         if labels is None:
-            own[node] = idx if own[node] is None else np.concatenate([own[node], idx])
+            own[node] = (s, e - s)
             continue
-        for part in np.flatnonzero(np.bincount(labels))[::-1]:     # no sort of all labels
-            sel = labels == part
-            stack.append((idx[sel], np.compress(sel, lo, axis=1), np.compress(sel, hi, axis=1), size[sel],
-                          node))
+        counts = partition(r, e, labels)
+        starts = r + np.cumsum(counts) - counts
+        for part in np.flatnonzero(counts)[::-1]:
+            stack.append((int(starts[part]), int(starts[part] + counts[part]), node))
     if max_children > 2:
         _collapse(kids, own, box, max_children)
-    tree = _flatten(own, kids, box)
-    if builder == "pHBVO" and len(b) <= SAH_CHECK_ITEMS:
-        # Greedy top-down SAH is not globally optimal: keep the balanced tree
-        # when it is cheaper, so pHBVO never costs more than a median split
-        # (checked up to SAH_CHECK_ITEMS items, where the second build is cheap).
-        balanced = build_tree(boxes, "balanced", leaf_size, max_children, pull_up)
-        if sah_cost(balanced) < sah_cost(tree):
-            tree = balanced
-    tree.build_seconds = time.perf_counter() - t0
-    return tree
+    del partition                                  # its scratch rows go before the int64 order comes
+    return _flatten(own, kids, box, perm.astype(np.int64))
 
 
 def _collapse(kids, own, box, max_children):
@@ -234,7 +319,7 @@ def _collapse(kids, own, box, max_children):
             own[c] = "dropped"
 
 
-def _flatten(own, kids, box):
+def _flatten(own, kids, box, order):
     order_nodes = [0]
     i = 0
     while i < len(order_nodes):
@@ -248,7 +333,6 @@ def _flatten(own, kids, box):
     depth = np.zeros(n, dtype=np.int64)
     start = np.zeros(n, dtype=np.int64)
     icount = np.zeros(n, dtype=np.int64)
-    items, pos = [], 0
     for k, old in enumerate(order_nodes):          # once per node
         ch = kids[old]
         if ch:
@@ -257,14 +341,9 @@ def _flatten(own, kids, box):
             for c in ch:
                 parent[new[c]] = k
                 depth[new[c]] = depth[k] + 1
-        mine = own[old] if isinstance(own[old], np.ndarray) else None
-        start[k] = pos
-        if mine is not None:
-            items.append(mine)
-            icount[k] = len(mine)
-            pos += len(mine)
-    return Tree(order=np.concatenate(items).astype(np.int64),
-                bounds=np.array([box[o] for o in order_nodes], dtype=np.float64).reshape(-1, 2, 3),
+        if isinstance(own[old], tuple):
+            start[k], icount[k] = own[old]
+    return Tree(order=order, bounds=np.array([box[o] for o in order_nodes], dtype=np.float64).reshape(-1, 2, 3),
                 first_child=first, child_count=count, item_start=start, item_count=icount,
                 parent=parent, depth=depth)
 

@@ -16,7 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .bounds import MAX, MIN, transform_boxes
+from .bounds import transform_boxes
+from .subdivision import ItemBoxes
 
 
 @dataclass(eq=False)
@@ -39,16 +40,43 @@ class Units:
         return transform_boxes(self.local_bounds, matrices[self.object])
 
 
-def triangle_boxes(vertices, faces):
-    """Boxes of triangles: ``(v, 3)``, ``(f, 3)`` -> ``(f, 2, 3) float64``."""
-    corner = np.ascontiguousarray(np.asarray(faces).T)   # (3, f): the three corners' vertex indices
-    out = np.empty((corner.shape[1], 2, 3))
-    for k in range(3):                                    # per axis, over all triangles at once
-        c = np.ascontiguousarray(vertices[:, k])
-        a, b, d = c[corner[0]], c[corner[1]], c[corner[2]]
-        out[:, MIN, k] = np.minimum(np.minimum(a, b), d)
-        out[:, MAX, k] = np.maximum(np.maximum(a, b), d)
-    return out
+BLOCK = 1 << 18      # triangles (or vertices) per step of triangle_bounds: temporaries of a few MB
+
+
+def _outward(exact):
+    """float32 copies of float64 coordinates rounded down and up: ``(lo, hi)``."""
+    near = exact.astype(np.float32)
+    wide = near.astype(np.float64)
+    down = np.where(wide > exact, np.nextafter(near, np.float32(-np.inf)), near)
+    up = np.where(wide < exact, np.nextafter(near, np.float32(np.inf)), near)
+    return down, up
+
+
+def triangle_bounds(vertices, faces):
+    """Boxes of triangles as axis-major float32 corner arrays: ``(v, 3)``, ``(f, 3)`` ->
+    ``lo, hi`` ``(3, f) float32`` (a quarter of the float64 ``(f, 2, 3)`` boxes'
+    memory), built in blocks of ``BLOCK`` triangles with temporaries of a few MB.
+
+    Conservative: every vertex coordinate is rounded outward to float32 (down for
+    ``lo``, up for ``hi``), so each box contains its float64 triangle.
+    """
+    v = np.asarray(vertices)
+    f = np.ascontiguousarray(faces)
+    down = np.empty((3, len(v)), dtype=np.float32)   # axis-major: one flat gather per axis
+    up = np.empty((3, len(v)), dtype=np.float32)
+    with np.errstate(over="ignore", invalid="ignore"):     # beyond float32's range: inf, refused by the builder
+        for s in range(0, len(v), BLOCK):
+            down[:, s:s + BLOCK], up[:, s:s + BLOCK] = _outward(v[s:s + BLOCK].T)
+    lo = np.empty((3, len(f)), dtype=np.float32)
+    hi = np.empty((3, len(f)), dtype=np.float32)
+    for s in range(0, len(f), BLOCK):
+        corner = f[s:s + BLOCK].T.ravel()            # (3b,) vertex indices, corner-major
+        for k in range(3):
+            g = np.take(down[k], corner).reshape(3, -1)
+            np.minimum(np.minimum(g[0], g[1]), g[2], out=lo[k, s:s + BLOCK])
+            g = np.take(up[k], corner).reshape(3, -1)
+            np.maximum(np.maximum(g[0], g[1]), g[2], out=hi[k, s:s + BLOCK])
+    return lo, hi
 
 
 def whole_objects(scene):
@@ -93,14 +121,22 @@ class ChunkCache:
 
 
 def _chunk_mesh(v, f, build_tree):
-    """(face order, chunk first, chunk count, chunk local boxes, chunk tree) of one mesh."""
-    boxes = triangle_boxes(v, f)
-    tree = build_tree(boxes)
+    """(face order, chunk first, chunk count, chunk local boxes, chunk tree) of one mesh.
+
+    The triangles' boxes are float32 corner arrays that the build reorders in
+    place (:class:`core.subdivision.ItemBoxes`); a chunk's box is the union of its
+    triangles' outward-rounded boxes, so it contains the chunk.
+    """
+    items = ItemBoxes(*triangle_bounds(v, f))
+    tree = build_tree(items)
     owners = np.flatnonzero(tree.item_count > 0)
     first, count = tree.item_start[owners], tree.item_count[owners]
-    ordered = boxes[tree.order]
-    lo = np.minimum.reduceat(ordered[:, MIN], first, axis=0)
-    hi = np.maximum.reduceat(ordered[:, MAX], first, axis=0)
+    # the owned ranges tile the item order: reduce them in order of their starts
+    by_start = np.argsort(first, kind="stable")
+    lo = np.empty((len(owners), 3))
+    hi = np.empty((len(owners), 3))
+    lo[by_start] = np.minimum.reduceat(items.lo, first[by_start], axis=1).T
+    hi[by_start] = np.maximum.reduceat(items.hi, first[by_start], axis=1).T
     # item i of the chunk tree (as the hierarchy sees it) is chunk i
     return tree.order, first, count, np.stack([lo, hi], axis=1), _tree_over_chunks(tree, owners)
 
@@ -109,8 +145,10 @@ def chunked(scene, should_chunk, build_tree, cache=None):
     """Units with heavy meshes cut into chunks.
 
     should_chunk(mesh_index, triangles) -> bool decides per mesh;
-    build_tree(triangle_boxes (f, 2, 3)) -> a :class:`core.subdivision.Tree` over
-    the triangles, whose nodes that own triangles become the chunks;
+    build_tree(triangle boxes) -> a :class:`core.subdivision.Tree` over the
+    triangles, whose nodes that own triangles become the chunks; the boxes come
+    as :class:`core.subdivision.ItemBoxes` (float32, reordered in place), which
+    :func:`core.subdivision.build_tree` takes as it takes ``(f, 2, 3)`` arrays;
     cache: a :class:`ChunkCache` whose chunkings of unchanged meshes are reused
     (the caller keeps ``build_tree`` the same between builds that share it).
     """
@@ -123,34 +161,26 @@ def chunked(scene, should_chunk, build_tree, cache=None):
             continue
         per_mesh.append(cache.get(v, f, lambda v=v, f=f: _chunk_mesh(v, f, build_tree)))
     cache.finish()
-    objects, firsts, counts, boxes, trees, of_object = [], [], [], [], [], []
-    tri = scene.triangle_counts
-    total = 0
-    for obj, m in enumerate(scene.mesh_of):       # bookkeeping once per object
-        pm = per_mesh[m]
-        if pm is None:
-            k = 1
-            firsts.append(np.zeros(1, np.int64))
-            counts.append(tri[obj:obj + 1])
-            boxes.append(scene.mesh_bounds[m][None])
-            trees.append(None)
-        else:
-            k = len(pm[1])
-            firsts.append(pm[1])
-            counts.append(pm[2])
-            boxes.append(pm[3])
-            trees.append(pm[4])
-        objects.append(np.full(k, obj, dtype=np.int64))
-        of_object.append(np.arange(total, total + k))
-        total += k
-
-    def cat(xs, shape):
-        return np.concatenate(xs) if xs else np.zeros(shape)
-
-    return Units(object=cat(objects, (0,)).astype(np.int64), first=cat(firsts, (0,)).astype(np.int64),
-                 count=cat(counts, (0,)).astype(np.int64), local_bounds=cat(boxes, (0, 2, 3)),
-                 face_order=[None if pm is None else pm[0] for pm in per_mesh], trees=trees,
-                 of_object=of_object)
+    # Per mesh, its units as rows of flat tables (one row for a mesh drawn whole);
+    # per object, its mesh's rows -- gathered at once, no loop over objects.
+    tri = np.array([len(f) for _, f in scene.meshes], dtype=np.int64)
+    k = np.array([1 if pm is None else len(pm[1]) for pm in per_mesh], dtype=np.int64)
+    row0 = np.cumsum(k) - k                                   # first row of each mesh
+    first = np.concatenate([np.zeros(1, np.int64) if pm is None else pm[1] for pm in per_mesh] or [[]])
+    count = np.concatenate([tri[m:m + 1] if pm is None else pm[2] for m, pm in enumerate(per_mesh)] or [[]])
+    boxes = np.concatenate([scene.mesh_bounds[m][None] if pm is None else pm[3]
+                            for m, pm in enumerate(per_mesh)] or [np.zeros((0, 2, 3))])
+    per_object = k[scene.mesh_of]                             # units of each object
+    total = int(per_object.sum())
+    start = np.cumsum(per_object) - per_object                # its first unit
+    rows = np.repeat(row0[scene.mesh_of] - start, per_object) + np.arange(total)
+    obj = np.repeat(np.arange(len(scene.mesh_of)), per_object)
+    tree_of_mesh = [None if pm is None else pm[4] for pm in per_mesh]
+    return Units(object=obj.astype(np.int64), first=first[rows].astype(np.int64),
+                 count=count[rows].astype(np.int64), local_bounds=boxes[rows].reshape(-1, 2, 3),
+                 face_order=[None if pm is None else pm[0] for pm in per_mesh],
+                 trees=[tree_of_mesh[m] for m in scene.mesh_of],
+                 of_object=np.split(np.arange(total), start[1:]) if total else [])
 
 
 def _tree_over_chunks(tree, owners):
