@@ -23,9 +23,11 @@ else is handled conservatively by construction:
   where they stand);
 - an object whose matrix or vertices are NaN or infinite: not a candidate,
   named in a warning, never hidden;
-- geometry-nodes and particle instancers are dynamic, so never hidden (their
-  instances stay where they are drawn); a collection instance carries its
-  instanced geometry (from the evaluated depsgraph) and is hidden as a unit.
+- instances as Blender draws them (``depsgraph.object_instances``): a
+  collection instance carries its instanced geometry and is hidden as a unit;
+  a geometry-nodes, particle or vertex/face instancer carries its own mesh
+  (where drawn) and its instances, as an occluder, and is never hidden (it is
+  dynamic: hidden, it would not be evaluated).
 
 Objects are identified by ``session_uid`` (unique for the Blender session,
 kept by renames); caches are keyed by it and by the mesh datablock's id, and
@@ -78,18 +80,23 @@ def is_instancer(obj):
     return obj.instance_type == "COLLECTION" and obj.instance_collection is not None
 
 
+def may_instance(obj):
+    """Whether ``obj`` can bring instances (vertex / face instancing, particles, geometry nodes)."""
+    return obj.instance_type in {"VERTS", "FACES"} or len(obj.particle_systems) > 0 \
+        or any(m.type == "NODES" for m in obj.modifiers)
+
+
 def kind(obj):
-    """"mesh", "collection" or None: how ``obj`` can take part, by its settings alone."""
+    """"mesh", "instancer" (a mesh-like object that brings instances: its geometry
+    is its own, where drawn, and its instances'), "collection" or None: how
+    ``obj`` can take part, by its settings alone."""
     if obj.type in GEOMETRY_TYPES:
         if obj.display_type not in SOLID_DISPLAY:
             return None
         parent = obj.parent
         if parent is not None and parent.instance_type in {"VERTS", "FACES"}:
             return None                   # drawn only as the parent's instances
-        if (obj.instance_type in {"VERTS", "FACES"} or len(obj.particle_systems)) \
-                and not obj.show_instancer_for_viewport:
-            return None                   # the instancer's own mesh is not drawn
-        return "mesh"
+        return "instancer" if may_instance(obj) else "mesh"
     if obj.type == "EMPTY" and is_instancer(obj):
         return "collection"
     return None
@@ -184,8 +191,8 @@ def user_shown(obj, view_layer, collections):
 class Candidates:
     """The objects that take part in a pass, in view-layer order.
 
-    objects: bpy objects; uids: ``(n,) int64`` session ids; kinds: "mesh" or
-    "collection"; layer_index: ``(n,) int64`` position in ``view_layer.objects``;
+    objects: bpy objects; uids: ``(n,) int64`` session ids; kinds: see :func:`kind`;
+    layer_index: ``(n,) int64`` position in ``view_layer.objects``;
     culled: ``(n,) bool`` hidden by the add-on now; matrices: ``(n, 4, 4)``
     world matrices.  give_back: ``(m,) int64`` session ids of objects the add-on
     hid and must show again (the user hid them too, or their state is unknown);
@@ -281,12 +288,21 @@ class Extractor:
         for NaN or infinite vertices."""
         depsgraph = context.evaluated_depsgraph_get()
         fresh = {o.session_uid: o for o, k, c in zip(cand.objects, cand.kinds, cand.culled, strict=True)
-                 if k == "collection" and not c and self._instance_stale(o)}
+                 if not c and ((k == "collection" and self._instance_stale(o))
+                               or (k == "instancer" and (o.session_uid in self.dirty
+                                                         or o.session_uid not in self.cache)))}
         for uid, (v, f) in _instanced_geometry(depsgraph, fresh).items():
             o = fresh[uid]
             inv = _inverse(np.array(o.matrix_world, dtype=np.float64))   # instancer-local: a move is a matrix
-            key = ("instance", uid, _members(o.instance_collection))
-            self.cache[uid] = (key, _finite_or_none(v @ inv[:3, :3].T + inv[:3, 3]), f)
+            v = v @ inv[:3, :3].T + inv[:3, 3]
+            if o.type == "EMPTY":
+                key = ("instance", uid, _members(o.instance_collection))
+            else:                                  # its own mesh, where drawn, and its instances
+                key = ("object", uid)
+                if o.show_instancer_for_viewport:
+                    ov, of = mesh_arrays(o.evaluated_get(depsgraph))
+                    v, f = np.concatenate([ov, v]), np.concatenate([of, f + len(ov)])
+            self.cache[uid] = (key, _finite_or_none(v), f)
         uids, meshes, mesh_of, kept, bad = [], [], [], [], []
         mesh_index, read = {}, {}
         for i, obj in enumerate(cand.objects):         # once per object, bulk inside
@@ -329,7 +345,7 @@ class Extractor:
         for geometry with NaN or infinite vertices."""
         uid = obj.session_uid
         hit = self.cache.get(uid)
-        if k == "collection" or culled:               # instancers: read above; hidden: not evaluated
+        if k != "mesh" or culled:                     # instancers: read above; hidden: not evaluated
             return hit
         shared = obj.type == "MESH" and not obj.modifiers and obj.data.users > 1
         key = ("mesh", obj.data.session_uid) if shared else ("object", uid)
@@ -362,7 +378,7 @@ def _members(collection):
 
 
 def _instanced_geometry(depsgraph, instancers):
-    """World-space geometry of collection instancers ``{uid: obj}``: ``{uid: (v, f)}``.
+    """World-space geometry of the instances of instancers ``{uid: obj}``: ``{uid: (v, f)}``.
     Instanced objects displayed as wire or bounds are left out (they occlude nothing)."""
     if not instancers:
         return {}

@@ -16,6 +16,7 @@ import bpy
 import numpy as np
 
 from ..core import OccError
+from . import visibility
 from .session import LISTENERS, SESSION, camera_for
 
 POLL_S = 0.1          # timer period
@@ -50,9 +51,11 @@ def _tick():
         context = bpy.context
         scene = context.scene
         if scene is None or not scene.occ.live:
-            return None                               # stops the timer
+            _drop_timer()                             # the flag is the truth: no timer without it
+            return None
         camera, display = camera_for(context)
-    except OccError:
+    except OccError:                                  # no camera, no viewport: nothing to cull for, show all
+        visibility.restore()
         return POLL_S
     except ReferenceError:                            # data replaced under us: next tick reads it again
         return POLL_S
@@ -69,12 +72,16 @@ def _tick():
             SESSION.cull(context, camera, display, fresh=fresh)
             _state["passed_view"] = key
             _state["dirty_at"] = None                 # our own pass's updates are not a change
-        except Exception as e:  # a timer must not raise; live mode stops instead
-            if not isinstance(e, OccError):
-                traceback.print_exc()
-                SESSION.reset()
-            print(f"occlusion culling stopped: {e}")
-            scene.occ.live = False
+        except OccError as e:  # the user's to fix (an empty scene, a panoramic camera): show all, keep going
+            print(f"occlusion culling: {e}")
+            _state["passed_view"] = None
+            visibility.restore()
+        except Exception:  # a timer must not raise: our bug, live mode stops and shows everything
+            traceback.print_exc()
+            print("occlusion culling stopped (details above)")
+            SESSION.reset()
+            visibility.restore()
+            stop(context)
             return None
     return POLL_S
 
@@ -125,3 +132,5 @@ def resync():
     if scene is not None and scene.occ.live:
         _ensure_timer()
         changed()
+    else:
+        _drop_timer()

@@ -368,6 +368,17 @@ def case4():
     check("case4_vert_instances_kept", not hidden_by_addon("vert_instancer") and not hidden_by_addon("vert_child"),
           (hidden_by_addon("vert_instancer"), hidden_by_addon("vert_child")))
     promise("case4_truth")
+    box("behind_instance", (-4.0, -0.1, 0.4), (-3.8, 0.1, 0.6))   # right behind the GN cube instance
+    update()
+    cull()
+    check("case4_instances_occlude", hidden_by_addon("behind_instance"), drawn("behind_instance"))
+    promise("case4_occlude_truth")
+    report = os.path.join(WORK, "case4.json")
+    bpy.ops.occ.analyze(filepath=report, frame_start=1, frame_end=1)
+    with open(report) as f:
+        data = json.load(f)
+    check("case4_analyze_sees_instancer", data["objects"].get("gn_base", {}).get("frames_visible") == 1,
+          data["objects"])
 
 
 def case5():
