@@ -58,12 +58,19 @@ KINDS = {
     "coll_exclude": 2, "view_layer": 1, "add": 3, "delete": 2, "rename": 2, "rename_swap": 1,
     "rename_replace": 1, "duplicate": 2, "link": 2, "move_collection": 2, "frame": 4,
     "never_cull": 2, "exclude_setting": 2, "undo": 3, "redo": 1, "save_reload": 1,
-    "addon_toggle": 1, "live": 2, "analyze": 1,
+    "addon_toggle": 1, "live": 2, "analyze": 1, "display_type": 2, "bad_value": 1,
+    "mesh_edit": 3,
 }
 # Scene features, switched off like step kinds: a geometry-nodes instancer whose
-# instances stand far from its mesh, props animated by keyframes, and props
-# carried by an animated parent (an empty).
-FEATURES = {"scene_gn", "scene_animated", "scene_parent"}
+# instances stand far from its mesh, props animated by keyframes, props carried by
+# an animated parent (an empty) or following it by a constraint, hair particles
+# instancing an object, a vertex instancer (a point mesh and its child), props
+# with an array modifier.
+FEATURES = {"scene_gn", "scene_animated", "scene_parent", "scene_particles", "scene_verts", "scene_modifiers"}
+# Instancers whose instances vanish when their source object is hidden (monitor):
+# the source counts as seen wherever its instances are.  Particle instances stay
+# drawn when their object is hidden; geometry nodes here use no object.
+SOURCE_HIDES_INSTANCES = {"VERTS", "FACES", "COLLECTION"}
 # Steps that need the add-on enabled (its operators or properties).
 NEEDS_ADDON = {"cull", "restore", "never_cull", "exclude_setting", "live", "analyze"}
 # Steps after which Blender's undo system gets a step, as the UI pushes one after
@@ -90,6 +97,9 @@ NOT_EXERCISED = {
 LIVE_TICKS = 3        # a tick that sees a new view only records it; the next one culls
 
 GEOMETRY = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
+# 12 triangles over the corners of a box, corner k = (x, y, z) bits (1, 2, 4) of k
+BOX_FACES = [[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
+             [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]]
 
 
 # --------------------------------------------------------------------------- bootstrap
@@ -264,6 +274,31 @@ def build_scene(w):
             o = add_box(w, f"Carried.{i:03d}", (rng.uniform(-2, 2), rng.uniform(-2, 2), 0.5), (0.5, 0.5, 0.5),
                         colls["Props"])
             o.parent = carrier
+        o = add_box(w, "Follower", (rng.uniform(-2, 2), rng.uniform(-2, 2), 0.8), (0.4, 0.4, 0.4), colls["Props"])
+        c = o.constraints.new("COPY_LOCATION")
+        c.target, c.use_offset = carrier, True
+    if "scene_particles" in w.kinds:                     # hair particles instancing a box
+        em = add_box(w, "Emitter", (rng.uniform(-6, 6), rng.uniform(-6, 6), 0.2), (0.5, 0.5, 0.3), colls["Props"])
+        src = add_box(w, "HairSource", (rng.uniform(-9, 9), rng.uniform(-9, 9), 0.3), (0.3, 0.3, 0.3),
+                      colls["Props"])
+        em.modifiers.new("hair", "PARTICLE_SYSTEM")
+        ps = em.particle_systems[0].settings
+        ps.type, ps.count, ps.hair_length = "HAIR", 4, 1.0
+        ps.render_type, ps.instance_object, ps.particle_size = "OBJECT", src, 2.5
+        ps.display_method = "RENDER"
+    if "scene_verts" in w.kinds:                         # a vertex instancer: points, and a child box
+        pts = bpy.data.meshes.new("VertPoints")
+        pts.from_pydata([(rng.uniform(-8, 8), rng.uniform(-8, 8), 0.4) for _ in range(3)], [], [])
+        vi = bpy.data.objects.new("VertInstancer", pts)
+        colls["Props"].objects.link(vi)
+        vi.instance_type = "VERTS"
+        new_id(w, vi)
+        child = add_box(w, "VertChild", (0, 0, 0), (0.5, 0.5, 0.5), colls["Props"])
+        child.parent = vi
+    if "scene_modifiers" in w.kinds:                     # evaluated meshes larger than their data
+        for o in [o for o in colls["Props"].objects if o.name.startswith("Prop.")][:3]:
+            arr = o.modifiers.new("array", "ARRAY")
+            arr.count, arr.relative_offset_displace = 4, (1.5, 0.0, 0.0)
     lib = bpy.data.collections.new("Lib")              # a collection instance
     scene.collection.children.link(lib)
     add_box(w, "LibPart", (0, 0, 0), (0.5, 0.5, 0.8), lib)
@@ -445,7 +480,7 @@ def truth_visible(w):
         if camera is None:
             return None, None
         cam_ok = camera_self_check(scene, dg, camera)
-        names, meshes, matrices = [], [], []
+        names, meshes, matrices, solid = [], [], [], []
         drawn = {}    # the depsgraph also evaluates what eye icons hide; Blender draws what visible_get says
         for inst in dg.object_instances:
             ob = inst.object
@@ -457,6 +492,9 @@ def truth_visible(w):
                 drawn[owner] = owner_obj.visible_get(view_layer=context.view_layer)
             if not drawn[owner]:
                 continue
+            seen_as = [owner]
+            if inst.is_instance and owner_obj.instance_type in SOURCE_HIDES_INSTANCES:
+                seen_as.append(ob.original.name)       # hiding the source would hide this instance
             mesh = ob.to_mesh()
             if mesh is None:
                 ob.to_mesh_clear()
@@ -469,17 +507,32 @@ def truth_visible(w):
                 mesh.loop_triangles.foreach_get("vertices", f)
             finally:
                 ob.to_mesh_clear()
+            v, f = v.reshape(-1, 3).astype(np.float64), f.reshape(-1, 3).astype(np.int64)
+            m = np.array(inst.matrix_world, dtype=np.float64)
+            if not np.all(np.isfinite(m)):
+                continue                                 # Blender draws nothing of it
+            bad = ~np.all(np.isfinite(v), axis=1)
+            if bad.any():                                # nor the triangles of a NaN vertex
+                f = f[~bad[f].any(axis=1)]
+                v = np.where(bad[:, None], 0.0, v)
             if not len(f):
                 continue
-            names.append(stand_in.get(owner, owner))
-            meshes.append((v.reshape(-1, 3).astype(np.float64), f.reshape(-1, 3).astype(np.int64)))
-            matrices.append(np.array(inst.matrix_world, dtype=np.float64))
+            display = ob.display_type
+            if display == "BOUNDS" and len(v):           # drawn as its box's edges
+                lo, hi = v.min(axis=0), v.max(axis=0)
+                v = np.array([[(lo, hi)[(k >> a) & 1][a] for a in range(3)] for k in range(8)])
+                f = BOX_FACES
+            names.append(tuple(stand_in.get(n, n) for n in seen_as))
+            meshes.append((v, f))
+            matrices.append(m)
+            solid.append(display in ("SOLID", "TEXTURED"))
         if not names:
             return set(), cam_ok
         truth_scene = Scene.from_arrays([str(i) for i in range(len(names))], meshes,
                                         np.arange(len(names)), np.array(matrices))
-        seen = w.truth_pool.submit(_truth, truth_scene, render_size(scene), camera).result()
-        return {names[i] for i in np.flatnonzero(seen)}, cam_ok
+        seen = w.truth_pool.submit(_truth, truth_scene, render_size(scene), camera,
+                                   np.array(solid, dtype=bool)).result()
+        return {n for i in np.flatnonzero(seen) for n in names[i]}, cam_ok
     finally:
         for cname in stand_in:
             bpy.data.objects.remove(bpy.data.objects[cname], do_unlink=True)
@@ -489,15 +542,26 @@ def truth_visible(w):
 _GL = {}          # the harness's own GL context, made and used on its own thread
 
 
-def _truth(scene, resolution, camera):
-    """On the harness's own GL thread: the object-ID truth."""
+def _truth(scene, resolution, camera, solid):
+    """On the harness's own GL thread: the object-ID truth.  Objects drawn as wire or
+    bounds hide nothing: each is seen where its surface is nearer than every solid one."""
+    import numpy as np
+
     from core import Culler
     from core.gl import create_context
     if "ctx" not in _GL:
         _GL["ctx"] = create_context()
     culler = Culler(scene, resolution, ctx=_GL["ctx"])
     try:
-        return culler.truth(camera)
+        if solid.all():
+            return culler.truth(camera)
+        keep = np.flatnonzero(solid)
+        ids = culler.renderer.object_ids(camera, objects=keep)
+        seen = np.zeros(len(solid), dtype=bool)
+        seen[ids[ids >= 0]] = True
+        for k in np.flatnonzero(~solid):
+            seen[k] = bool((culler.renderer.object_ids(camera, objects=np.append(keep, k)) == k).any())
+        return seen
     finally:
         culler.close()
 
@@ -607,6 +671,9 @@ def check_cull(w):
                  and (o.occ_never_cull or o.name in keep))
     if bad:
         problems.append(f"e: never-cull or exclude-collection objects hidden: {bad}")
+    broken = sorted(o.name for o in scene.objects if "wf_bad" in o and hidden_by_addon(o))
+    if broken:
+        problems.append(f"e: objects with a NaN are hidden (they must stay visible): {broken}")
     return problems
 
 
@@ -669,9 +736,14 @@ def do_step(w, kind):
         except RuntimeError as e:                  # an ERROR report: fine unless it is our bug
             if "failed" in str(e):
                 raise
+            broken = [o.name for o in scene.objects if "wf_bad" in o and o.name in str(e)]
+            if broken:
+                w.pending.append(f"g: one object with a NaN ({broken}) stopped the whole cull: {e}")
             return f"cull -> report: {e}"
     if kind == "restore":
         return f"restore -> {sorted(bpy.ops.occ.restore())}"
+    if kind == "bad_value":
+        return do_bad_value(w)
     if kind == "live":
         live = live_module()
         if scene.occ.live:                         # what occ.live does when it is on
@@ -764,6 +836,21 @@ def do_step(w, kind):
             m["monitor"] = o.hide_viewport
             return f"monitor '{name}' clicked twice -> hidden={o.hide_viewport}"
         return f"monitor '{name}' clicked -> hidden={o.hide_viewport}"
+    if kind == "mesh_edit":
+        if o.type != "MESH" or not len(o.data.vertices):
+            return f"mesh_edit '{name}': no mesh"
+        # a script (or edit mode) reshapes the mesh data: taller or flatter, a little off centre
+        sz, dx = rng.choice([0.2, 0.5, 2.0, 4.0]), rng.uniform(-1.0, 1.0)
+        co = [0.0] * (3 * len(o.data.vertices))
+        o.data.vertices.foreach_get("co", co)
+        co = [c * sz if i % 3 == 2 else c + (dx if i % 3 == 0 else 0.0) for i, c in enumerate(co)]
+        o.data.vertices.foreach_set("co", co)
+        o.data.update()
+        users = [u.name for u in bpy.data.objects if u.data == o.data]
+        return f"mesh of '{name}' z x{sz}, x {dx:+.2f} (mesh users {users})"
+    if kind == "display_type":
+        o.display_type = rng.choice(["TEXTURED", "SOLID", "WIRE", "BOUNDS"])
+        return f"display '{name}' as {o.display_type}"
     if kind == "never_cull":
         o.occ_never_cull = not o.occ_never_cull
         m["never"] = o.occ_never_cull
@@ -882,7 +969,8 @@ def do_analyze(w):
     for entry in report["frames"]:
         scene.frame_set(entry["frame"])
         seen, _ = truth_visible(w)
-        missing = sorted((seen or set()) - set(entry["visible"]))
+        in_layer = {o.name for o in bpy.context.view_layer.objects}     # what the report can name
+        missing = sorted(((seen or set()) & in_layer) - set(entry["visible"]))
         if missing:
             objs = bpy.data.objects
             why = {n: (f"never cull {objs[n].occ_never_cull}, eye {objs[n].hide_get()}, monitor "
@@ -893,6 +981,36 @@ def do_analyze(w):
     scene.frame_set(frame)
     w.pending += problems
     return f"analyze {first}..{first + 2} -> {sorted(r)}"
+
+
+def do_bad_value(w):
+    """A NaN in one object's vertices or location (an import gone wrong), or the fix of it."""
+    import bpy
+    scene = bpy.context.scene
+    broken = [o for o in scene.objects if "wf_bad" in o]
+    if broken:
+        o = broken[0]
+        kind, old = o["wf_bad"][0], list(o["wf_bad"][1:])
+        if kind == 0 and o.data is not None and len(o.data.vertices):
+            o.data.vertices[0].co = old
+            o.data.update()
+        else:
+            o.location = old
+        del o["wf_bad"]
+        return f"fix NaN of '{o.name}'"
+    objs = [o for o in scene.objects if "wf_id" in o and o.type == "MESH" and o.data.users == 1
+            and o.animation_data is None and o.parent is None]
+    if not objs:
+        return "bad value: no object"
+    o = w.rng.choice(objs)
+    if w.rng.random() < 0.5:
+        o["wf_bad"] = [0, *o.data.vertices[0].co]
+        o.data.vertices[0].co = (math.nan, 0.0, 0.0)
+        o.data.update()
+        return f"NaN in a vertex of '{o.name}'"
+    o["wf_bad"] = [1, *o.location]
+    o.location = (math.nan, 0.0, 0.0)
+    return f"NaN in the location of '{o.name}'"
 
 
 def do_undo(w, kind):
