@@ -462,17 +462,26 @@ def truth_visible(w):
     scene = context.scene
     stand_in = {}                                   # temporary copy name -> the object it stands for
     model = w.model["objects"]
+    def stand_in_for(o, parent=None):
+        c = o.copy()
+        clear_addon_record(c)
+        c.hide_viewport = model.get(o.get("wf_id"), {}).get("monitor", False) if hidden_by_addon(o) \
+            else o.hide_viewport
+        if parent is not None:
+            c.parent = parent
+        for coll in o.users_collection:
+            coll.objects.link(c)
+        for vl in scene.view_layers:
+            if vl.objects.get(c.name) is not None and o.hide_get(view_layer=vl):
+                c.hide_set(True, view_layer=vl)
+        stand_in[c.name] = o.name
+        if o.instance_type in ("VERTS", "FACES"):      # its children are what it repeats
+            for child in o.children:
+                stand_in_for(child, c)
+
     for o in list(scene.objects):
         if "wf_id" in o and hidden_by_addon(o):
-            c = o.copy()
-            clear_addon_record(c)
-            c.hide_viewport = model.get(o["wf_id"], {}).get("monitor", False)
-            for coll in o.users_collection:
-                coll.objects.link(c)
-            for vl in scene.view_layers:
-                if vl.objects.get(c.name) is not None and o.hide_get(view_layer=vl):
-                    c.hide_set(True, view_layer=vl)
-            stand_in[c.name] = o.name
+            stand_in_for(o)
     try:
         context.view_layer.update()
         dg = context.evaluated_depsgraph_get()
