@@ -59,14 +59,15 @@ KINDS = {
     "rename_replace": 1, "duplicate": 2, "link": 2, "move_collection": 2, "frame": 4,
     "never_cull": 2, "exclude_setting": 2, "undo": 3, "redo": 1, "save_reload": 1,
     "addon_toggle": 1, "live": 2, "analyze": 1, "display_type": 2, "bad_value": 1,
-    "mesh_edit": 3,
+    "mesh_edit": 3, "object_scale": 2,
 }
 # Scene features, switched off like step kinds: a geometry-nodes instancer whose
 # instances stand far from its mesh, props animated by keyframes, props carried by
 # an animated parent (an empty) or following it by a constraint, hair particles
 # instancing an object, a vertex instancer (a point mesh and its child), props
-# with an array modifier.
-FEATURES = {"scene_gn", "scene_animated", "scene_parent", "scene_particles", "scene_verts", "scene_modifiers"}
+# with an array modifier, a text and a bevelled curve.
+FEATURES = {"scene_gn", "scene_animated", "scene_parent", "scene_particles", "scene_verts", "scene_modifiers",
+            "scene_curves"}
 # Instancers whose instances vanish when their source object is hidden (monitor):
 # the source counts as seen wherever its instances are.  Particle instances stay
 # drawn when their object is hidden; geometry nodes here use no object.
@@ -299,6 +300,22 @@ def build_scene(w):
         for o in [o for o in colls["Props"].objects if o.name.startswith("Prop.")][:3]:
             arr = o.modifiers.new("array", "ARRAY")
             arr.count, arr.relative_offset_displace = 4, (1.5, 0.0, 0.0)
+    if "scene_curves" in w.kinds:                        # geometry that is not a mesh
+        txt = bpy.data.objects.new("Label", bpy.data.curves.new("Label", "FONT"))
+        txt.data.body, txt.data.extrude, txt.data.size = "OCC", 0.1, 1.5
+        txt.location, txt.rotation_euler = (rng.uniform(-6, 6), rng.uniform(-6, 6), 0.5), (math.pi / 2, 0, 0)
+        colls["Props"].objects.link(txt)
+        new_id(w, txt)
+        cu = bpy.data.curves.new("Pipe", "CURVE")
+        cu.dimensions, cu.bevel_depth = "3D", 0.15
+        sp = cu.splines.new("POLY")
+        sp.points.add(2)
+        for p, co in zip(sp.points, [(-3, 0, 0.3), (0, 2, 0.6), (3, 0, 0.3)], strict=True):
+            p.co = (*co, 1.0)
+        pipe = bpy.data.objects.new("Pipe", cu)
+        pipe.location = (rng.uniform(-5, 5), rng.uniform(-5, 5), 0)
+        colls["Props"].objects.link(pipe)
+        new_id(w, pipe)
     lib = bpy.data.collections.new("Lib")              # a collection instance
     scene.collection.children.link(lib)
     add_box(w, "LibPart", (0, 0, 0), (0.5, 0.5, 0.8), lib)
@@ -845,6 +862,10 @@ def do_step(w, kind):
             m["monitor"] = o.hide_viewport
             return f"monitor '{name}' clicked twice -> hidden={o.hide_viewport}"
         return f"monitor '{name}' clicked -> hidden={o.hide_viewport}"
+    if kind == "object_scale":
+        sx = rng.choice([1.0, -1.0, 0.3, 3.0])            # negative: a mirrored object
+        o.scale = (sx * abs(o.scale[0]) if sx < 0 else sx, o.scale[1], rng.choice([o.scale[2], 2.5]))
+        return f"scale '{name}' to {tuple(round(x, 2) for x in o.scale)}"
     if kind == "mesh_edit":
         if o.type != "MESH" or not len(o.data.vertices):
             return f"mesh_edit '{name}': no mesh"
