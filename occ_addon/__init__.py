@@ -54,6 +54,7 @@ def register():
         getattr(bpy.app.handlers, name).append(f)
     if isinstance(bpy.data, bpy.types.BlendData):    # enabled on an open file: show what a record hides
         visibility.restore()
+        live.after_load()                            # and live shows off: no timer runs yet
 
 
 def unregister():

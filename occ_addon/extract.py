@@ -42,6 +42,7 @@ objects or some geometry changed; the depsgraph and frame-change handlers mark
 what changed).
 """
 
+import bpy
 import numpy as np
 
 from ..core import OccError, Scene
@@ -167,25 +168,40 @@ def world_matrix(obj):
     return m
 
 
-def visible_collections(view_layer):
-    """Session ids of the collections whose objects the view layer shows (not
-    excluded, eye and monitor on, all the way up)."""
-    out = set()
+def shown_by_collections(view_layer):
+    """``(m,) int64`` sorted session ids of the objects in the collections the view
+    layer shows (not excluded, eye and monitor on, all the way up), in bulk."""
+    ids = []
     stack = [(view_layer.layer_collection, True)]
     while stack:                                   # collections: a handful
         lc, ok = stack.pop()
         ok = ok and not lc.exclude and not lc.hide_viewport and not lc.collection.hide_viewport
         if ok:
-            out.add(lc.collection.session_uid)
+            ids.append(visibility.uids(lc.collection.objects))
         stack.extend((c, ok) for c in lc.children)
-    return out
+    return np.unique(np.concatenate(ids)) if ids else np.zeros(0, dtype=np.int64)
 
 
-def user_shown(obj, view_layer, collections):
+def user_shown(obj, view_layer, shown):
     """Whether Blender would draw ``obj`` if the add-on had not hidden it: the
-    user's eye, its collections' eye, monitor and exclude, the view layer."""
-    return not obj.hide_get(view_layer=view_layer) and any(
-        c.session_uid in collections for c in obj.users_collection)
+    user's eye, its collections' eye, monitor and exclude (``shown``: see
+    :func:`shown_by_collections`), the view layer."""
+    uid = obj.session_uid
+    k = np.searchsorted(shown, uid)
+    return k < len(shown) and shown[k] == uid and not obj.hide_get(view_layer=view_layer)
+
+
+DRAWN_TYPES = GEOMETRY_TYPES | {"POINTCLOUD", "VOLUME", "GREASEPENCIL", "GPENCIL", "CURVES"}
+
+
+def bystanders(view_layer, held):
+    """Objects Blender draws now that the engine does not hold (``held``: the
+    engine's objects): wire and bounds display, point clouds, volumes, grease
+    pencil, hair, vertex-instanced children, NaN values.  Never culled, so
+    counted visible by analyze."""
+    held = {o.session_uid for o in held}
+    return [o for o in view_layer.objects
+            if (o.type in DRAWN_TYPES or is_instancer(o)) and o.session_uid not in held and o.visible_get()]
 
 
 class Candidates:
@@ -203,38 +219,46 @@ class Candidates:
         self.view_layer = view_layer
         layer = view_layer.objects
         culled_all = visibility.flags("occ_culled", layer)
-        objects, index, kinds, give_back, collections = [], [], [], [], None
-        for i, o in enumerate(layer):                 # one visible_get per object; no bulk form exists
-            k = kind(o)
+        uids_all = visibility.uids(layer)
+        info = extractor.info
+        objects, index, kinds, give_back = [], [], [], []
+        for i, (o, uid, culled) in enumerate(zip(layer.values(), uids_all.tolist(), culled_all.tolist(),
+                                                 strict=True)):   # one visible_get per object; no bulk form
+            entry = info.get(uid)
+            if entry is None:
+                entry = info[uid] = (kind(o), o.parent is not None)
+            k = entry[0]
             if k is None:
-                if culled_all[i]:
-                    give_back.append(o.session_uid)
+                if culled:
+                    give_back.append(uid)
                 continue
-            if culled_all[i]:
-                if collections is None:
-                    collections = visible_collections(view_layer)
+            if culled:
                 # the user hid it too, or it may have changed unseen: give it back
-                if not user_shown(o, view_layer, collections) or is_dynamic(o) \
+                if not extractor.user_shown(o, uid, view_layer) or extractor.is_dynamic(o, uid) \
                         or not extractor.knows(o, k):
-                    give_back.append(o.session_uid)
+                    give_back.append(uid)
                     continue
             elif not o.visible_get():
                 continue
             objects.append(o)
             index.append(i)
             kinds.append(k)
-        self.layer_index = np.array(index, dtype=np.int64)
-        self.culled = culled_all[self.layer_index] if len(index) else np.zeros(0, dtype=bool)
-        m = _bulk_matrices(layer, "matrix_world")[self.layer_index] if len(index) else np.zeros((0, 4, 4))
-        for k in np.flatnonzero(self.culled):         # stale matrix_world: rebuilt from matrix_basis
-            m[k] = world_matrix(objects[k])
+        index = np.array(index, dtype=np.int64)
+        self.culled = culled_all[index]
+        m = _bulk_matrices(layer, "matrix_world")[index] if len(index) else np.zeros((0, 4, 4))
+        hidden = np.flatnonzero(self.culled)
+        if len(hidden):                               # stale matrix_world: rebuilt from matrix_basis
+            m[hidden] = _bulk_matrices(layer, "matrix_basis")[index[hidden]]
+            for k in hidden:
+                if info[int(uids_all[index[k]])][1]:  # parented: through the parent chain
+                    m[k] = world_matrix(objects[k])
         finite = np.all(np.isfinite(m), axis=(1, 2))
         self.bad = [objects[k].name for k in np.flatnonzero(~finite)]
         keep = np.flatnonzero(finite)
         self.objects = [objects[k] for k in keep]
         self.kinds = [kinds[k] for k in keep]
-        self.layer_index, self.culled, self.matrices = self.layer_index[keep], self.culled[keep], m[keep]
-        self.uids = np.array([o.session_uid for o in self.objects], dtype=np.int64)
+        self.layer_index, self.culled, self.matrices = index[keep], self.culled[keep], m[keep]
+        self.uids = uids_all[self.layer_index]
         self.give_back = np.array(give_back, dtype=np.int64)
 
     def __len__(self):
@@ -248,6 +272,40 @@ class Extractor:
         self.cache = {}          # object uid -> (mesh key, vertices, faces); vertices None: not finite
         self.dirty = set()       # object uids whose geometry changed
         self.touched = set()     # object uids whose geometry or transform changed (instanced collections)
+        # What an object is, from its settings (edits report it: :meth:`saw` forgets it):
+        self.info = {}           # uid -> (kind, has a parent)
+        self.dynamic = {}        # uid -> is_dynamic
+        self.shown = {}          # uid -> user_shown (hidden by the add-on); any visibility change clears it
+        self.shown_ids = None    # sorted uids of the objects in shown collections (see shown_by_collections)
+
+    def saw(self, update):
+        """A depsgraph update (not our own): forget what it may have changed.  An
+        object's edits report it (while it is shown); eye, collection and view-layer
+        changes report the scene or a collection."""
+        idb = update.id
+        if isinstance(idb, bpy.types.Object):
+            uid = idb.original.session_uid
+            self.info.pop(uid, None)
+            self.shown.pop(uid, None)
+            if self.dynamic.pop(uid, None) is not None and len(idb.original.children):
+                self.dynamic.clear()                  # children inherit what their parent is
+        else:
+            self.shown.clear()
+            self.shown_ids = None
+
+    def user_shown(self, obj, uid, view_layer):
+        hit = self.shown.get(uid)
+        if hit is None:
+            if self.shown_ids is None:
+                self.shown_ids = shown_by_collections(view_layer)
+            hit = self.shown[uid] = bool(user_shown(obj, view_layer, self.shown_ids))
+        return hit
+
+    def is_dynamic(self, obj, uid):
+        hit = self.dynamic.get(uid)
+        if hit is None:
+            hit = self.dynamic[uid] = is_dynamic(obj)
+        return hit
 
     def mark(self, geometry=(), transform=()):
         """Record depsgraph updates: uids whose geometry changed, and uids that moved."""
@@ -257,6 +315,10 @@ class Extractor:
 
     def candidates(self, context):
         return Candidates(context.view_layer, self)
+
+    def matrices(self, cand, kept):
+        """World matrices ``(k, 4, 4)`` of candidates ``kept`` (read in bulk with the candidates)."""
+        return cand.matrices[kept]
 
     def knows(self, obj, k):
         """Whether the geometry of ``obj`` (hidden by the add-on) is cached and current."""

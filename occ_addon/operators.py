@@ -11,6 +11,7 @@ from bpy.props import BoolProperty, IntProperty, StringProperty
 
 from ..core import OccError, Visibility
 from . import live, overlay, visibility
+from .extract import bystanders
 from .session import SESSION, camera_for, scene_camera
 
 
@@ -24,7 +25,7 @@ class OCC_OT_cull(bpy.types.Operator):
     def execute(self, context):
         try:
             camera, display = camera_for(context)
-            result, objects = SESSION.cull(context, camera, display)
+            result, objects = SESSION.cull(context, camera, display, fresh=True)
             overlay.install()
         except Exception as e:  # every failure is a report, never a traceback
             return failed(self, e)
@@ -103,6 +104,8 @@ class OCC_OT_analyze(bpy.types.Operator):
                 camera, display = scene_camera(context)
                 result, objects = SESSION.compute(context, camera, display)   # nothing is hidden
                 names = [o.name for o, s in zip(objects, result.state, strict=True) if s == Visibility.VISIBLE]
+                extra = bystanders(context.view_layer, objects)   # drawn, never culled: visible
+                objects, names = objects + extra, names + [o.name for o in extra]
                 per_frame.append({"frame": f, "visible": names})
                 for o in objects:
                     seen.setdefault(o.name, 0)

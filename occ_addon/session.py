@@ -17,7 +17,7 @@ from ..core import Camera, Culler, OccError, Visibility
 from ..core.settings import preset, query_resolution
 from ..core.units import ChunkCache
 from . import visibility
-from .extract import Extractor, is_dynamic
+from .extract import Extractor
 from .worker import EngineThread
 
 # Meshes of 4 x this many triangles or more are cut into chunks of about this
@@ -110,8 +110,8 @@ class Session:
 
     def compute(self, context, camera, display, fresh=True):
         """Visibility from ``camera`` at ``display`` resolution, without hiding anything.
-        ``fresh``: the strategy forgets earlier passes (a Cull click, a camera cut);
-        only a live pass right after a small view change keeps its memory."""
+        ``fresh``: the strategy forgets earlier passes (a Cull click, a camera cut,
+        analyze); only a live pass right after a small view change keeps its memory."""
         settings = context.scene.occ
         options = preset(settings.preset)
         res = query_resolution(fit(display, settings.max_resolution), options)
@@ -122,7 +122,7 @@ class Session:
             forget()
         return self.worker.run(culler.cull, camera), objects
 
-    def cull(self, context, camera, display, fresh=True):
+    def cull(self, context, camera, display, fresh=False):
         """One pass: cull from ``camera`` at ``display`` resolution and apply it."""
         settings = context.scene.occ
         t = time.perf_counter()
@@ -162,13 +162,15 @@ class Session:
         only where the engine would hide."""
         settings = context.scene.occ
         out = np.zeros(len(objects), dtype=bool)
-        keep = set()
+        flagged = visibility.uids()[visibility.flags("occ_never_cull")]
         coll = settings.exclude_collection
         if coll is not None:
-            keep.update(o.session_uid for o in (coll.all_objects if settings.exclude_children else coll.objects))
-        for k in np.flatnonzero(culled):               # O(hidden): the flags Blender has no bulk form of
-            o = objects[k]
-            out[k] = o.occ_never_cull or o.session_uid in keep or is_dynamic(o)
+            members = coll.all_objects if settings.exclude_children else coll.objects
+            flagged = np.concatenate([flagged, visibility.uids(members)])
+        out[np.isin(self.kept_uids, flagged)] = True
+        extractor = self.extractor
+        for k in np.flatnonzero(culled & ~out):        # O(hidden), cached: what Blender has no bulk form of
+            out[k] = extractor.is_dynamic(objects[k], int(self.kept_uids[k]))
         return out
 
 
@@ -287,14 +289,17 @@ def on_depsgraph_update(scene, depsgraph):
 def on_frame_change(scene, depsgraph):
     """Animation moved things: the same marks as an edit (the frame's depsgraph reports them)."""
     if depsgraph is not None:
-        _mark(depsgraph)
+        _mark(depsgraph, edits=False)           # animation changes values, not what objects are
     for f in LISTENERS:
         f()
 
 
-def _mark(depsgraph):
+def _mark(depsgraph, edits=True):
     geometry, moved = [], []
+    extractor = SESSION.extractor
     for update in depsgraph.updates:
+        if edits:
+            extractor.saw(update)
         if isinstance(update.id, bpy.types.Object):
             if update.is_updated_geometry:
                 geometry.append(update.id.original.session_uid)

@@ -553,6 +553,11 @@ def case10():
         cull()
         check(f"case10_{display.lower()}_not_occluder", drawn("target"), "")
         promise(f"case10_{display.lower()}_truth")
+        report = os.path.join(WORK, "case10_display.json")
+        bpy.ops.occ.analyze(filepath=report, frame_start=1, frame_end=1)
+        with open(report) as f:
+            seen = json.load(f)["objects"]
+        check(f"case10_{display.lower()}_analyzed_visible", seen.get("wall", {}).get("frames_visible") == 1, seen)
     scene = new_scene()
     scene.camera.data.type = "PANO"
     r, err = cull()
