@@ -1003,8 +1003,9 @@ def do_analyze(w):
         missing = sorted(((seen or set()) & in_layer) - set(entry["visible"]))
         if missing:
             objs = bpy.data.objects
-            why = {n: (f"never cull {objs[n].occ_never_cull}, eye {objs[n].hide_get()}, monitor "
-                       f"{objs[n].hide_viewport}, add-on record {addon_hidden(objs[n])}, collections "
+            why = {n: (f"display {objs[n].display_type}, never cull {objs[n].occ_never_cull}, "
+                       f"eye {objs[n].hide_get()}, monitor {objs[n].hide_viewport}, "
+                       f"add-on record {addon_hidden(objs[n])}, collections "
                        f"{[c.name for c in objs[n].users_collection]}") for n in missing}
             problems.append(f"analyze: frame {entry['frame']} leaves out visible {why}; exclude setting "
                             f"{scene.occ.exclude_collection and scene.occ.exclude_collection.name}")
