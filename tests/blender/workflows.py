@@ -763,7 +763,7 @@ def do_step(w, kind):
             if "failed" in str(e):
                 raise
             broken = [o.name for o in scene.objects if "wf_bad" in o and o.name in str(e)]
-            if broken:
+            if broken and "nothing to cull" not in str(e):  # the bad one left out, nothing else to cull: fine
                 w.pending.append(f"g: one object with a NaN ({broken}) stopped the whole cull: {e}")
             return f"cull -> report: {e}"
     if kind == "restore":
@@ -999,7 +999,7 @@ def do_analyze(w):
     for entry in report["frames"]:
         scene.frame_set(entry["frame"])
         seen, _ = truth_visible(w)
-        in_layer = {o.name for o in bpy.context.view_layer.objects}     # what the report can name
+        in_layer = {o.name for o in bpy.context.view_layer.objects if o.visible_get()}   # what it can name
         missing = sorted(((seen or set()) & in_layer) - set(entry["visible"]))
         if missing:
             objs = bpy.data.objects
