@@ -42,6 +42,8 @@ objects or some geometry changed; the depsgraph and frame-change handlers mark
 what changed).
 """
 
+import zlib
+
 import bpy
 import numpy as np
 
@@ -215,15 +217,17 @@ class Candidates:
     bad: names of objects left out for NaN or infinite values.
     """
 
-    def __init__(self, view_layer, extractor):
+    def __init__(self, view_layer, extractor, verify=False):
         self.view_layer = view_layer
         layer = view_layer.objects
         culled_all = visibility.flags("occ_culled", layer)
         uids_all = visibility.uids(layer)
         info = extractor.info
-        objects, index, kinds, give_back = [], [], [], []
+        objects, index, kinds, give_back, memo = [], [], [], [], {}
         for i, (o, uid, culled) in enumerate(zip(layer.values(), uids_all.tolist(), culled_all.tolist(),
                                                  strict=True)):   # one visible_get per object; no bulk form
+            if culled and verify:                     # edits to hidden objects are not reported
+                extractor.forget(uid)
             entry = info.get(uid)
             if entry is None:
                 entry = info[uid] = (kind(o), o.parent is not None)
@@ -235,7 +239,7 @@ class Candidates:
             if culled:
                 # the user hid it too, or it may have changed unseen: give it back
                 if not extractor.user_shown(o, uid, view_layer) or extractor.is_dynamic(o, uid) \
-                        or not extractor.knows(o, k):
+                        or not extractor.knows(o, k) or (verify and not extractor.unchanged(o, uid, k, memo)):
                     give_back.append(uid)
                     continue
             elif not o.visible_get():
@@ -277,6 +281,18 @@ class Extractor:
         self.dynamic = {}        # uid -> is_dynamic
         self.shown = {}          # uid -> user_shown (hidden by the add-on); any visibility change clears it
         self.shown_ids = None    # sorted uids of the objects in shown collections (see shown_by_collections)
+        self.fps = {}            # uid -> fingerprint of the data its cached geometry was read from
+
+    def forget(self, uid):
+        """Forget what object ``uid`` is (it will be classified again)."""
+        self.info.pop(uid, None)
+        self.dynamic.pop(uid, None)
+
+    def unchanged(self, obj, uid, k, memo):
+        """Whether the data of ``obj`` (hidden by the add-on, so not evaluated, and its
+        edits not reported) is what its cached geometry was read from."""
+        fp = self.fps.get(uid)
+        return fp is not None and fp == fingerprint(obj, k, memo)
 
     def saw(self, update):
         """A depsgraph update (not our own): forget what it may have changed.  An
@@ -313,8 +329,10 @@ class Extractor:
         self.touched.update(geometry)
         self.touched.update(transform)
 
-    def candidates(self, context):
-        return Candidates(context.view_layer, self)
+    def candidates(self, context, verify=False):
+        """The pass's candidates; ``verify``: check every object the add-on hides
+        against the data its geometry was read from (see :func:`fingerprint`)."""
+        return Candidates(context.view_layer, self, verify)
 
     def matrices(self, cand, kept):
         """World matrices ``(k, 4, 4)`` of candidates ``kept`` (read in bulk with the candidates)."""
@@ -365,6 +383,7 @@ class Extractor:
                     ov, of = mesh_arrays(o.evaluated_get(depsgraph))
                     v, f = np.concatenate([ov, v]), np.concatenate([of, f + len(ov)])
             self.cache[uid] = (key, _finite_or_none(v), f)
+            self.fps[uid] = fingerprint(o, "collection" if o.type == "EMPTY" else "instancer", {})
         uids, meshes, mesh_of, kept, bad = [], [], [], [], []
         mesh_index, read = {}, {}
         for i, obj in enumerate(cand.objects):         # once per object, bulk inside
@@ -418,7 +437,44 @@ class Extractor:
             read[key] = (_finite_or_none(v), f)
         v, f = read[key]
         self.cache[uid] = (key, v, f)
+        self.fps[uid] = fingerprint(obj, k, read)
         return key, v, f
+
+
+def _mesh_fingerprint(mesh, memo):
+    """Sizes and a checksum of a mesh's vertex positions (once per mesh: ``memo``)."""
+    key = ("fp", mesh.session_uid)
+    hit = memo.get(key)
+    if hit is None:
+        co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+        mesh.vertices.foreach_get("co", co)
+        hit = memo[key] = (len(mesh.vertices), len(mesh.polygons), zlib.crc32(co.tobytes()))
+    return hit
+
+
+def _modifiers_fingerprint(obj):
+    return tuple((m.type, m.show_viewport) for m in obj.modifiers)
+
+
+def fingerprint(obj, k, memo):
+    """What the geometry of ``obj`` is read from, as a comparable value: its mesh
+    (sizes and a checksum of its vertices), its display, its modifiers; for a
+    collection instance, its members' and their placement.  None where it cannot
+    be told cheaply (curves, text, metaballs): such an object is shown again to
+    be read.  Modifier settings are not in it: edited while hidden, they are
+    seen once the object is shown."""
+    base = (k, obj.display_type, obj.instance_type)
+    if k == "collection":
+        parts = [base]
+        for m in obj.instance_collection.all_objects:
+            if m.type != "MESH":
+                return None
+            parts.append((m.session_uid, m.display_type, _modifiers_fingerprint(m),
+                          _mesh_fingerprint(m.data, memo), tuple(map(tuple, m.matrix_basis))))
+        return tuple(parts)
+    if obj.type != "MESH":
+        return None
+    return base + (obj.data.session_uid, _modifiers_fingerprint(obj), _mesh_fingerprint(obj.data, memo))
 
 
 def _finite_or_none(v):

@@ -62,21 +62,22 @@ class Session:
         self.chunks = ChunkCache()
         self.worker.shutdown()
 
-    def candidates(self, context):
+    def candidates(self, context, verify=False):
         """The candidates of a pass; objects the add-on hid and must give back
-        (hidden by the user too, or not evaluated and able to change) are shown
-        first and evaluated, so the pass sees them as Blender draws them."""
-        cand = self.extractor.candidates(context)
+        (hidden by the user too, not evaluated and able to change, or, with
+        ``verify``, edited since they were read) are shown first and evaluated,
+        so the pass sees them as Blender draws them."""
+        cand = self.extractor.candidates(context, verify)
         if len(cand.give_back):
             visibility.release(np.isin(visibility.uids(), cand.give_back))
             context.view_layer.update()
             cand = self.extractor.candidates(context)
         return cand
 
-    def engine(self, context, resolution, strategy):
+    def engine(self, context, resolution, strategy, verify=False):
         """The engine for the current candidates: rebuilt when objects or geometry
         changed, otherwise only the moved objects' matrices are sent."""
-        cand = self.candidates(context)
+        cand = self.candidates(context, verify)
         self.warnings = list(cand.bad)
         if not len(cand):
             raise OccError("nothing to cull: the view layer has no visible mesh objects")
@@ -115,7 +116,9 @@ class Session:
         settings = context.scene.occ
         options = preset(settings.preset)
         res = query_resolution(fit(display, settings.max_resolution), options)
-        culler, objects = self.engine(context, res, settings.strategy)
+        # a fresh pass (a click, analyze, a scene change) also checks what the add-on
+        # hides against its data: edits to hidden objects are never reported
+        culler, objects = self.engine(context, res, settings.strategy, verify=fresh)
         culler.options = options
         forget = getattr(culler.strategy, "forget", None)
         if fresh and forget is not None:

@@ -630,7 +630,33 @@ def case12():
     check("case12_undo_restore_drawn", drawn("zT"), (bpy.data.objects["zT"].hide_viewport, drawn("zT")))
 
 
-CASES = (case1, case2, case3, case4, case5, case6, case7, case8, case10, case11, case12)
+def case_hidden_edits():
+    """Edits to an object while the add-on hides it (never reported by Blender) are
+    seen by the next Cull: the geometry is checked against the data it was read from."""
+    for what in ("move", "nan"):
+        new_scene()
+        box("target", (3, -1, 0), (4, 1, 1))
+        update()
+        cull()
+        hid = hidden_by_addon("target")
+        me = bpy.data.objects["target"].data
+        co = np.zeros(len(me.vertices) * 3, np.float32)
+        me.vertices.foreach_get("co", co)
+        co = co.reshape(-1, 3)
+        if what == "grow":
+            co[:, 0] -= 8.0                               # its mesh now stands in front of the wall
+        else:
+            co[0] = np.nan
+        me.vertices.foreach_set("co", co.ravel())
+        me.update()
+        update()
+        r, err = cull()
+        check(f"hidden_edit_{what}_seen", hid and r == {"FINISHED"} and not hidden_by_addon("target"),
+              (hid, r, hidden_by_addon("target"), err[-500:]))
+        promise(f"hidden_edit_{what}_truth")
+
+
+CASES = (case1, case2, case3, case4, case5, case6, case7, case8, case10, case11, case12, case_hidden_edits)
 
 
 def main():

@@ -40,6 +40,7 @@ CHECKS = [
     "case10_panoramic_refused", "case10_never_visible_exact",
     "case11_nan_matrix_named", "case11_nan_vertices_named", "case11_camera_scale_zero_reported",
     "case12_moved_into_exclude_drawn", "case12_undo_restore_drawn",
+    "hidden_edit_move_seen", "hidden_edit_move_truth", "hidden_edit_nan_seen", "hidden_edit_nan_truth",
 ]
 
 
