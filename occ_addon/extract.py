@@ -1,28 +1,65 @@
-"""From Blender to the engine's arrays, through the evaluated depsgraph, in bulk.
+"""From Blender to the engine's arrays: the engine's picture is what Blender would draw now.
 
-Every visible mesh-like object (modifiers applied, curves and text as meshes)
-becomes an object of :class:`core.Scene`; a collection instance becomes one
-object carrying the instanced geometry; the collection tree (and object
-parents) becomes the scene tree.  Objects that share an unmodified mesh share
-it in the engine.
+One principle, applied at this boundary only: an object takes part in a pass
+(a *candidate*: an occluder, and hidden where occluded) when Blender draws it
+now as solid geometry from the evaluated depsgraph, or when the add-on itself
+hid it and Blender would draw it now had the add-on not.  For the latter the
+add-on must know its current evaluated state, which Blender does not compute
+for hidden objects; it knows it only for *static* objects (nothing but an edit
+can change them: no animation, drivers, constraints, physics, particles,
+geometry nodes, instancing, modifiers that read other objects or time, and the
+same for every parent), from the geometry read while it was shown and its
+transform rebuilt from ``matrix_basis`` through the parent chain.  Everything
+else is handled conservatively by construction:
 
-Each pass asks two questions of different cost:
+- *dynamic* objects (above) are never hidden (:func:`is_dynamic`); one the
+  add-on had hidden is shown again before the pass (so it is evaluated now);
+- an object the user hid in any way is no candidate (and one the add-on had
+  hidden is given back to the user's hide);
+- wire and bounds display, and every type that is not solid mesh-like geometry
+  (point clouds, volumes, grease pencil, hair curves, empties, lights): never
+  occluders and never hidden;
+- children drawn only as vertex/face instances: not candidates (not drawn
+  where they stand);
+- an object whose matrix or vertices are NaN or infinite: not a candidate,
+  named in a warning, never hidden;
+- instances as Blender draws them (``depsgraph.object_instances``): a
+  collection instance carries its instanced geometry and is hidden as a unit;
+  a geometry-nodes, particle or vertex/face instancer carries its own mesh
+  (where drawn) and its instances, as an occluder, and is never hidden (it is
+  dynamic: hidden, it would not be evaluated).
 
-- which objects take part (one ``visible_get`` per object) and where they are
-  (one ``foreach_get`` of every world matrix): :meth:`Extractor.candidates`,
-  :meth:`Extractor.matrices`, cheap, every pass;
-- what they look like (``to_mesh`` + ``foreach_get`` per changed object):
-  :meth:`Extractor.scene`, only when the set of objects or some geometry
-  changed.  Geometry is cached per object; the depsgraph handler marks what
-  changed (:meth:`Extractor.mark`), and only that is read again.
+Objects are identified by ``session_uid`` (unique for the Blender session,
+kept by renames); caches are keyed by it and by the mesh datablock's id, and
+are dropped on undo, redo and file load (:meth:`Session.reset`), where Blender
+may give an unchanged id back with other contents.
+
+Each pass asks two questions of different cost: which objects take part and
+where they are (:meth:`Extractor.candidates`: one ``visible_get`` per object,
+one ``foreach_get`` of every world matrix), and what they look like
+(:meth:`Extractor.scene`, ``to_mesh`` per changed object, only when the set of
+objects or some geometry changed; the depsgraph and frame-change handlers mark
+what changed).
 """
 
+import zlib
+
+import bpy
 import numpy as np
 
 from ..core import OccError, Scene
+from . import visibility
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
+SOLID_DISPLAY = {"SOLID", "TEXTURED"}            # wire and bounds display never occlude
 _EMPTY = (np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64))
+
+# Modifiers whose result depends only on the object's own data and settings
+# (their animation, if any, is the object's animation_data); anything else
+# (armature, hooks, booleans, geometry nodes, physics, ...) makes an object dynamic.
+STATIC_MODIFIERS = {"SUBSURF", "MULTIRES", "MIRROR", "BEVEL", "SOLIDIFY", "TRIANGULATE", "WELD",
+                    "DECIMATE", "EDGE_SPLIT", "WEIGHTED_NORMAL", "REMESH", "WIREFRAME", "SKIN",
+                    "SMOOTH", "LAPLACIANSMOOTH", "CORRECTIVE_SMOOTH", "ARRAY", "SCREW"}
 
 
 def mesh_arrays(obj_eval):
@@ -46,6 +83,70 @@ def is_instancer(obj):
     return obj.instance_type == "COLLECTION" and obj.instance_collection is not None
 
 
+def may_instance(obj):
+    """Whether ``obj`` can bring instances (vertex / face instancing, particles, geometry nodes)."""
+    return obj.instance_type in {"VERTS", "FACES"} or len(obj.particle_systems) > 0 \
+        or any(m.type == "NODES" for m in obj.modifiers)
+
+
+def kind(obj):
+    """"mesh", "instancer" (a mesh-like object that brings instances: its geometry
+    is its own, where drawn, and its instances'), "collection" or None: how
+    ``obj`` can take part, by its settings alone."""
+    if obj.type in GEOMETRY_TYPES:
+        if obj.display_type not in SOLID_DISPLAY:
+            return None
+        parent = obj.parent
+        if parent is not None and parent.instance_type in {"VERTS", "FACES"}:
+            return None                   # drawn only as the parent's instances
+        return "instancer" if may_instance(obj) else "mesh"
+    if obj.type == "EMPTY" and is_instancer(obj):
+        return "collection"
+    return None
+
+
+_POINTERS = {}     # modifier type -> its properties that point to objects, collections or textures
+
+
+def _object_pointers(mod):
+    """Whether a modifier reads another datablock (mirror object, array caps, ...)."""
+    props = _POINTERS.get(mod.type)
+    if props is None:
+        props = _POINTERS[mod.type] = [
+            p.identifier for p in mod.bl_rna.properties
+            if p.type == "POINTER" and getattr(p.fixed_type, "identifier", "") in {"Object", "Collection", "Texture"}]
+    return any(getattr(mod, p, None) is not None for p in props)
+
+
+def _animated(idblock):
+    ad = getattr(idblock, "animation_data", None)
+    return ad is not None and (ad.action is not None or len(ad.drivers) > 0 or len(ad.nla_tracks) > 0)
+
+
+def is_dynamic(obj):
+    """Whether ``obj``'s evaluated state can change without an edit (animation,
+    drivers, constraints, physics, particles, instancing, geometry nodes,
+    modifiers that read other objects, bone or vertex parents, a dynamic parent):
+    such an object is never hidden, since Blender stops evaluating what is hidden."""
+    seen = 0
+    while obj is not None and seen < 64:      # parent chains: a few levels
+        if _animated(obj) or len(obj.constraints) or obj.rigid_body is not None \
+                or obj.rigid_body_constraint is not None or len(obj.particle_systems) \
+                or obj.instance_type in {"VERTS", "FACES"}:
+            return True
+        data = obj.data
+        if data is not None and (_animated(data) or _animated(getattr(data, "shape_keys", None))):
+            return True
+        for m in obj.modifiers:
+            if m.type not in STATIC_MODIFIERS or _object_pointers(m):
+                return True
+        if obj.parent is not None and obj.parent_type not in {"OBJECT"}:
+            return True
+        obj = obj.parent
+        seen += 1
+    return False
+
+
 def _bulk_matrices(collection, prop):
     """``(n, 4, 4) float64`` of a matrix property over a whole collection, one ``foreach_get``.
 
@@ -59,8 +160,8 @@ def _bulk_matrices(collection, prop):
 def world_matrix(obj):
     """World matrix ``(4, 4)``.  An object the add-on hid is not evaluated by the
     depsgraph (its ``matrix_world`` goes stale), so its matrix is rebuilt from
-    the parent chain and ``matrix_basis`` (constraints and drivers on hidden
-    objects are not followed)."""
+    the parent chain and ``matrix_basis`` (exact for static objects: no
+    constraints, drivers or bone parents, see :func:`is_dynamic`)."""
     if not obj.occ_culled:
         return np.array(obj.matrix_world, dtype=np.float64)
     m = np.array(obj.matrix_basis, dtype=np.float64)
@@ -69,58 +170,190 @@ def world_matrix(obj):
     return m
 
 
+def shown_by_collections(view_layer):
+    """``(m,) int64`` sorted session ids of the objects in the collections the view
+    layer shows (not excluded, eye and monitor on, all the way up), in bulk."""
+    ids = []
+    stack = [(view_layer.layer_collection, True)]
+    while stack:                                   # collections: a handful
+        lc, ok = stack.pop()
+        ok = ok and not lc.exclude and not lc.hide_viewport and not lc.collection.hide_viewport
+        if ok:
+            ids.append(visibility.uids(lc.collection.objects))
+        stack.extend((c, ok) for c in lc.children)
+    return np.unique(np.concatenate(ids)) if ids else np.zeros(0, dtype=np.int64)
+
+
+def user_shown(obj, view_layer, shown):
+    """Whether Blender would draw ``obj`` if the add-on had not hidden it: the
+    user's eye, its collections' eye, monitor and exclude (``shown``: see
+    :func:`shown_by_collections`), the view layer."""
+    uid = obj.session_uid
+    k = np.searchsorted(shown, uid)
+    return k < len(shown) and shown[k] == uid and not obj.hide_get(view_layer=view_layer)
+
+
+DRAWN_TYPES = GEOMETRY_TYPES | {"POINTCLOUD", "VOLUME", "GREASEPENCIL", "GPENCIL", "CURVES"}
+
+
+def bystanders(view_layer, held):
+    """Objects Blender draws now that the engine does not hold (``held``: the
+    engine's objects): wire and bounds display, point clouds, volumes, grease
+    pencil, hair, vertex-instanced children, NaN values.  Never culled, so
+    counted visible by analyze."""
+    held = {o.session_uid for o in held}
+    return [o for o in view_layer.objects
+            if (o.type in DRAWN_TYPES or is_instancer(o)) and o.session_uid not in held and o.visible_get()]
+
+
 class Candidates:
     """The objects that take part in a pass, in view-layer order.
 
-    objects: bpy objects; names: their names (a tuple, compared between
-    passes); layer_index: ``(n,) int64`` position of each in
-    ``view_layer.objects``; culled: ``(n,) bool`` hidden by the add-on now.
+    objects: bpy objects; uids: ``(n,) int64`` session ids; kinds: see :func:`kind`;
+    layer_index: ``(n,) int64`` position in ``view_layer.objects``;
+    culled: ``(n,) bool`` hidden by the add-on now; matrices: ``(n, 4, 4)``
+    world matrices.  give_back: ``(m,) int64`` session ids of objects the add-on
+    hid and must show again (the user hid them too, or their state is unknown);
+    bad: names of objects left out for NaN or infinite values.
     """
 
-    def __init__(self, view_layer):
+    def __init__(self, view_layer, extractor, verify=False):
         self.view_layer = view_layer
-        objects, index, culled = [], [], []
-        for i, o in enumerate(view_layer.objects):    # one visible_get per object; no bulk form exists
-            if o.type not in GEOMETRY_TYPES and not is_instancer(o):
+        layer = view_layer.objects
+        culled_all = visibility.flags("occ_culled", layer)
+        uids_all = visibility.uids(layer)
+        info = extractor.info
+        objects, index, kinds, give_back, memo = [], [], [], [], {}
+        for i, (o, uid, culled) in enumerate(zip(layer.values(), uids_all.tolist(), culled_all.tolist(),
+                                                 strict=True)):   # one visible_get per object; no bulk form
+            if culled and verify:                     # edits to hidden objects are not reported
+                extractor.forget(uid)
+            entry = info.get(uid)
+            if entry is None:
+                entry = info[uid] = (kind(o), o.parent is not None)
+            k = entry[0]
+            if k is None:
+                if culled:
+                    give_back.append(uid)
                 continue
-            ours = o.occ_culled
-            if ours or o.visible_get():               # visible to the user now, or hidden by us
-                objects.append(o)
-                index.append(i)
-                culled.append(ours)
-        self.objects = objects
-        self.names = tuple(o.name for o in objects)
-        self.layer_index = np.array(index, dtype=np.int64)
-        self.culled = np.array(culled, dtype=bool)
+            if culled:
+                # the user hid it too, or it may have changed unseen: give it back
+                if not extractor.user_shown(o, uid, view_layer) or extractor.is_dynamic(o, uid) \
+                        or not extractor.knows(o, k) or (verify and not extractor.unchanged(o, uid, k, memo)):
+                    give_back.append(uid)
+                    continue
+            elif not o.visible_get():
+                continue
+            objects.append(o)
+            index.append(i)
+            kinds.append(k)
+        index = np.array(index, dtype=np.int64)
+        self.culled = culled_all[index]
+        m = _bulk_matrices(layer, "matrix_world")[index] if len(index) else np.zeros((0, 4, 4))
+        hidden = np.flatnonzero(self.culled)
+        if len(hidden):                               # stale matrix_world: rebuilt from matrix_basis
+            m[hidden] = _bulk_matrices(layer, "matrix_basis")[index[hidden]]
+            for k in hidden:
+                if info[int(uids_all[index[k]])][1]:  # parented: through the parent chain
+                    m[k] = world_matrix(objects[k])
+        finite = np.all(np.isfinite(m), axis=(1, 2))
+        self.bad = [objects[k].name for k in np.flatnonzero(~finite)]
+        keep = np.flatnonzero(finite)
+        self.objects = [objects[k] for k in keep]
+        self.kinds = [kinds[k] for k in keep]
+        self.layer_index, self.culled, self.matrices = index[keep], self.culled[keep], m[keep]
+        self.uids = uids_all[self.layer_index]
+        self.give_back = np.array(give_back, dtype=np.int64)
 
     def __len__(self):
         return len(self.objects)
 
 
 class Extractor:
-    """Keeps the last extraction and refreshes only what changed."""
+    """Keeps the last extraction and refreshes only what changed (keys: session ids)."""
 
     def __init__(self):
-        self.cache = {}          # object name -> (mesh key, vertices, faces)
-        self.dirty = set()       # objects whose geometry changed
-        self.touched = set()     # objects whose geometry or transform changed (instanced collections)
+        self.cache = {}          # object uid -> (mesh key, vertices, faces); vertices None: not finite
+        self.dirty = set()       # object uids whose geometry changed
+        self.touched = set()     # object uids whose geometry or transform changed (instanced collections)
+        # What an object is, from its settings (edits report it: :meth:`saw` forgets it):
+        self.info = {}           # uid -> (kind, has a parent)
+        self.dynamic = {}        # uid -> is_dynamic
+        self.shown = {}          # uid -> user_shown (hidden by the add-on); any visibility change clears it
+        self.shown_ids = None    # sorted uids of the objects in shown collections (see shown_by_collections)
+        self.fps = {}            # uid -> fingerprint of the data its cached geometry was read from
+
+    def forget(self, uid):
+        """Forget what object ``uid`` is (it will be classified again)."""
+        self.info.pop(uid, None)
+        self.dynamic.pop(uid, None)
+
+    def unchanged(self, obj, uid, k, memo):
+        """Whether the data of ``obj`` (hidden by the add-on, so not evaluated, and its
+        edits not reported) is what its cached geometry was read from."""
+        fp = self.fps.get(uid)
+        return fp is not None and fp == fingerprint(obj, k, memo)
+
+    def saw(self, update):
+        """A depsgraph update (not our own): forget what it may have changed.  An
+        object's edits report it (while it is shown); eye, collection and view-layer
+        changes report the scene or a collection."""
+        idb = update.id
+        if isinstance(idb, bpy.types.Object):
+            uid = idb.original.session_uid
+            self.info.pop(uid, None)
+            self.shown.pop(uid, None)
+            if self.dynamic.pop(uid, None) is not None and len(idb.original.children):
+                self.dynamic.clear()                  # children inherit what their parent is
+        else:
+            self.shown.clear()
+            self.shown_ids = None
+
+    def user_shown(self, obj, uid, view_layer):
+        hit = self.shown.get(uid)
+        if hit is None:
+            if self.shown_ids is None:
+                self.shown_ids = shown_by_collections(view_layer)
+            hit = self.shown[uid] = bool(user_shown(obj, view_layer, self.shown_ids))
+        return hit
+
+    def is_dynamic(self, obj, uid):
+        hit = self.dynamic.get(uid)
+        if hit is None:
+            hit = self.dynamic[uid] = is_dynamic(obj)
+        return hit
 
     def mark(self, geometry=(), transform=()):
-        """Record depsgraph updates: names whose geometry changed, and names that moved."""
+        """Record depsgraph updates: uids whose geometry changed, and uids that moved."""
         self.dirty.update(geometry)
         self.touched.update(geometry)
         self.touched.update(transform)
 
-    def candidates(self, context):
-        return Candidates(context.view_layer)
+    def candidates(self, context, verify=False):
+        """The pass's candidates; ``verify``: check every object the add-on hides
+        against the data its geometry was read from (see :func:`fingerprint`)."""
+        return Candidates(context.view_layer, self, verify)
+
+    def matrices(self, cand, kept):
+        """World matrices ``(k, 4, 4)`` of candidates ``kept`` (read in bulk with the candidates)."""
+        return cand.matrices[kept]
+
+    def knows(self, obj, k):
+        """Whether the geometry of ``obj`` (hidden by the add-on) is cached and current."""
+        hit = self.cache.get(obj.session_uid)
+        if hit is None:
+            return False
+        if k == "collection":
+            return not self._instance_stale(obj)
+        return obj.session_uid not in self.dirty
 
     def needs_geometry(self, cand):
         """Whether :meth:`scene` must read geometry again for these candidates."""
-        if self.dirty.intersection(cand.names):
+        if self.dirty.intersection(cand.uids.tolist()):
             return True
         if self.touched:
-            for o in cand.objects:
-                if is_instancer(o) and not o.occ_culled and self._instance_stale(o):
+            for o, k, c in zip(cand.objects, cand.kinds, cand.culled, strict=True):
+                if k == "collection" and not c and self._instance_stale(o):
                     return True
         return False
 
@@ -129,73 +362,123 @@ class Extractor:
         self.dirty.clear()
         self.touched.clear()
 
-    def matrices(self, cand, kept):
-        """World matrices ``(k, 4, 4) float64`` of candidates ``kept`` (indices), in bulk."""
-        m = _bulk_matrices(cand.view_layer.objects, "matrix_world")[cand.layer_index[kept]]
-        culled = np.flatnonzero(cand.culled[kept])
-        if len(culled):                                # stale matrix_world: rebuild from matrix_basis
-            basis = _bulk_matrices(cand.view_layer.objects, "matrix_basis")[cand.layer_index[kept]]
-            for k in culled:
-                obj = cand.objects[kept[k]]
-                m[k] = basis[k] if obj.parent is None else world_matrix(obj)
-        return m
-
     def scene(self, context, cand):
-        """``(core.Scene, kept)``: the engine's scene of the candidates with triangles,
-        ``kept`` their indices into ``cand``."""
+        """``(core.Scene, kept, bad)``: the engine's scene of the candidates with finite
+        triangles, ``kept`` their indices into ``cand``, ``bad`` the names left out
+        for NaN or infinite vertices."""
         depsgraph = context.evaluated_depsgraph_get()
-        fresh = {o.name: o for o in cand.objects if is_instancer(o) and not o.occ_culled
-                 and self._instance_stale(o)}
-        for name, (v, f) in _instanced_geometry(depsgraph, fresh).items():
-            o = fresh[name]
+        fresh = {o.session_uid: o for o, k, c in zip(cand.objects, cand.kinds, cand.culled, strict=True)
+                 if not c and ((k == "collection" and self._instance_stale(o))
+                               or (k == "instancer" and (o.session_uid in self.dirty
+                                                         or o.session_uid not in self.cache)))}
+        for uid, (v, f) in _instanced_geometry(depsgraph, fresh).items():
+            o = fresh[uid]
             inv = _inverse(np.array(o.matrix_world, dtype=np.float64))   # instancer-local: a move is a matrix
-            key = ("instance", name, _members(o.instance_collection))
-            self.cache[name] = (key, v @ inv[:3, :3].T + inv[:3, 3], f)
-        names, meshes, mesh_of, kept = [], [], [], []
+            v = v @ inv[:3, :3].T + inv[:3, 3]
+            if o.type == "EMPTY":
+                key = ("instance", uid, _members(o.instance_collection))
+            else:                                  # its own mesh, where drawn, and its instances
+                key = ("object", uid)
+                if o.show_instancer_for_viewport:
+                    ov, of = mesh_arrays(o.evaluated_get(depsgraph))
+                    v, f = np.concatenate([ov, v]), np.concatenate([of, f + len(ov)])
+            self.cache[uid] = (key, _finite_or_none(v), f)
+            self.fps[uid] = fingerprint(o, "collection" if o.type == "EMPTY" else "instancer", {})
+        uids, meshes, mesh_of, kept, bad = [], [], [], [], []
         mesh_index, read = {}, {}
         for i, obj in enumerate(cand.objects):         # once per object, bulk inside
-            entry = self._geometry(obj, depsgraph, read)
-            if entry is None or len(entry[2]) == 0:
+            entry = self._geometry(obj, cand.kinds[i], cand.culled[i], depsgraph, read)
+            if entry is None:
                 continue
             key, v, f = entry
+            if v is None:
+                bad.append(obj.name)
+                continue
+            if len(f) == 0:
+                continue
             if key not in mesh_index:
                 mesh_index[key] = len(meshes)
                 meshes.append((v, f))
-            names.append(obj.name)
+            uids.append(obj.session_uid)
             mesh_of.append(mesh_index[key])
             kept.append(i)
         self.forget_changes()
-        if not names:
-            raise OccError("nothing to cull: the view layer has no visible mesh objects")
+        if not uids:
+            raise OccError("nothing to cull: the view layer has no visible mesh objects"
+                           + (f" (left out for NaN or infinite values: {', '.join(bad)})" if bad else ""))
         kept = np.array(kept, dtype=np.int64)
-        tree_parent, tree_object = _tree(context.scene, [cand.objects[i] for i in kept])
-        scene = Scene.from_arrays(names, meshes, np.array(mesh_of), self.matrices(cand, kept),
-                                  tree_parent, tree_object)
-        return scene, kept
+        objects = [cand.objects[i] for i in kept]
+        tree_parent, tree_object = _tree(context.scene, objects)
+        scene = Scene.from_arrays([o.name for o in objects], meshes, np.array(mesh_of),
+                                  cand.matrices[kept], tree_parent, tree_object)
+        return scene, kept, bad
 
     def _instance_stale(self, obj):
-        hit = self.cache.get(obj.name)
+        hit = self.cache.get(obj.session_uid)
         if hit is None:
             return True
         members = _members(obj.instance_collection)
         return hit[0][2] != members or bool(self.touched.intersection(members))
 
-    def _geometry(self, obj, depsgraph, read):
+    def _geometry(self, obj, k, culled, depsgraph, read):
         """``(key, v, f)`` from the cache when still valid, else from the depsgraph
-        (a shared mesh once per pass: ``read``); None for an object the add-on hid
-        that was never extracted."""
-        hit = self.cache.get(obj.name)
-        if is_instancer(obj) or obj.occ_culled:        # instancers: read above; hidden: not evaluated
+        (a shared mesh once per pass: ``read``); None when unknown.  ``v`` is None
+        for geometry with NaN or infinite vertices."""
+        uid = obj.session_uid
+        hit = self.cache.get(uid)
+        if k != "mesh" or culled:                     # instancers: read above; hidden: not evaluated
             return hit
         shared = obj.type == "MESH" and not obj.modifiers and obj.data.users > 1
-        key = ("mesh", obj.data.name) if shared else ("object", obj.name)
-        if hit is not None and hit[0] == key and obj.name not in self.dirty:
+        key = ("mesh", obj.data.session_uid) if shared else ("object", uid)
+        if hit is not None and hit[0] == key and uid not in self.dirty:
             return hit
         if key not in read:
-            read[key] = mesh_arrays(obj.evaluated_get(depsgraph))
+            v, f = mesh_arrays(obj.evaluated_get(depsgraph))
+            read[key] = (_finite_or_none(v), f)
         v, f = read[key]
-        self.cache[obj.name] = (key, v, f)
+        self.cache[uid] = (key, v, f)
+        self.fps[uid] = fingerprint(obj, k, read)
         return key, v, f
+
+
+def _mesh_fingerprint(mesh, memo):
+    """Sizes and a checksum of a mesh's vertex positions (once per mesh: ``memo``)."""
+    key = ("fp", mesh.session_uid)
+    hit = memo.get(key)
+    if hit is None:
+        co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+        mesh.vertices.foreach_get("co", co)
+        hit = memo[key] = (len(mesh.vertices), len(mesh.polygons), zlib.crc32(co.tobytes()))
+    return hit
+
+
+def _modifiers_fingerprint(obj):
+    return tuple((m.type, m.show_viewport) for m in obj.modifiers)
+
+
+def fingerprint(obj, k, memo):
+    """What the geometry of ``obj`` is read from, as a comparable value: its mesh
+    (sizes and a checksum of its vertices), its display, its modifiers; for a
+    collection instance, its members' and their placement.  None where it cannot
+    be told cheaply (curves, text, metaballs): such an object is shown again to
+    be read.  Modifier settings are not in it: edited while hidden, they are
+    seen once the object is shown."""
+    base = (k, obj.display_type, obj.instance_type)
+    if k == "collection":
+        parts = [base]
+        for m in obj.instance_collection.all_objects:
+            if m.type != "MESH":
+                return None
+            parts.append((m.session_uid, m.display_type, _modifiers_fingerprint(m),
+                          _mesh_fingerprint(m.data, memo), tuple(map(tuple, m.matrix_basis))))
+        return tuple(parts)
+    if obj.type != "MESH":
+        return None
+    return base + (obj.data.session_uid, _modifiers_fingerprint(obj), _mesh_fingerprint(obj.data, memo))
+
+
+def _finite_or_none(v):
+    return v if np.all(np.isfinite(v)) else None
 
 
 def _inverse(m):
@@ -208,38 +491,40 @@ def _inverse(m):
 
 
 def _members(collection):
-    """Names of the objects an instanced collection brings, as a sorted tuple."""
-    return tuple(sorted(o.name for o in collection.all_objects))
+    """Session ids of the objects an instanced collection brings, as a sorted tuple."""
+    return tuple(sorted(o.session_uid for o in collection.all_objects))
 
 
 def _instanced_geometry(depsgraph, instancers):
-    """World-space geometry of collection instancers ``{name: obj}``: ``{name: (v, f)}``."""
+    """World-space geometry of the instances of instancers ``{uid: obj}``: ``{uid: (v, f)}``.
+    Instanced objects displayed as wire or bounds are left out (they occlude nothing)."""
     if not instancers:
         return {}
-    parts = {name: [] for name in instancers}
+    parts = {uid: [] for uid in instancers}
     for inst in depsgraph.object_instances:
         if not inst.is_instance or inst.parent is None:
             continue
-        owner = inst.parent.original.name
-        if owner not in parts or inst.object.type not in GEOMETRY_TYPES:
+        owner = inst.parent.original.session_uid
+        ob = inst.object
+        if owner not in parts or ob.type not in GEOMETRY_TYPES or ob.display_type not in SOLID_DISPLAY:
             continue
-        v, f = mesh_arrays(inst.object)
+        v, f = mesh_arrays(ob)
         m = np.array(inst.matrix_world, dtype=np.float64)
         parts[owner].append((v @ m[:3, :3].T + m[:3, 3], f))
     out = {}
-    for name, pieces in parts.items():
+    for uid, pieces in parts.items():
         base, vs, fs = 0, [], []
         for v, f in pieces:
             vs.append(v)
             fs.append(f + base)
             base += len(v)
-        out[name] = (np.concatenate(vs), np.concatenate(fs)) if pieces else _EMPTY
+        out[uid] = (np.concatenate(vs), np.concatenate(fs)) if pieces else _EMPTY
     return out
 
 
 def _tree(scene, objects):
     """Scene tree over collections (groups) and objects (parents kept)."""
-    index = {o.name: i for i, o in enumerate(objects)}
+    index = {o.session_uid: i for i, o in enumerate(objects)}
     parent, carried, node_of = [], [], {}
 
     def add(obj_index, parent_node):
@@ -250,8 +535,9 @@ def _tree(scene, objects):
     def walk(coll, parent_node):                      # collections: a handful, recursion ok
         node = add(-1, parent_node)
         for obj in coll.objects:
-            if obj.name in index and obj.name not in node_of:
-                node_of[obj.name] = add(index[obj.name], node)
+            uid = obj.session_uid
+            if uid in index and uid not in node_of:
+                node_of[uid] = add(index[uid], node)
         for child in coll.children:
             walk(child, node)
 
@@ -259,6 +545,7 @@ def _tree(scene, objects):
     parent = np.array(parent, dtype=np.int64)
     carried = np.array(carried, dtype=np.int64)
     for obj in objects:                               # object parenting refines the tree
-        if obj.parent is not None and obj.parent.name in node_of and obj.name in node_of:
-            parent[node_of[obj.name]] = node_of[obj.parent.name]
+        p = obj.parent
+        if p is not None and p.session_uid in node_of and obj.session_uid in node_of:
+            parent[node_of[obj.session_uid]] = node_of[p.session_uid]
     return parent, carried

@@ -11,6 +11,7 @@ from bpy.props import BoolProperty, IntProperty, StringProperty
 
 from ..core import OccError, Visibility
 from . import live, overlay, visibility
+from .extract import bystanders
 from .session import SESSION, camera_for, scene_camera
 
 
@@ -24,11 +25,12 @@ class OCC_OT_cull(bpy.types.Operator):
     def execute(self, context):
         try:
             camera, display = camera_for(context)
-            result, objects = SESSION.cull(context, camera, display)
+            result, objects = SESSION.cull(context, camera, display, fresh=True)
             overlay.install()
         except Exception as e:  # every failure is a report, never a traceback
             return failed(self, e)
         s = context.scene.occ
+        warn(self)
         self.report({"INFO"}, f"{s.last_occluded} occluded, {s.last_outside} outside the view, "
                               f"of {s.last_tested} ({s.last_ms:.0f} ms)")
         return {"FINISHED"}
@@ -102,6 +104,8 @@ class OCC_OT_analyze(bpy.types.Operator):
                 camera, display = scene_camera(context)
                 result, objects = SESSION.compute(context, camera, display)   # nothing is hidden
                 names = [o.name for o, s in zip(objects, result.state, strict=True) if s == Visibility.VISIBLE]
+                extra = bystanders(context.view_layer, objects)   # drawn, never culled: visible
+                objects, names = objects + extra, names + [o.name for o in extra]
                 per_frame.append({"frame": f, "visible": names})
                 for o in objects:
                     seen.setdefault(o.name, 0)
@@ -117,9 +121,19 @@ class OCC_OT_analyze(bpy.types.Operator):
         never = sorted(n for n, c in seen.items() if c == 0)
         if self.link_never_visible:
             link_collection(scene, "Never Visible", never)
+        warn(self)
         self.report({"INFO"}, f"{len(frames)} frames in {time.perf_counter() - t:.1f} s; "
                               f"{len(never)} of {len(seen)} objects never visible; report {path}")
         return {"FINISHED"}
+
+
+def warn(op):
+    """Name the objects the last pass left out (kept visible, not occluders)."""
+    bad = SESSION.warnings
+    if bad:
+        shown = ", ".join(bad[:10]) + (f" and {len(bad) - 10} more" if len(bad) > 10 else "")
+        op.report({"WARNING"}, f"left visible and not used as occluders, for NaN or infinite "
+                               f"values in their transform or vertices: {shown}")
 
 
 def failed(op, error):
@@ -157,9 +171,15 @@ def write_report(path, frames, per_frame, seen):
 
 
 def link_collection(scene, name, object_names):
+    """Make collection ``name`` hold exactly ``object_names`` (an earlier analysis's
+    objects that this one saw are unlinked: deleting the collection's contents
+    must never delete what the camera sees)."""
     coll = bpy.data.collections.get(name) or bpy.data.collections.new(name)
     if coll.name not in scene.collection.children:
         scene.collection.children.link(coll)
+    wanted = set(object_names)
+    for obj in [o for o in coll.objects if o.name not in wanted]:
+        coll.objects.unlink(obj)
     for n in object_names:
         obj = bpy.data.objects.get(n)
         if obj is not None and obj.name not in coll.objects:

@@ -12,6 +12,13 @@ STRATEGY_ITEMS = [
 ]
 
 
+def _changed(_self, _context):
+    """A setting that changes what may be hidden: live mode re-culls."""
+    from .session import LISTENERS
+    for f in LISTENERS:
+        f()
+
+
 class OccSettings(bpy.types.PropertyGroup):
     source: EnumProperty(
         name="Source", default="VIEWPORT",
@@ -27,8 +34,9 @@ class OccSettings(bpy.types.PropertyGroup):
         description="Longest side of the query buffer; larger displays are scaled down to it")
     exclude_collection: PointerProperty(
         name="Exclude", type=bpy.types.Collection,
-        description="Objects of this collection are never hidden (they still hide others)")
-    exclude_children: BoolProperty(name="Include Child Collections", default=True)
+        description="Objects of this collection are never hidden (they still hide others)",
+        update=_changed)
+    exclude_children: BoolProperty(name="Include Child Collections", default=True, update=_changed)
     live: BoolProperty(name="Live", default=False, description="Re-cull when the view changes")
     show_overlay: BoolProperty(name="Overlay", default=True,
                                description="Draw the culled boxes and the figures of the last pass")
@@ -48,9 +56,10 @@ def register():
         bpy.utils.register_class(cls)
     bpy.types.Scene.occ = PointerProperty(type=OccSettings)
     bpy.types.Object.occ_never_cull = BoolProperty(
-        name="Never Cull", default=False, description="The occlusion culler never hides this object")
-    # The record of what the add-on hid; saved in the .blend, so a file left
-    # culled is restored on load.
+        name="Never Cull", default=False, description="The occlusion culler never hides this object",
+        update=_changed)
+    # The record of what the add-on hid (with hide_viewport True: see visibility.py).
+    # Files are saved without it; one that carries it (older versions) is restored on load.
     bpy.types.Object.occ_culled = BoolProperty(name="Hidden by Occlusion Culling", default=False,
                                                options={"HIDDEN"})
 

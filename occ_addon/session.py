@@ -32,20 +32,23 @@ class Session:
         self.chunks = ChunkCache()  # chunkings outlive engines: a resized viewport re-cuts nothing
         self.worker = EngineThread()
         self.culler = None
-        self.names = None          # candidate names the engine was built for
+        self.uids = None           # candidate session ids the engine was built for
         self.kept = None           # (k,) indices of the candidates the engine holds
-        self.kept_names = None     # (k,) object array of their names
+        self.kept_uids = None      # (k,) their session ids
         self.resolution = None
         self.last = None           # the last applied pass, for the overlay (see :meth:`cull`)
         self.version = 0           # bumped by every applied pass
         self.applying = False      # the depsgraph updates now are our own hiding's
+        self.warnings = []         # objects left out of the last pass, for the report
+        self.bad_geometry = []     # of them, those left out for their vertices (known since the last build)
 
     def reset(self):
-        """Forget everything (a file was loaded, or the add-on goes away)."""
+        """Forget everything (a file was loaded, an undo or redo, or the add-on goes away):
+        Blender may hand back the same session ids with other contents."""
         self.release()
         self.extractor = Extractor()
-        self.chunks = ChunkCache()
-        self.names = self.kept = self.kept_names = None
+        self.uids = self.kept = self.kept_uids = None
+        self.bad_geometry = []
         self.last = None
         self.version += 1
 
@@ -56,18 +59,34 @@ class Session:
 
     def shutdown(self):
         self.reset()
+        self.chunks = ChunkCache()
         self.worker.shutdown()
 
-    def engine(self, context, resolution, strategy):
+    def candidates(self, context, verify=False):
+        """The candidates of a pass; objects the add-on hid and must give back
+        (hidden by the user too, not evaluated and able to change, or, with
+        ``verify``, edited since they were read) are shown first and evaluated,
+        so the pass sees them as Blender draws them."""
+        cand = self.extractor.candidates(context, verify)
+        if len(cand.give_back):
+            visibility.release(np.isin(visibility.uids(), cand.give_back))
+            context.view_layer.update()
+            cand = self.extractor.candidates(context)
+        return cand
+
+    def engine(self, context, resolution, strategy, verify=False):
         """The engine for the current candidates: rebuilt when objects or geometry
         changed, otherwise only the moved objects' matrices are sent."""
-        cand = self.extractor.candidates(context)
+        cand = self.candidates(context, verify)
+        self.warnings = list(cand.bad)
         if not len(cand):
             raise OccError("nothing to cull: the view layer has no visible mesh objects")
-        rebuild = (self.culler is None or cand.names != self.names or resolution != self.resolution
+        uids = tuple(cand.uids.tolist())
+        rebuild = (self.culler is None or uids != self.uids or resolution != self.resolution
                    or self.extractor.needs_geometry(cand))
         if rebuild:
-            scene, kept = self.extractor.scene(context, cand)
+            scene, kept, bad = self.extractor.scene(context, cand)
+            self.warnings += bad
             if self.culler is not None and resolution == self.resolution:
                 # same context; meshes read unchanged from the cache keep their chunks
                 self.worker.run(self.culler.replace_scene, scene)
@@ -77,38 +96,49 @@ class Session:
                 self.release()
                 self.culler = self.worker.run(Culler, scene, resolution, strategy=strategy,
                                               chunk_triangles=CHUNK_TRIANGLES, chunk_cache=self.chunks)
-            self.names, self.kept, self.resolution = cand.names, kept, resolution
-            self.kept_names = np.array(scene.names, dtype=object)
+            self.uids, self.kept, self.resolution = uids, kept, resolution
+            self.kept_uids = cand.uids[kept]
+            self.bad_geometry = bad
         else:
+            self.warnings += self.bad_geometry
             if strategy != self.culler.strategy_name:
                 self.worker.run(self.culler.set_strategy, strategy)
-            m = self.extractor.matrices(cand, self.kept)
+            m = cand.matrices[self.kept]
             moved = np.flatnonzero(np.any(m != self.culler.scene.matrices, axis=(1, 2)))
             if len(moved):
                 self.worker.run(self.culler.set_matrices, moved, m[moved])
         return self.culler, [cand.objects[i] for i in self.kept]
 
-    def compute(self, context, camera, display):
-        """Visibility from ``camera`` at ``display`` resolution, without hiding anything."""
+    def compute(self, context, camera, display, fresh=True):
+        """Visibility from ``camera`` at ``display`` resolution, without hiding anything.
+        ``fresh``: the strategy forgets earlier passes (a Cull click, a camera cut,
+        analyze); only a live pass right after a small view change keeps its memory."""
         settings = context.scene.occ
         options = preset(settings.preset)
         res = query_resolution(fit(display, settings.max_resolution), options)
-        culler, objects = self.engine(context, res, settings.strategy)
+        # a fresh pass (a click, analyze, a scene change) also checks what the add-on
+        # hides against its data: edits to hidden objects are never reported
+        culler, objects = self.engine(context, res, settings.strategy, verify=fresh)
         culler.options = options
+        forget = getattr(culler.strategy, "forget", None)
+        if fresh and forget is not None:
+            forget()
         return self.worker.run(culler.cull, camera), objects
 
-    def cull(self, context, camera, display):
+    def cull(self, context, camera, display, fresh=False):
         """One pass: cull from ``camera`` at ``display`` resolution and apply it."""
         settings = context.scene.occ
         t = time.perf_counter()
+        visibility.reconcile()                 # what the user showed is the user's
         context.view_layer.update()            # edits still pending reach the handler now, not below
-        result, objects = self.compute(context, camera, display)
+        result, objects = self.compute(context, camera, display, fresh)
         state = result.state
         culled = state != Visibility.VISIBLE
-        protected = visibility.protected(settings, self.kept_names)
-        visibility.apply(self.kept_names[culled & ~protected])
+        protected = self.protected(context, objects, culled)
+        hide = np.isin(visibility.uids(), self.kept_uids[culled & ~protected])
         self.applying = True
         try:
+            visibility.apply(hide)
             # Showing an object again makes the depsgraph report it, and every
             # object sharing its mesh, as changed geometry.  Nothing else can have
             # changed since the update above, so evaluate now and let the handler
@@ -127,6 +157,24 @@ class Session:
                      "occupancy": result.occupancy, "stats": result.stats, "ms": ms}
         self.version += 1
         return result, objects
+
+    def protected(self, context, objects, culled):
+        """``(k,) bool`` over the engine's objects: never hidden.  The user's
+        "never cull" flag and exclusion collection, and dynamic objects (Blender
+        stops evaluating what is hidden: see :func:`.extract.is_dynamic`), judged
+        only where the engine would hide."""
+        settings = context.scene.occ
+        out = np.zeros(len(objects), dtype=bool)
+        flagged = visibility.uids()[visibility.flags("occ_never_cull")]
+        coll = settings.exclude_collection
+        if coll is not None:
+            members = coll.all_objects if settings.exclude_children else coll.objects
+            flagged = np.concatenate([flagged, visibility.uids(members)])
+        out[np.isin(self.kept_uids, flagged)] = True
+        extractor = self.extractor
+        for k in np.flatnonzero(culled & ~out):        # O(hidden), cached: what Blender has no bulk form of
+            out[k] = extractor.is_dynamic(objects[k], int(self.kept_uids[k]))
+        return out
 
 
 SESSION = Session()
@@ -170,20 +218,51 @@ def viewport_camera(context):
     return camera, (region.width, region.height)
 
 
+def camera_view(cam):
+    """View matrix of a camera object as Blender renders it: from the rotation and
+    position of its world matrix, its scale ignored (a mirroring scale keeps its
+    sign: Blender renders a mirrored camera mirrored)."""
+    m = np.array(cam.matrix_world, dtype=np.float64)
+    axes = m[:3, :3]
+    length = np.linalg.norm(axes, axis=0)
+    if not np.all(np.isfinite(m)) or np.any(length < 1e-12 * max(1.0, float(np.abs(m[:3, 3]).max()))):
+        raise OccError(f"the camera '{cam.name}' has a scale of 0 or a NaN in its transform: "
+                       "its view direction is undefined; reset its scale (Alt+S)")
+    world = np.eye(4)
+    world[:3, :3] = axes / length
+    world[:3, 3] = m[:3, 3]
+    if abs(np.linalg.det(world[:3, :3])) < 0.5:        # sheared beyond recognition
+        raise OccError(f"the camera '{cam.name}' has a sheared transform: apply or clear its parent's scale")
+    return np.linalg.inv(world)
+
+
 def scene_camera(context, scene=None):
-    """Camera and render size of the scene camera."""
+    """Camera and render size of the scene camera, as Blender renders it (scale
+    ignored; lens, shift, sensor fit, clipping and orthographic from
+    ``calc_matrix_camera``).  Panoramic cameras are refused."""
     scene = scene or context.scene
     cam = scene.camera
     if cam is None:
         raise OccError("the scene has no camera: add one or cull from the viewport")
+    if cam.type != "CAMERA":
+        raise OccError(f"the scene camera '{cam.name}' is a {cam.type.lower()}, not a camera")
+    if cam.data.type == "PANO":
+        raise OccError(f"the camera '{cam.name}' is panoramic: only perspective and orthographic "
+                       "cameras can be culled for; cull from the viewport instead")
     r = scene.render
     w = int(r.resolution_x * r.resolution_percentage / 100)
     h = int(r.resolution_y * r.resolution_percentage / 100)
     depsgraph = context.evaluated_depsgraph_get()
-    proj = cam.calc_matrix_camera(depsgraph, x=max(w, 1), y=max(h, 1),
-                                  scale_x=r.pixel_aspect_x, scale_y=r.pixel_aspect_y)
-    view = np.array(cam.matrix_world.inverted())
-    return Camera.from_matrices(view, np.array(proj)), (w, h)
+    proj = np.array(cam.calc_matrix_camera(depsgraph, x=max(w, 1), y=max(h, 1),
+                                           scale_x=r.pixel_aspect_x, scale_y=r.pixel_aspect_y))
+    view = camera_view(cam)
+    if np.linalg.det(view[:3, :3]) < 0:
+        # A mirrored camera sees what the camera mirrored back (its x axis turned
+        # and its x shift negated) sees, in a mirrored image: the same objects,
+        # with the ordinary winding.
+        flip = np.diag([-1.0, 1.0, 1.0, 1.0])
+        view, proj = flip @ view, flip @ proj @ flip
+    return Camera.from_matrices(view, proj), (w, h)
 
 
 def camera_for(context):
@@ -192,18 +271,42 @@ def camera_for(context):
     return viewport_camera(context)
 
 
+LISTENERS = []          # called with no argument after every change not our own (live mode)
+
+
 @persistent          # kept across file loads, like the add-on itself
 def on_depsgraph_update(scene, depsgraph):
     """Mark what changed: geometry -> re-extract those objects (and instances of
-    collections holding them); transforms are read in bulk every pass anyway."""
+    collections holding them); transforms are read in bulk every pass anyway.
+    An object the user showed leaves the add-on's record here (every show is
+    evaluated, so reported), before the user can hide it again."""
     if SESSION.applying:
         return
+    visibility.reconcile()
+    _mark(depsgraph)
+    for f in LISTENERS:
+        f()
+
+
+@persistent
+def on_frame_change(scene, depsgraph):
+    """Animation moved things: the same marks as an edit (the frame's depsgraph reports them)."""
+    if depsgraph is not None:
+        _mark(depsgraph, edits=False)           # animation changes values, not what objects are
+    for f in LISTENERS:
+        f()
+
+
+def _mark(depsgraph, edits=True):
     geometry, moved = [], []
+    extractor = SESSION.extractor
     for update in depsgraph.updates:
+        if edits:
+            extractor.saw(update)
         if isinstance(update.id, bpy.types.Object):
             if update.is_updated_geometry:
-                geometry.append(update.id.original.name)
+                geometry.append(update.id.original.session_uid)
             elif update.is_updated_transform:
-                moved.append(update.id.original.name)
+                moved.append(update.id.original.session_uid)
     if geometry or moved:
         SESSION.extractor.mark(geometry, moved)

@@ -1,84 +1,132 @@
-"""Hiding and restoring, non-destructively, in bulk.
+"""Hiding and restoring, non-destructively, in bulk; the user owns every hide flag.
 
-The add-on hides with ``hide_viewport`` set through one ``foreach_set`` over
-``bpy.data.objects`` (O(n) in C, no per-object ``hide_set`` loop, which costs
-O(n) per call) and records every object it hid in ``Object.occ_culled``, saved
-in the .blend.  It never touches an object the user hid (eye or monitor), an
-excluded one, or one marked "never cull"; restoring clears exactly its record.
-Local-view bits would leave even ``hide_viewport`` alone, but they exist only
-while a viewport is in local view and never in background mode, where the
-same operators must work.
+The add-on hides with ``hide_viewport`` (the monitor icon) written by one
+``foreach_set`` over ``bpy.data.objects`` and records what it hid in
+``Object.occ_culled``.  The pair (``occ_culled``, ``hide_viewport``) is the
+record: ``occ_culled`` set means "the add-on wrote hide_viewport = True here".
 
-Blender neither evaluates nor reports (depsgraph updates) an object while it is
-hidden, so an edit made by script to an object the add-on hides is read only
-once the object is shown again (``occ.restore``, or a pass that finds it
-visible by its last extracted shape).
+- An object the user shows (monitor icon, script) has ``occ_culled`` with
+  ``hide_viewport`` off: the user touched it, it leaves the record
+  (:func:`reconcile`, run by the depsgraph handler after every change, by every
+  pass and by Restore).  A later hide by the user is then the user's, and
+  Restore leaves it alone (the handler sees the show in between: every show is
+  evaluated, so it is reported).
+- The add-on never takes over an object the user hid in any way (eye,
+  monitor, collection eye / monitor / exclude, view layer): such objects are
+  not candidates (:mod:`.extract`), and one the add-on had hidden is given
+  back: its ``hide_viewport`` is cleared, the user's own hide keeps it hidden.
+- Restore (:func:`restore`) clears exactly the record.  Files are never saved
+  with the add-on's hiding in them (:func:`lift` before save, :func:`reapply`
+  after), and a file that carries a record (an older version, or a crash)
+  is restored on load and when the add-on is enabled.
+
+A bulk ``foreach_set`` skips RNA update callbacks.  Blender re-syncs its
+per-view-layer bases only from an ordinary assignment, and an object shown
+again must also be re-evaluated (it was not evaluated while hidden, so its
+animation would stay at the frame it was hidden on): every object shown is
+tagged (O(shown), cheap), and one ordinary assignment re-syncs the bases.
 """
 
 import bpy
 import numpy as np
 
+# Shown again: re-evaluate transform, geometry and animation at the current frame.
+SHOW_TAG = {"OBJECT", "DATA", "TIME"}
 
-def _flags(prop):
-    objs = bpy.data.objects
+
+def flags(prop, collection=None):
+    """``(n,) bool`` of a boolean property over ``collection`` (default ``bpy.data.objects``)."""
+    objs = bpy.data.objects if collection is None else collection
     out = np.zeros(len(objs), dtype=bool)
     objs.foreach_get(prop, out)
     return out
 
 
-def _set(prop, values):
+def uids(collection=None):
+    """``(n,) int64`` session ids over ``collection`` (default ``bpy.data.objects``)."""
+    objs = bpy.data.objects if collection is None else collection
+    out = np.zeros(len(objs), dtype=np.int64)
+    objs.foreach_get("session_uid", out)
+    return out
+
+
+def write(hide, record):
+    """Set ``hide_viewport`` and ``occ_culled`` of every object (``(n,) bool`` each)
+    in bulk; objects shown by this write are tagged for evaluation and the
+    view layers' bases are re-synced once."""
     objs = bpy.data.objects
-    objs.foreach_set(prop, np.ascontiguousarray(values, dtype=bool))
-    if prop == "hide_viewport" and len(objs):
-        # foreach_set skips RNA update callbacks; one ordinary assignment fires the
-        # hide update once, which re-syncs every base of every view layer (O(n), once).
-        first = objs[0]
-        first.hide_viewport = bool(values[0])
+    old = flags("hide_viewport")
+    hide = np.ascontiguousarray(hide, dtype=bool)
+    changed = np.flatnonzero(old != hide)
+    if len(changed):
+        objs.foreach_set("hide_viewport", hide)
+    objs.foreach_set("occ_culled", np.ascontiguousarray(record, dtype=bool))
+    if not len(changed):
+        return
+    shown = changed[~hide[changed]]
+    if len(shown):
+        items = objs.values()                      # one list; ListBase indexing is O(i) per call
+        for i in shown:                            # O(shown): a tag each, no re-sync each
+            items[i].update_tag(refresh=SHOW_TAG)
+    first = objs[int(changed[0])]
+    first.hide_viewport = bool(hide[changed[0]])   # the RNA update: bases re-synced, relations rebuilt
 
 
-def protected(settings, names):
-    """``(k,) bool`` over ``names``: objects the user protected from hiding (the
-    exclusion collection, with its children when asked, and "never cull")."""
-    objs = bpy.data.objects
-    flagged = np.flatnonzero(_flags("occ_never_cull"))
-    keep = set()
-    if len(flagged):
-        all_names = objs.keys()
-        keep.update(all_names[i] for i in flagged)
-    coll = settings.exclude_collection
-    if coll is not None:
-        keep.update(o.name for o in (coll.all_objects if settings.exclude_children else coll.objects))
-    if not keep:
-        return np.zeros(len(names), dtype=bool)
-    return np.fromiter((n in keep for n in names), dtype=bool, count=len(names))
+def reconcile():
+    """Drop from the record every object the user showed since the add-on hid it;
+    returns how many."""
+    culled = flags("occ_culled")
+    if not culled.any():
+        return 0
+    touched = culled & ~flags("hide_viewport")
+    if touched.any():
+        bpy.data.objects.foreach_set("occ_culled", culled & ~touched)
+    return int(touched.sum())
 
 
-def apply(hide_names):
-    """Make exactly ``hide_names`` (minus protected ones) hidden by the add-on.
-
-    Objects the add-on hid before and that are not in ``hide_names`` come back.
-    Returns the number of objects hidden now.
-    """
-    objs = bpy.data.objects
-    culled = _flags("occ_culled")
-    hidden = _flags("hide_viewport")
-    want = np.zeros(len(objs), dtype=bool)
-    if len(hide_names):
-        lookup = {name: i for i, name in enumerate(objs.keys())}
-        idx = [lookup[n] for n in hide_names if n in lookup]
-        want[idx] = True
-    # never take over an object the user hid: only ours or currently shown ones
-    want &= culled | ~hidden
-    _set("hide_viewport", np.where(culled, False, hidden) | want)
-    _set("occ_culled", want)
+def apply(hide):
+    """Make exactly ``hide`` (``(n,) bool`` over ``bpy.data.objects``) hidden by the
+    add-on; every other object it hid comes back.  Returns how many are hidden."""
+    reconcile()
+    culled = flags("occ_culled")
+    hidden = flags("hide_viewport")
+    want = np.asarray(hide, dtype=bool) & (culled | ~hidden)   # never take over a user's hide
+    write(np.where(culled, False, hidden) | want, want)
     return int(want.sum())
 
 
-def restore():
-    """Show again every object the add-on hid; returns how many."""
-    culled = _flags("occ_culled")
-    if not culled.any():
+def release(mask):
+    """Show again the objects of ``mask`` (``(n,) bool``) that the add-on hid; returns how many."""
+    reconcile()
+    culled = flags("occ_culled")
+    give = culled & np.asarray(mask, dtype=bool)
+    if not give.any():
         return 0
-    _set("hide_viewport", _flags("hide_viewport") & ~culled)
-    _set("occ_culled", np.zeros_like(culled))
-    return int(culled.sum())
+    write(flags("hide_viewport") & ~give, culled & ~give)
+    return int(give.sum())
+
+
+def restore():
+    """Show again every object the add-on hid (and only those); returns how many."""
+    return release(np.ones(len(bpy.data.objects), dtype=bool))
+
+
+# --- files are saved without the add-on's hiding ------------------------------------
+_lifted = {"uids": None}
+
+
+def lift():
+    """Before a save: show what the add-on hid, remembering it (session ids)."""
+    culled = flags("occ_culled")
+    _lifted["uids"] = uids()[culled] if culled.any() else None
+    if culled.any():
+        restore()
+
+
+def reapply():
+    """After a save: hide again what :func:`lift` showed, where the user has not
+    hidden it since (nothing can change in between but the file on disk)."""
+    lifted, _lifted["uids"] = _lifted["uids"], None
+    if lifted is None:
+        return
+    apply(np.isin(uids(), lifted))

@@ -1,0 +1,78 @@
+"""Issue 9's numbered cases in real Blender (bpy from PyPI): one test per check of
+``cases.py``, which runs once in a subprocess against the zip built by Blender's
+own extension CLI (see test_blender.py)."""
+
+import importlib.util
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+CASES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "cases.py")
+PYTHON = os.environ.get("OCC_BPY_PYTHON", sys.executable)
+
+pytestmark = [
+    pytest.mark.blender,
+    pytest.mark.skipif(PYTHON == sys.executable and importlib.util.find_spec("bpy") is None,
+                       reason="bpy is not installed (make test installs bpy==5.0.1)"),
+]
+
+CHECKS = [
+    *[f"case1_{w}_{c}" for w in ("eye", "collection_eye", "collection_monitor", "collection_exclude")
+      for c in ("not_occluder", "truth", "user_show_wins")],
+    "case2_dynamic_never_hidden", "case2_dynamic_in_view_drawn", "case2_truth",
+    "case2_stale_record_given_back", "case2_stale_record_truth", "case2_restore_draws_current_frame",
+    *[f"case3_{t}_{c}" for t in ("small", "mirrored", "large", "nonuniform") for c in ("scale_camera", "truth")],
+    "case3_mirrored_through_hole", "case3_mirrored_hole_truth",
+    "case4_gn_instancer_kept", "case4_vert_instances_kept", "case4_truth",
+    "case4_instances_occlude", "case4_occlude_truth", "case4_analyze_sees_instancer",
+    "case5_swapped_names", "case5_swap_truth", "case5_delete_rename", "case5_delete_truth",
+    "case6_occluder_moved_recull", "case6_moved_truth", "case6_never_cull_recull", "case6_undo_keeps_live",
+    "case6_reload_live_true_state",
+    "case7_restore_keeps_user_hide", "case7_pass_keeps_user_hide",
+    "case8_still_culled_after_save", "case8_file_opens_shown_without_addon", "case8_enable_after_load_restores",
+    "case8_load_restores", "case8_analyze_counts_hidden",
+    "case10_wire_not_occluder", "case10_wire_truth", "case10_bounds_not_occluder", "case10_bounds_truth",
+    "case10_wire_analyzed_visible", "case10_bounds_analyzed_visible",
+    "case10_panoramic_refused", "case10_never_visible_exact",
+    "case11_nan_matrix_named", "case11_nan_vertices_named", "case11_camera_scale_zero_reported",
+    "case12_moved_into_exclude_drawn", "case12_undo_restore_drawn",
+    "hidden_edit_move_seen", "hidden_edit_move_truth", "hidden_edit_nan_seen", "hidden_edit_nan_truth",
+]
+
+
+@pytest.fixture(scope="session")
+def case_run(tmp_path_factory):
+    work = tmp_path_factory.mktemp("blender_cases")
+    dist = work / "dist"
+    subprocess.run([PYTHON, os.path.join(ROOT, "tools", "build_extension.py"), "--no-wheels",
+                    "--out", str(dist)], cwd=ROOT, check=True, capture_output=True, timeout=300)
+    zips = sorted(dist.glob("*.zip"))
+    assert len(zips) == 1, zips
+    env = {**os.environ, "BLENDER_USER_RESOURCES": str(work / "user")}
+    p = subprocess.run([PYTHON, CASES, str(zips[0]), str(work), ROOT], cwd=str(work), env=env,
+                       capture_output=True, text=True, timeout=600)
+    line = next((ln for ln in p.stdout.splitlines() if ln.startswith("OCC_RESULTS ")), None)
+    assert line is not None, f"cases printed no results (rc {p.returncode}):\n{p.stdout[-3000:]}\n{p.stderr[-3000:]}"
+    return json.loads(line[len("OCC_RESULTS "):]), p
+
+
+def test_no_case_crashed(case_run):
+    crashed = {k: v for k, v in case_run[0].items() if k.endswith("_crashed")}
+    assert not crashed, crashed
+
+
+def test_exit_is_quiet(case_run):
+    """Case 11: a headless script that culled exits without a traceback (unregister at exit)."""
+    err = case_run[1].stderr
+    assert "cannot schedule new futures" not in err and "Exception in module unregister" not in err, err[-3000:]
+
+
+@pytest.mark.parametrize("name", CHECKS)
+def test_case(case_run, name):
+    assert name in case_run[0], f"the cases never reached '{name}'"
+    ok, detail = case_run[0][name]
+    assert ok, detail
