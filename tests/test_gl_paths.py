@@ -396,3 +396,19 @@ def test_missing_libegl_error_lists_each_version_tried(monkeypatch):
     monkeypatch.delenv("OCC_GL", raising=False)
     with pytest.raises(OccError, match=r"OpenGL 4\.3: .*; OpenGL 4\.1: .*apt-get install libegl1"):
         create_context()
+
+
+@pytest.mark.parametrize("path", PATHS)
+def test_huge_and_infinite_boxes_keep_their_samples(ctx, path):
+    """A box reaching 1e300 or infinity (beyond float32) answers as one just larger than
+    the view: its part inside the frustum is all that is drawn."""
+    scene = boxes_scene([((-4, -4, 0), (0, 4, 1))])          # covers the left half
+    r = GLRenderer(scene, 8, 8, ctx=ctx, path=path)
+    cam = ortho_cam()
+    r.begin_frame(cam)
+    r.draw([0])
+    big = np.array([((-20, -20, 3), (20, 20, 4)), ((-20, -20, -3), (20, 20, -2)),
+                    ((-1e300, -1e300, 3), (1e300, 1e300, 4)), ((-np.inf, -np.inf, -3), (np.inf, np.inf, -2))])
+    with np.errstate(over="raise"):
+        assert r.query(big - cam.eye).tolist() == [64, 32, 64, 32]
+    r.release()

@@ -54,6 +54,8 @@ RECORD = np.dtype([("mvp", "<f4", (16,)), ("id", "<u4")])
 STREAM_ALIGN = 340                      # lcm(CMD_BYTES, RECORD.itemsize): a chunk starts on both
 # GL state this package set last, per context: renderers sharing a context share it.
 _CONTEXT_STATE = weakref.WeakKeyDictionary()
+F32_SAFE = 1e30                         # far inside float32's range, after a projection too
+NDC_CORNERS = np.array([(x, y, z, 1.0) for z in (-1, 1) for y in (-1, 1) for x in (-1, 1)])
 COUNTER_KEYS = ("gl_calls", "blocking_reads", "query_fragments", "draws", "query_batches")
 BOX_TRIANGLES = S.BOX_TRIANGLES
 
@@ -61,6 +63,18 @@ BOX_TRIANGLES = S.BOX_TRIANGLES
 def box_vertices(boxes):
     """Triangle-list vertices of boxes: ``(k, 2, 3)`` -> ``(k * 36, 3) float32``."""
     return corners(boxes)[:, BOX_TRIANGLES].reshape(-1, 3).astype(np.float32)
+
+
+def _view_extent(clip):
+    """Half-size of a cube about the eye that holds the whole view frustum of ``clip``
+    (camera-relative), with a margin; at most ``F32_SAFE``."""
+    try:
+        c = NDC_CORNERS @ np.linalg.inv(clip).T
+    except np.linalg.LinAlgError:
+        return F32_SAFE
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.abs(c[:, :3] / c[:, 3:]).max()
+    return float(min(2.0 * r, F32_SAFE)) if np.isfinite(r) else F32_SAFE
 
 
 def _ceil_to(x, m):
@@ -203,6 +217,7 @@ class GLRenderer:
         self.eye = np.zeros(3)
         self.clip = np.eye(4)
         self.front_face = "ccw"
+        self.view_extent = F32_SAFE
         self._vp_set = set()
         self._dirty = None             # query-pixel rectangle drawn at display resolution since
                                        # the last reduction, [x0, y0, x1, y1] inclusive, or None
@@ -298,6 +313,7 @@ class GLRenderer:
         # A mirrored camera (negative-determinant view) flips the winding on screen; with
         # OpenGL's clip z pointing away from the eye, an unmirrored camera has det < 0.
         self.front_face = "ccw" if np.linalg.det(self.clip) < 0 else "cw"
+        self.view_extent = _view_extent(self.clip)
         self._state.clear()                                # set everything once a frame
         self.ctx.enable(self.ctx.DEPTH_TEST)
         self.fbo.clear(depth=1.0)                          # leaves the bound framebuffer's mask as is
@@ -403,7 +419,9 @@ class GLRenderer:
     def query_async(self, boxes_rel, counts=True):
         """Issue a query batch now; its :class:`PendingQuery` reads the answer later, so
         CPU work can overlap the GPU.  Later draws do not change this batch's answer."""
-        boxes_rel = np.asarray(boxes_rel, dtype=np.float64)
+        # Exact: clipped to a cube around the view frustum, a box keeps every sample it
+        # has (its part in the frustum is unchanged), and huge boxes stay in float32.
+        boxes_rel = np.clip(np.asarray(boxes_rel, dtype=np.float64), -self.view_extent, self.view_extent)
         k = len(boxes_rel)
         if k == 0:
             return PendingQuery(lambda: _DONE_EMPTY.copy())
