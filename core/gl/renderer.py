@@ -10,7 +10,7 @@ scene 1e6 units from the origin renders as well as one at it; this is done in
 Two GL paths (see :mod:`core.gl.context`; ``OCC_GL=4.1`` forces the second):
 
 - 4.3: a ``draw`` is one ``glMultiDrawElementsIndirect`` whose commands and per-draw
-  MVPs go up in one buffer write (a per-frame stream, picked by baseInstance).  A
+  MVPs go up in one buffer write (a ring of draw data, picked by baseInstance).  A
   query batch is ONE instanced draw of all its boxes (corners expanded in the vertex
   shader), early depth test ``<=``, no depth or colour write; every passing fragment
   adds one to its box's counter in a storage buffer (or, with ``counts=False``, sets
@@ -234,7 +234,9 @@ class GLRenderer:
         self.id_prog = self._program(S.ID_VERTEX_43, S.ID_FRAGMENT)
         self.box_progs = {True: self._program(S.BOX_VERTEX_43, S.BOX_COUNT_FRAGMENT_43),
                           False: self._program(S.BOX_VERTEX_43, S.BOX_FLAG_FRAGMENT_43)}
-        # The per-frame stream: chunks of [indirect commands | per-instance records].
+        # The draw stream, a ring: chunks of [indirect commands | per-instance records]
+        # appended frame after frame; when full it is orphaned (draws in flight keep the
+        # old storage) and filled again from 0.
         self.stream_size = _pow2(STREAM_ALIGN + (CMD_BYTES + RECORD.itemsize) * max(len(self.units), 1)
                                  + RECORD.itemsize, least=4096)
         self.stream = ctx.buffer(reserve=self.stream_size)
@@ -323,10 +325,6 @@ class GLRenderer:
             self._count()
         self._dirty = None
         self._vp_set = set()                               # box programs given this frame's matrix
-        if self.path == "4.3" and self.stream_at:
-            self.stream.orphan(self.stream_size)           # last frame's draws keep their storage
-            self.stream_at = 0
-            self._count()
 
     def _mvps(self, units):
         """Camera-relative MVPs of ``units``: float64 math, then ``(k, 4, 4) float32``
