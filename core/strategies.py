@@ -29,7 +29,8 @@ less before a query can only make it say "visible" more often.
                stage 3 queries all that remain.
 - ``om_coherent`` om_multi that draws last pass's visible leaves first, without
                queries, re-checking each every few passes (temporal coherence);
-               after a camera cut or a sparse pass it starts fresh.
+               after a camera cut or a sparse pass it starts fresh; at most
+               ``COHERENT_READS`` multiple queries (GPU round trips) a pass.
 - ``two_pass`` GPU-driven: last pass's visible leaves drawn first, every other leaf
                of the frustum tested in one batch, the nearer half of those that pass
                drawn and the rest tested once more (a handful of GL calls a pass);
@@ -52,6 +53,7 @@ from .tolerance import tol
 from .traversal import Visibility
 
 OM_MAX_BATCHES = 5
+COHERENT_READS = 4             # read-backs a pass of om_coherent (and auto): a GPU round trip each
 MAX_TEST_CANDIDATES = 512      # bounds the pairwise work of one test list
 
 
@@ -200,6 +202,17 @@ def _test_list(frame, pending):
     return cand[taken], np.concatenate([cand[~taken], pending[MAX_TEST_CANDIDATES:]])
 
 
+def _frustum_leaves_below(frame, nodes):
+    """Leaves inside the frustum in the subtrees of reached ``nodes`` (reaching the
+    nodes between, with their rectangles)."""
+    out, front = [], nodes
+    while len(front):
+        leaf = frame.h.is_leaf[front]
+        out.append(front[leaf])
+        front = frame.children_in_frustum(front[~leaf])
+    return np.concatenate(out) if out else np.zeros(0, dtype=np.int64)
+
+
 def _resolve(frame, nodes, visible):
     """Act on query answers: occlude the hidden, draw visible leaves, open visible
     inner nodes; returns the opened children."""
@@ -257,6 +270,11 @@ class OmMulti(Strategy):
     ancestors are opened without one; each such leaf is queried again every
     ``RECHECK`` passes (staggered), so one that became hidden is culled soon.
     Only skipping queries, never culling without one, it stays conservative.
+
+    ``read_budget`` (this project's, for the coherent default): at most that many
+    multiple queries, hence blocking read-backs, a pass -- stage 2 gets all but two
+    of them, and stage 3 asks what remains in one batch and then every leaf below
+    the visible ones in another, instead of level by level.
     The memory is used only when the camera barely moved since the last pass
     (:func:`camera_cut`): after a cut, or a sparse pass (the add-on's), the pass
     starts fresh, so memory never makes a pass worse than a fresh one by more
@@ -265,9 +283,10 @@ class OmMulti(Strategy):
 
     RECHECK = 8
 
-    def __init__(self, max_tests=8, coherent=False):
+    def __init__(self, max_tests=8, coherent=False, read_budget=None):
         self.max_tests = max(1, int(max_tests))
         self.coherent = coherent
+        self.read_budget = read_budget
         self.assumed = None
         self.last_camera = None
         self.frame_no = 0
@@ -319,18 +338,30 @@ class OmMulti(Strategy):
     def _traverse(self, frame, chunk):
         pending = _stage1(frame, np.zeros(1, dtype=np.int64), chunk)
         rounds = 0
+        stage2 = self.max_tests if self.read_budget is None else min(self.max_tests, max(self.read_budget - 2, 0))
         # Stage 2: occupancy-map-arranged multiple queries.
-        while len(pending) and rounds < self.max_tests:
+        while len(pending) and rounds < stage2:
             pending = frame.sort_near(pending)
             test, pending = _test_list(frame, pending)
             opened = _resolve(frame, test, frame.query(test))
             pending = np.concatenate([pending, _stage1(frame, opened, chunk)])
             rounds += 1
-        # Stage 3: everything that remains, brute force, level by level.
-        while len(pending):
+        if self.read_budget is None:
+            # Stage 3: everything that remains, brute force, level by level.
+            while len(pending):
+                opened = _resolve(frame, pending, frame.query(pending))
+                pending = _stage1(frame, opened, chunk)
+                rounds += 1
+        elif len(pending):
+            # Stage 3 within the read budget: what remains in one batch, then every
+            # leaf below those found visible in a second one.
             opened = _resolve(frame, pending, frame.query(pending))
-            pending = _stage1(frame, opened, chunk)
             rounds += 1
+            leaves = _frustum_leaves_below(frame, opened)
+            leaves = leaves[~frame.predrawn[leaves]]
+            if len(leaves):
+                _resolve(frame, leaves, frame.query(leaves))
+                rounds += 1
         self.max_tests = max(1, math.ceil(0.7 * rounds)) if rounds else self.max_tests
 
 
@@ -427,7 +458,7 @@ class Auto(Strategy):
     LEARN = 0.3                  # weight of a new measurement in the running cost
 
     def __init__(self, max_tests=8, costs=None):
-        self.occlusion = OmMulti(max_tests, coherent=True)
+        self.occlusion = OmMulti(max_tests, coherent=True, read_budget=COHERENT_READS)
         # tri_ms: ms per triangle drawn; round_trip_ms: one query batch; vfc_cpu_ms:
         # a frustum-only pass's time beyond its drawing
         self.costs = dict(costs) if costs is not None else None
@@ -524,7 +555,7 @@ REGISTRY = {info.name: info for info in (
                  "Staneker et al. 2003: occupancy map, remaining queries batched"),
     StrategyInfo("om_multi", lambda m: OmMulti(m), "Multiple queries",
                  "Staneker et al. 2004: occupancy-map-arranged multiple queries", True),
-    StrategyInfo("om_coherent", lambda m: OmMulti(m, coherent=True), "Coherent",
+    StrategyInfo("om_coherent", lambda m: OmMulti(m, coherent=True, read_budget=COHERENT_READS), "Coherent",
                  "Occupancy map, multiple queries, last pass's visible first", True),
     StrategyInfo("two_pass", lambda m: TwoPass(m), "Two passes",
                  "Last pass's visible first, every other leaf tested in one batch (GPU-driven)", True),

@@ -119,3 +119,21 @@ def test_two_pass_uses_at_most_two_batches_once_coherent(ctx):
             assert culled(r) > 0
             if k:
                 assert r.stats["fresh"] == 0 and r.stats["multiple_queries"] <= 2
+
+
+@pytest.mark.parametrize("strategy", ["om_coherent", "auto"])
+def test_coherent_default_stays_within_its_read_budget(ctx, strategy):
+    """om_coherent (and auto through it) make at most COHERENT_READS multiple
+    queries a pass, fresh or not, and still keep every visible object."""
+    from core.strategies import COHERENT_READS
+    for seed in (3, 7, 11):
+        scene, cams, _ = scenes.random_city(seed, 400)
+        with Culler(scene, (160, 120), strategy=strategy, ctx=ctx) as c:
+            for cam in cams:
+                truth = c.truth(cam)
+                for _ in range(2):
+                    r = c.cull(cam)
+                    assert r.stats["multiple_queries"] <= COHERENT_READS
+                    assert not (truth & ~r.visible).any()
+                    if getattr(c.renderer, "path", None) == "4.3":      # the 4.1 path reads once per box
+                        assert r.stats["blocking_reads"] <= COHERENT_READS
