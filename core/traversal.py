@@ -360,11 +360,15 @@ class Frame:
         out[uo[starts]] = np.minimum.reduceat(self.state, starts)
         return out
 
-    def finish(self):
+    def finish_gl(self):
+        """Send what is collected and wait for the GPU (timed as drawing)."""
         self.flush()
         t = time.perf_counter()
         self.r.finish()
         self.t_draw += time.perf_counter() - t
+
+    def finish(self):
+        self.finish_gl()
         total = time.perf_counter() - self.t0
         s = self.stats
         s["frustum_ms"] = 1e3 * self.t_reach
