@@ -455,7 +455,8 @@ class Auto(Strategy):
     CALIBRATE_TRIANGLES = 200_000
     LOSSES = 3                   # passes in a row where the tests did not pay (timing noise is common)
     PROBE_EVERY = 16
-    PROBE_SLOWER = 1.5           # a frustum-only pass this much slower than the last test pass: probe at once
+    PROBE_SLOWER = 2.0           # a frustum-only pass this much slower than the last test pass: probe at once
+    PROBE_MARGIN = 0.9           # a probe switches back when it beats the frustum-only estimate by this much
     LEARN = 0.3                  # weight of a new measurement in the running cost
 
     def __init__(self, max_tests=8, costs=None):
@@ -514,7 +515,7 @@ class Auto(Strategy):
             spent = self.last_test_ms = 1e3 * (time.perf_counter() - frame.t0)
             s = frame.stats
             frustum_only = (s["triangles_drawn"] + s["triangles_occluded"]) * c["tri_ms"] + c["vfc_cpu_ms"]
-            paid = spent < frustum_only
+            paid = spent < frustum_only * (self.PROBE_MARGIN if probe else 1.0)
             self.losses = 0 if paid else self.losses + 1
             self.use_tests = paid if probe else self.losses < self.LOSSES
             return
