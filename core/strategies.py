@@ -53,7 +53,7 @@ from .tolerance import tol
 from .traversal import Visibility
 
 OM_MAX_BATCHES = 5
-COHERENT_READS = 4             # read-backs a pass of om_coherent (and auto): a GPU round trip each
+COHERENT_READS = 5             # read-backs a pass of om_coherent (and auto): a GPU round trip each
 MAX_TEST_CANDIDATES = 512      # bounds the pairwise work of one test list
 
 
