@@ -50,7 +50,7 @@ import numpy as np
 from .errors import OccError
 from .occupancy import X0, X1, Y0, Y1, free_tile_first
 from .tolerance import tol
-from .traversal import Visibility
+from .traversal import Visibility, classify_fast
 
 OM_MAX_BATCHES = 5
 COHERENT_READS = 5             # read-backs a pass of om_coherent (and auto): a GPU round trip each
@@ -456,6 +456,7 @@ class Auto(Strategy):
     LOSSES = 3                   # passes in a row where the tests did not pay (timing noise is common)
     PROBE_EVERY = 16
     PROBE_SLOWER = 2.0           # a frustum-only pass this much slower than the last test pass: probe at once
+    FIRST_SLOWER = 1.0           # ... and the first frustum-only pass after a switch: was the switch right?
     PROBE_MARGIN = 0.9           # a probe switches back when it beats the frustum-only estimate by this much
     LEARN = 0.3                  # weight of a new measurement in the running cost
 
@@ -478,9 +479,13 @@ class Auto(Strategy):
     def _calibrate(self, frame):
         start = time.perf_counter()
         r = frame.r
-        tri = np.asarray(r.tri_counts)
+        # the heaviest units in view (drawn off screen, triangles are clipped cheaply)
+        leaves = np.flatnonzero(frame.is_leaf)
+        outside, _ = classify_fast(frame.planes, frame.boxes(leaves))
+        pool = frame.h.leaf_unit[leaves[~outside]] if (~outside).any() else np.arange(len(r.tri_counts))
+        tri = np.asarray(r.tri_counts)[pool]
         order = np.argsort(tri)[::-1]
-        units = order[:max(1, int(np.searchsorted(np.cumsum(tri[order]), self.CALIBRATE_TRIANGLES)) + 1)]
+        units = pool[order[:max(1, int(np.searchsorted(np.cumsum(tri[order]), self.CALIBRATE_TRIANGLES)) + 1)]]
         r.draw(units)                      # once to warm the path (shaders, buffers), then timed
         r.finish()
         times = []
@@ -530,9 +535,12 @@ class Auto(Strategy):
         if drawn:
             c["tri_ms"] += learn * (1e3 * (end - t) / drawn - c["tri_ms"])
         c["vfc_cpu_ms"] += learn * (1e3 * (t - frame.t0) - c["vfc_cpu_ms"])
+        # the first frustum-only pass after a switch is measured against the last test
+        # pass as it is (was the switch right?), later ones with a margin (the view got heavier)
+        slower = self.PROBE_SLOWER if self.since_probe > 1 else self.FIRST_SLOWER
         self.learned = True
-        if self.last_test_ms is not None and 1e3 * (end - frame.t0) > self.PROBE_SLOWER * self.last_test_ms:
-            self.since_probe = self.PROBE_EVERY          # the view got heavier: test again next pass
+        if self.last_test_ms is not None and 1e3 * (end - frame.t0) > slower * self.last_test_ms:
+            self.since_probe = self.PROBE_EVERY          # test again next pass
 
 
 @dataclass(frozen=True)

@@ -50,7 +50,7 @@ def test_auto_falls_back_to_frustum_culling_where_tests_cannot_pay(ctx):
     with Culler(scene, (128, 96), strategy="auto", ctx=ctx) as c:
         c.strategy.costs = {"tri_ms": 0.0, "round_trip_ms": 1.0, "vfc_cpu_ms": 0.0}
         c.strategy.learned, c.strategy.LEARN = True, 0.0            # keep the costs given (no timing in tests)
-        c.strategy.PROBE_SLOWER = float("inf")
+        c.strategy.PROBE_SLOWER = c.strategy.FIRST_SLOWER = float("inf")
         modes = [c.cull(cam).stats["occlusion_pass"] for _ in range(Auto.LOSSES + Auto.PROBE_EVERY + 2)]
     assert modes[:Auto.LOSSES] == [1] * Auto.LOSSES
     assert modes[Auto.LOSSES:Auto.LOSSES + Auto.PROBE_EVERY] == [0] * Auto.PROBE_EVERY
