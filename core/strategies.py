@@ -50,7 +50,7 @@ import numpy as np
 from .errors import OccError
 from .occupancy import X0, X1, Y0, Y1, free_tile_first
 from .tolerance import tol
-from .traversal import Visibility, classify_fast
+from .traversal import Visibility
 
 OM_MAX_BATCHES = 5
 COHERENT_READS = 5             # read-backs a pass of om_coherent (and auto): a GPU round trip each
@@ -440,19 +440,20 @@ class Auto(Strategy):
     frustum culling alone where they cannot (few or cheap triangles behind what is
     seen, or a GPU that draws everything faster than the tests' round trips).
 
-    Costs are measured, not assumed: on its first pass it times drawing about
-    ``CALIBRATE_TRIANGLES`` triangles (after one untimed draw of them that warms the
-    path) and a query batch's round trip (then clears
-    the depth buffer), and it keeps learning the cost of a triangle from every
-    frustum-only pass.  After each occlusion pass it compares the pass's time with
-    what frustum culling would have cost -- the triangles drawn plus those the
-    tests proved hidden, at the measured cost, plus the frustum-only overhead last
-    seen -- and after ``LOSSES`` passes in a row where the tests did not pay it
-    switches to frustum culling, probing occlusion again every ``PROBE_EVERY``
-    passes.  Both modes are conservative, so the choice changes speed only.
+    Costs are measured on real passes, not assumed: the first pass tests occlusion
+    (and times a query batch's round trip); the second draws everything in the
+    frustum, which gives the cost of a triangle as the scene really draws (fill
+    included) and of a frustum-only pass beyond its drawing; one such pass comes
+    again every ``PROBE_EVERY`` test passes.  After each test pass it compares the
+    pass's time with what frustum culling would have cost -- the triangles drawn
+    plus those the tests proved hidden, at the measured cost, plus the frustum-only
+    overhead -- and after ``LOSSES`` passes in a row where the tests did not pay it
+    switches to frustum culling, probing the tests again every ``PROBE_EVERY``
+    passes, or at once when a frustum-only pass is ``PROBE_SLOWER`` times slower
+    than the last test pass (``FIRST_SLOWER`` for the first one after a switch).
+    Both modes are conservative, so the choice changes speed only.
     """
 
-    CALIBRATE_TRIANGLES = 200_000
     LOSSES = 3                   # passes in a row where the tests did not pay (timing noise is common)
     PROBE_EVERY = 16
     PROBE_SLOWER = 2.0           # a frustum-only pass this much slower than the last test pass: probe at once
@@ -462,83 +463,90 @@ class Auto(Strategy):
 
     def __init__(self, max_tests=8, costs=None):
         self.occlusion = OmMulti(max_tests, coherent=True, read_budget=COHERENT_READS)
-        # tri_ms: ms per triangle drawn; round_trip_ms: one query batch; vfc_cpu_ms:
-        # a frustum-only pass's time beyond its drawing
+        # tri_ms: ms per triangle a frustum-only pass draws; vfc_cpu_ms: such a pass's
+        # time beyond its drawing; round_trip_ms: one query batch
         self.costs = dict(costs) if costs is not None else None
         self.use_tests = True
         self.losses = 0
-        self.since_probe = 0
-        self.last_test_ms = None         # the last occlusion pass's time
-        self.learned = False             # the triangle cost measured on a real frustum-only pass
+        self.since_probe = 0             # frustum-only passes since the last test pass
+        self.since_learn = 0             # test passes since the last frustum-only one
+        self.last_test_ms = None
 
     def reset(self):
         self.occlusion.reset()
 
     forget = reset
 
-    def _calibrate(self, frame):
+    @property
+    def learned(self):
+        """Whether a frustum-only pass's costs were measured (or given)."""
+        return self.costs is not None and self.costs.get("tri_ms") is not None
+
+    def _round_trip(self, frame):
         start = time.perf_counter()
-        r = frame.r
-        # the heaviest units in view (drawn off screen, triangles are clipped cheaply)
-        leaves = np.flatnonzero(frame.is_leaf)
-        outside, _ = classify_fast(frame.planes, frame.boxes(leaves))
-        pool = frame.h.leaf_unit[leaves[~outside]] if (~outside).any() else np.arange(len(r.tri_counts))
-        tri = np.asarray(r.tri_counts)[pool]
-        order = np.argsort(tri)[::-1]
-        units = pool[order[:max(1, int(np.searchsorted(np.cumsum(tri[order]), self.CALIBRATE_TRIANGLES)) + 1)]]
-        r.draw(units)                      # once to warm the path (shaders, buffers), then timed
-        r.finish()
-        times = []
-        for _ in range(2):                 # the faster of two: load spikes only ever add time
-            t = time.perf_counter()
-            drawn = r.draw(units)
-            r.finish()
-            times.append(time.perf_counter() - t)
-        tri_ms = 1e3 * min(times) / max(drawn, 1)
         # a small box ahead of the eye (only the round trip's time is used)
         centre = frame.camera.direction * (0.01 * frame.scene_size)
         box = (centre + np.array([[-1.0], [1.0]]) * (1e-3 * frame.scene_size))[None]
         trips = []
         for _ in range(3):
             t = time.perf_counter()
-            r.query(box)
+            frame.r.query(box)
             trips.append(1e3 * (time.perf_counter() - t))
-        r.begin_frame(frame.camera)        # the calibration's depth is no occluder
-        frame.t_draw += time.perf_counter() - start      # GL work: not the pass's CPU time
-        self.costs = {"tri_ms": tri_ms, "round_trip_ms": float(np.median(trips)), "vfc_cpu_ms": 0.0}
+        frame.t_query += time.perf_counter() - start     # GL work: not the pass's CPU time
+        self.costs = {"tri_ms": None, "vfc_cpu_ms": 0.0, "round_trip_ms": float(np.median(trips))}
 
     def __call__(self, frame, chunk=16, truth=None):
         if self.costs is None:
-            self._calibrate(frame)
-        c = self.costs
-        probe = not self.use_tests and self.since_probe >= self.PROBE_EVERY
-        if self.use_tests or probe:
-            self.since_probe = 0
-            frame.stats["occlusion_pass"] = 1
-            self.occlusion(frame, chunk)
-            frame.finish_gl()
-            spent = self.last_test_ms = 1e3 * (time.perf_counter() - frame.t0)
-            s = frame.stats
-            frustum_only = (s["triangles_drawn"] + s["triangles_occluded"]) * c["tri_ms"] + c["vfc_cpu_ms"]
-            paid = spent < frustum_only * (self.PROBE_MARGIN if probe else 1.0)
-            self.losses = 0 if paid else self.losses + 1
-            self.use_tests = paid if probe else self.losses < self.LOSSES
-            return
-        self.since_probe += 1
+            self._round_trip(frame)
+        if self.use_tests:
+            if self.since_learn >= (self.PROBE_EVERY if self.learned else 1):
+                self._frustum_only(frame, learning=True)
+            else:
+                self._tests(frame, chunk, probe=False)
+        elif self.since_probe >= self.PROBE_EVERY:
+            self._tests(frame, chunk, probe=True)
+        else:
+            self._frustum_only(frame, learning=False)
+
+    def _tests(self, frame, chunk, probe):
+        self.since_probe = 0
+        self.since_learn += 1
+        frame.stats["occlusion_pass"] = 1
+        self.occlusion(frame, chunk)
+        frame.finish_gl()
+        spent = self.last_test_ms = 1e3 * (time.perf_counter() - frame.t0)
+        if not self.learned:
+            return                                   # nothing to compare with yet
+        c, s = self.costs, frame.stats
+        frustum_only = (s["triangles_drawn"] + s["triangles_occluded"]) * c["tri_ms"] + c["vfc_cpu_ms"]
+        paid = spent < frustum_only * (self.PROBE_MARGIN if probe else 1.0)
+        self.losses = 0 if paid else self.losses + 1
+        self.use_tests = paid if probe else self.losses < self.LOSSES
+
+    def _frustum_only(self, frame, learning):
+        if learning:
+            self.since_learn = 0
+        else:
+            self.since_probe += 1
         leaves = frame.frustum_leaves()
         t = time.perf_counter()
         frame.draw_leaves(leaves)
         frame.finish_gl()
         end = time.perf_counter()
+        c = self.costs
         drawn = frame.stats["triangles_drawn"]
         learn = self.LEARN if self.learned else 1.0
         if drawn:
-            c["tri_ms"] += learn * (1e3 * (end - t) / drawn - c["tri_ms"])
+            tri_ms = 1e3 * (end - t) / drawn
+            c["tri_ms"] = tri_ms if c["tri_ms"] is None else c["tri_ms"] + learn * (tri_ms - c["tri_ms"])
+        elif c["tri_ms"] is None:
+            return                                   # nothing drawn: learn on a later pass
         c["vfc_cpu_ms"] += learn * (1e3 * (t - frame.t0) - c["vfc_cpu_ms"])
+        if learning:
+            return
         # the first frustum-only pass after a switch is measured against the last test
         # pass as it is (was the switch right?), later ones with a margin (the view got heavier)
         slower = self.PROBE_SLOWER if self.since_probe > 1 else self.FIRST_SLOWER
-        self.learned = True
         if self.last_test_ms is not None and 1e3 * (end - frame.t0) > slower * self.last_test_ms:
             self.since_probe = self.PROBE_EVERY          # test again next pass
 
