@@ -459,6 +459,7 @@ class Auto(Strategy):
     PROBE_SLOWER = 2.0           # a frustum-only pass this much slower than the last test pass: probe at once
     FIRST_SLOWER = 1.0           # ... and the first frustum-only pass after a switch: was the switch right?
     PROBE_MARGIN = 0.9           # a probe switches back when it beats the frustum-only estimate by this much
+    LOSS_MARGIN = 1.15           # a test pass loses when it costs this much more than the estimate (noise)
     LEARN = 0.3                  # weight of a new measurement in the running cost
 
     def __init__(self, max_tests=8, costs=None):
@@ -519,7 +520,7 @@ class Auto(Strategy):
             return                                   # nothing to compare with yet
         c, s = self.costs, frame.stats
         frustum_only = (s["triangles_drawn"] + s["triangles_occluded"]) * c["tri_ms"] + c["vfc_cpu_ms"]
-        paid = spent < frustum_only * (self.PROBE_MARGIN if probe else 1.0)
+        paid = spent < frustum_only * (self.PROBE_MARGIN if probe else self.LOSS_MARGIN)
         self.losses = 0 if paid else self.losses + 1
         self.use_tests = paid if probe else self.losses < self.LOSSES
 
