@@ -444,7 +444,8 @@ class Auto(Strategy):
     (and times a query batch's round trip); the second draws everything in the
     frustum, which gives the cost of a triangle as the scene really draws (fill
     included) and of a frustum-only pass beyond its drawing; one such pass comes
-    again every ``PROBE_EVERY`` test passes.  After each test pass it compares the
+    again every ``PROBE_EVERY`` test passes while the tests cost more than ``CLOSE``
+    of that estimate (where they clearly win, re-learning would only cost).  After each test pass it compares the
     pass's time with what frustum culling would have cost -- the triangles drawn
     plus those the tests proved hidden, at the measured cost, plus the frustum-only
     overhead -- and after ``LOSSES`` passes in a row where the tests did not pay it
@@ -460,6 +461,7 @@ class Auto(Strategy):
     FIRST_SLOWER = 1.0           # ... and the first frustum-only pass after a switch: was the switch right?
     PROBE_MARGIN = 0.9           # a probe switches back when it beats the frustum-only estimate by this much
     LOSS_MARGIN = 1.15           # a test pass loses when it costs this much more than the estimate (noise)
+    CLOSE = 0.5                  # test passes above this share of the estimate re-learn the costs every PROBE_EVERY
     LEARN = 0.3                  # weight of a new measurement in the running cost
 
     def __init__(self, max_tests=8, costs=None):
@@ -472,6 +474,7 @@ class Auto(Strategy):
         self.since_probe = 0             # frustum-only passes since the last test pass
         self.since_learn = 0             # test passes since the last frustum-only one
         self.last_test_ms = None
+        self.close = True                # the last test pass was near the frustum-only estimate
 
     def reset(self):
         self.occlusion.reset()
@@ -500,7 +503,7 @@ class Auto(Strategy):
         if self.costs is None:
             self._round_trip(frame)
         if self.use_tests:
-            if self.since_learn >= (self.PROBE_EVERY if self.learned else 1):
+            if (not self.learned and self.since_learn >= 1) or (self.close and self.since_learn >= self.PROBE_EVERY):
                 self._frustum_only(frame, learning=True)
             else:
                 self._tests(frame, chunk, probe=False)
@@ -521,6 +524,7 @@ class Auto(Strategy):
         c, s = self.costs, frame.stats
         frustum_only = (s["triangles_drawn"] + s["triangles_occluded"]) * c["tri_ms"] + c["vfc_cpu_ms"]
         paid = spent < frustum_only * (self.PROBE_MARGIN if probe else self.LOSS_MARGIN)
+        self.close = spent > self.CLOSE * frustum_only
         self.losses = 0 if paid else self.losses + 1
         self.use_tests = paid if probe else self.losses < self.LOSSES
 
