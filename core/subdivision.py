@@ -36,7 +36,8 @@ from .errors import OccError
 BUILDERS = ("pHBVO", "DBVS", "octree", "balanced")
 SAH_BINS = 32
 SAH_CHECK_ITEMS = 200_000  # up to here pHBVO also builds the balanced tree and keeps the cheaper
-SAH_SAMPLE = 4096      # items the SAH cost curve of one split is evaluated on
+SAH_SAMPLE = 2048      # items the SAH cost curves of one split are evaluated on (10 M grid: 1024,
+                       # 2048, 4096 give the same SAH cost within 2 %, 8.2, 8.7, 9.4 s of CPU)
 PULL_UP = 0.5            # an item longer than half its node's longest side stays there
 FORCE_SPLIT = 4          # above FORCE_SPLIT * leaf_size items a node is split even if SAH says no
 TRAVERSAL_COST = 1.0     # SAH cost of visiting a node, in units of one item
