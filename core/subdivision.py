@@ -36,14 +36,14 @@ from .errors import OccError
 BUILDERS = ("pHBVO", "DBVS", "octree", "balanced")
 SAH_BINS = 32
 SAH_CHECK_ITEMS = 200_000  # up to here pHBVO also builds the balanced tree and keeps the cheaper
-SAH_SAMPLE = 2048      # items the SAH cost curves of one split are evaluated on (10 M grid: 1024,
-                       # 2048, 4096 give the same SAH cost within 2 %, 8.2, 8.7, 9.4 s of CPU)
+SAH_SAMPLE = 1024      # items the SAH cost curves of one split are evaluated on (10 M grid: 512,
+                       # 1024, 2048 give the same SAH cost, 6.2, 6.5, 7.1 s of CPU for make_units)
 PULL_UP = 0.5            # an item longer than half its node's longest side stays there
 FORCE_SPLIT = 4          # above FORCE_SPLIT * leaf_size items a node is split even if SAH says no
 TRAVERSAL_COST = 1.0     # SAH cost of visiting a node, in units of one item
-PLAN_ITEMS = 64 * SAH_SAMPLE   # pHBVO nodes above this many items decide PLAN_DEPTH levels at once
+PLAN_ITEMS = 128 * SAH_SAMPLE  # pHBVO nodes above this many items decide PLAN_DEPTH levels at once
 PLAN_DEPTH = 3           # from one sample of PLAN_SAMPLE items, and move the items once for them
-PLAN_SAMPLE = 4 * SAH_SAMPLE
+PLAN_SAMPLE = 8 * SAH_SAMPLE
 
 
 @dataclass(eq=False)
