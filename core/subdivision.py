@@ -23,6 +23,12 @@ Builders:
 Items far larger than their node (longest side above ``PULL_UP`` of the node's)
 stay at that node instead of inflating every box below (``pull_up``).  Binary
 trees collapse into ``max_children``-ary ones by opening the largest child.
+
+Memory: items are axis-major corner arrays reordered in place (a node is a
+range of them, split by stable partitions through one scratch row per dtype);
+a heavy mesh hands in float32 corners as :class:`ItemBoxes` and nothing of the
+size of its triangles is copied.  pHBVO decides ``PLAN_DEPTH`` levels at once
+above ``PLAN_ITEMS`` items, so large nodes move their items once per three levels.
 """
 
 import time
