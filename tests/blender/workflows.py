@@ -556,6 +556,7 @@ def truth_visible(w):
             return set(), cam_ok
         truth_scene = Scene.from_arrays([str(i) for i in range(len(names))], meshes,
                                         np.arange(len(names)), np.array(matrices))
+        w.last_truth = names                          # for debugging a failure by hand
         seen = w.truth_pool.submit(_truth, truth_scene, render_size(scene), camera,
                                    np.array(solid, dtype=bool)).result()
         return {n for i in np.flatnonzero(seen) for n in names[i]}, cam_ok
