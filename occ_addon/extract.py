@@ -373,7 +373,8 @@ class Extractor:
                                                          or o.session_uid not in self.cache)))}
         for uid, (v, f) in _instanced_geometry(depsgraph, fresh).items():
             o = fresh[uid]
-            inv = _inverse(np.array(o.matrix_world, dtype=np.float64))   # instancer-local: a move is a matrix
+            # instancer-local (a move is then a matrix), by the same evaluation as the instances
+            inv = _inverse(np.array(o.evaluated_get(depsgraph).matrix_world, dtype=np.float64))
             v = v @ inv[:3, :3].T + inv[:3, 3]
             if o.type == "EMPTY":
                 key = ("instance", uid, _members(o.instance_collection))
