@@ -16,7 +16,7 @@ else is handled conservatively by construction:
   add-on had hidden is shown again before the pass (so it is evaluated now);
 - an object the user hid in any way is no candidate (and one the add-on had
   hidden is given back to the user's hide);
-- wire and bounds display, and every type that is not solid mesh-like geometry
+- wire and bounds display, "in front" display, and every type that is not solid mesh-like geometry
   (point clouds, volumes, grease pencil, hair curves, empties, lights): never
   occluders and never hidden;
 - children drawn only as vertex/face instances: not candidates (not drawn
@@ -94,8 +94,8 @@ def kind(obj):
     is its own, where drawn, and its instances'), "collection" or None: how
     ``obj`` can take part, by its settings alone."""
     if obj.type in GEOMETRY_TYPES:
-        if obj.display_type not in SOLID_DISPLAY:
-            return None
+        if obj.display_type not in SOLID_DISPLAY or obj.show_in_front:
+            return None                   # wire or bounds occlude nothing; "in front" is drawn over walls
         parent = obj.parent
         if parent is not None and parent.instance_type in {"VERTS", "FACES"}:
             return None                   # drawn only as the parent's instances
@@ -464,7 +464,7 @@ def fingerprint(obj, k, memo):
     be told cheaply (curves, text, metaballs): such an object is shown again to
     be read.  Modifier settings are not in it: edited while hidden, they are
     seen once the object is shown."""
-    base = (k, obj.display_type, obj.instance_type)
+    base = (k, obj.display_type, obj.show_in_front, obj.instance_type)
     if k == "collection":
         parts = [base]
         for m in obj.instance_collection.all_objects:

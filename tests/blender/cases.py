@@ -558,6 +558,11 @@ def case10():
         with open(report) as f:
             seen = json.load(f)["objects"]
         check(f"case10_{display.lower()}_analyzed_visible", seen.get("wall", {}).get("frames_visible") == 1, seen)
+    new_scene()
+    box("in_front", (3, -1, 0), (4, 1, 1)).show_in_front = True     # drawn over the wall
+    update()
+    cull()
+    check("case10_in_front_never_hidden", drawn("in_front"), "")
     scene = new_scene()
     scene.camera.data.type = "PANO"
     r, err = cull()

@@ -37,7 +37,7 @@ CHECKS = [
     "case8_load_restores", "case8_analyze_counts_hidden",
     "case10_wire_not_occluder", "case10_wire_truth", "case10_bounds_not_occluder", "case10_bounds_truth",
     "case10_wire_analyzed_visible", "case10_bounds_analyzed_visible",
-    "case10_panoramic_refused", "case10_never_visible_exact",
+    "case10_in_front_never_hidden", "case10_panoramic_refused", "case10_never_visible_exact",
     "case11_nan_matrix_named", "case11_nan_vertices_named", "case11_camera_scale_zero_reported",
     "case12_moved_into_exclude_drawn", "case12_undo_restore_drawn",
     "hidden_edit_move_seen", "hidden_edit_move_truth", "hidden_edit_nan_seen", "hidden_edit_nan_truth",
