@@ -65,9 +65,10 @@ KINDS = {
 # instances stand far from its mesh, props animated by keyframes, props carried by
 # an animated parent (an empty) or following it by a constraint, hair particles
 # instancing an object, a vertex instancer (a point mesh and its child), props
-# with an array modifier, a text and a bevelled curve.
+# with an array modifier, a text and a bevelled curve, a prop moved by a driver and
+# one whose animated shape key raises it.
 FEATURES = {"scene_gn", "scene_animated", "scene_parent", "scene_particles", "scene_verts", "scene_modifiers",
-            "scene_curves"}
+            "scene_curves", "scene_deform"}
 # Instancers whose instances vanish when their source object is hidden (monitor):
 # the source counts as seen wherever its instances are.  Particle instances stay
 # drawn when their object is hidden; geometry nodes here use no object.
@@ -316,6 +317,19 @@ def build_scene(w):
         pipe.location = (rng.uniform(-5, 5), rng.uniform(-5, 5), 0)
         colls["Props"].objects.link(pipe)
         new_id(w, pipe)
+    if "scene_deform" in w.kinds:                        # changes with the frame, without an edit
+        o = add_box(w, "Driven", (0, rng.uniform(-6, 6), 0.5), (0.6, 0.6, 0.6), colls["Props"])
+        fc = o.driver_add("location", 0)
+        fc.driver.type, fc.driver.expression = "SCRIPTED", "sin(frame / 6) * 7"
+        o = add_box(w, "Shaped", (rng.uniform(-6, 6), rng.uniform(-6, 6), 0.3), (0.6, 0.6, 0.6), colls["Props"])
+        o.shape_key_add(name="Basis")
+        up = o.shape_key_add(name="Up", from_mix=False)
+        for p in up.data:
+            if p.co.z > 0:
+                p.co.z += 4.0
+        for f, v in ((FRAMES[0], 0.0), (FRAMES[1], 1.0)):
+            up.value = v
+            up.keyframe_insert("value", frame=f)
     lib = bpy.data.collections.new("Lib")              # a collection instance
     scene.collection.children.link(lib)
     add_box(w, "LibPart", (0, 0, 0), (0.5, 0.5, 0.8), lib)
