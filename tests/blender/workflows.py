@@ -2,20 +2,26 @@
 (issue 9, "How it is checked").  Runs in its own process; prints one JSON line
 ``OCC_WORKFLOWS {...}``.
 
-Each seed builds a small scene (walls, props, animated props, a collection
-instance, a geometry-nodes instancer, two view layers) and runs ``--steps``
-steps drawn from what users do.  After every step:
+Each seed builds a small scene (walls, props, two view layers and the features
+of ``FEATURES``: instancers of every kind, animation, drivers, constraints,
+modifiers, shape keys, curves) and runs ``--steps`` steps drawn from ``KINDS``
+(what users do).  After every step:
 
-(a) after a cull: no object that covers a pixel of an object-ID render of the
-    scene as Blender would draw it if the add-on had hidden nothing (from the
-    scene camera, at the render resolution) is hidden by the add-on;
+(a) after a cull, and after every step while live mode is on: no object that
+    covers a pixel of an object-ID render of the scene as Blender would draw it
+    if the add-on had hidden nothing (from the scene camera, at the render
+    resolution) is hidden by the add-on;
 (b) every hide flag, collection flag and add-on setting the user set is as set
     (the generator keeps its own model of what the user did), and every object
     the add-on did not hide is visible exactly when the user's flags say so
     (``visible_get``: catches a flag that reads "shown" while Blender never draws);
 (c) after Restore (and with the add-on disabled) nothing is hidden by the add-on;
 (d) no exception escaped and nothing printed a traceback;
-(e) after a cull, "never cull" objects and the exclude collection are not hidden.
+(e) after a cull, "never cull" objects, the exclude collection and objects with a
+    NaN are not hidden;
+(f) live mode shows on exactly when its timer runs;
+(g) a NaN in one object never stops a cull;
+and an analyze step's report names, per frame, every object the truth sees.
 
 The truth is computed independently of the add-on's extractor: the evaluated
 depsgraph's object instances (instances included), their evaluated triangles
