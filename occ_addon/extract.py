@@ -30,9 +30,10 @@ else is handled conservatively by construction:
   dynamic: hidden, it would not be evaluated).
 
 Objects are identified by ``session_uid`` (unique for the Blender session,
-kept by renames); caches are keyed by it and by the mesh datablock's id, and
-are dropped on undo, redo and file load (:meth:`Session.reset`), where Blender
-may give an unchanged id back with other contents.
+kept by renames; see :func:`.visibility.ident` for Blender 3.4); caches are
+keyed by it and by the mesh datablock's id, and are dropped on undo, redo and
+file load (:meth:`Session.reset`), where Blender may give an unchanged id back
+with other contents.
 
 Each pass asks two questions of different cost: which objects take part and
 where they are (:meth:`Extractor.candidates`: one ``visible_get`` per object,
@@ -49,6 +50,7 @@ import numpy as np
 
 from ..core import OccError, Scene
 from . import visibility
+from .visibility import ident
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
 SOLID_DISPLAY = {"SOLID", "TEXTURED"}            # wire and bounds display never occlude
@@ -188,7 +190,7 @@ def user_shown(obj, view_layer, shown):
     """Whether Blender would draw ``obj`` if the add-on had not hidden it: the
     user's eye, its collections' eye, monitor and exclude (``shown``: see
     :func:`shown_by_collections`), the view layer."""
-    uid = obj.session_uid
+    uid = ident(obj)
     k = np.searchsorted(shown, uid)
     return k < len(shown) and shown[k] == uid and not obj.hide_get(view_layer=view_layer)
 
@@ -201,9 +203,9 @@ def bystanders(view_layer, held):
     engine's objects): wire and bounds display, point clouds, volumes, grease
     pencil, hair, vertex-instanced children, NaN values.  Never culled, so
     counted visible by analyze."""
-    held = {o.session_uid for o in held}
+    held = {ident(o) for o in held}
     return [o for o in view_layer.objects
-            if (o.type in DRAWN_TYPES or is_instancer(o)) and o.session_uid not in held and o.visible_get()]
+            if (o.type in DRAWN_TYPES or is_instancer(o)) and ident(o) not in held and o.visible_get()]
 
 
 class Candidates:
@@ -300,7 +302,7 @@ class Extractor:
         changes report the scene or a collection."""
         idb = update.id
         if isinstance(idb, bpy.types.Object):
-            uid = idb.original.session_uid
+            uid = ident(idb.original)
             self.info.pop(uid, None)
             self.shown.pop(uid, None)
             if self.dynamic.pop(uid, None) is not None and len(idb.original.children):
@@ -340,12 +342,12 @@ class Extractor:
 
     def knows(self, obj, k):
         """Whether the geometry of ``obj`` (hidden by the add-on) is cached and current."""
-        hit = self.cache.get(obj.session_uid)
+        hit = self.cache.get(ident(obj))
         if hit is None:
             return False
         if k == "collection":
             return not self._instance_stale(obj)
-        return obj.session_uid not in self.dirty
+        return ident(obj) not in self.dirty
 
     def needs_geometry(self, cand):
         """Whether :meth:`scene` must read geometry again for these candidates."""
@@ -367,10 +369,10 @@ class Extractor:
         triangles, ``kept`` their indices into ``cand``, ``bad`` the names left out
         for NaN or infinite vertices."""
         depsgraph = context.evaluated_depsgraph_get()
-        fresh = {o.session_uid: o for o, k, c in zip(cand.objects, cand.kinds, cand.culled, strict=True)
+        fresh = {ident(o): o for o, k, c in zip(cand.objects, cand.kinds, cand.culled, strict=True)
                  if not c and ((k == "collection" and self._instance_stale(o))
-                               or (k == "instancer" and (o.session_uid in self.dirty
-                                                         or o.session_uid not in self.cache)))}
+                               or (k == "instancer" and (ident(o) in self.dirty
+                                                         or ident(o) not in self.cache)))}
         for uid, (v, f) in _instanced_geometry(depsgraph, fresh).items():
             o = fresh[uid]
             # instancer-local (a move is then a matrix), by the same evaluation as the instances
@@ -400,7 +402,7 @@ class Extractor:
             if key not in mesh_index:
                 mesh_index[key] = len(meshes)
                 meshes.append((v, f))
-            uids.append(obj.session_uid)
+            uids.append(ident(obj))
             mesh_of.append(mesh_index[key])
             kept.append(i)
         self.forget_changes()
@@ -415,7 +417,7 @@ class Extractor:
         return scene, kept, bad
 
     def _instance_stale(self, obj):
-        hit = self.cache.get(obj.session_uid)
+        hit = self.cache.get(ident(obj))
         if hit is None:
             return True
         members = _members(obj.instance_collection)
@@ -425,12 +427,12 @@ class Extractor:
         """``(key, v, f)`` from the cache when still valid, else from the depsgraph
         (a shared mesh once per pass: ``read``); None when unknown.  ``v`` is None
         for geometry with NaN or infinite vertices."""
-        uid = obj.session_uid
+        uid = ident(obj)
         hit = self.cache.get(uid)
         if k != "mesh" or culled:                     # instancers: read above; hidden: not evaluated
             return hit
         shared = obj.type == "MESH" and not obj.modifiers and obj.data.users > 1
-        key = ("mesh", obj.data.session_uid) if shared else ("object", uid)
+        key = ("mesh", ident(obj.data)) if shared else ("object", uid)
         if hit is not None and hit[0] == key and uid not in self.dirty:
             return hit
         if key not in read:
@@ -444,7 +446,7 @@ class Extractor:
 
 def _mesh_fingerprint(mesh, memo):
     """Sizes and a checksum of a mesh's vertex positions (once per mesh: ``memo``)."""
-    key = ("fp", mesh.session_uid)
+    key = ("fp", ident(mesh))
     hit = memo.get(key)
     if hit is None:
         co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
@@ -470,12 +472,12 @@ def fingerprint(obj, k, memo):
         for m in obj.instance_collection.all_objects:
             if m.type != "MESH":
                 return None
-            parts.append((m.session_uid, m.display_type, _modifiers_fingerprint(m),
+            parts.append((ident(m), m.display_type, _modifiers_fingerprint(m),
                           _mesh_fingerprint(m.data, memo), tuple(map(tuple, m.matrix_basis))))
         return tuple(parts)
     if obj.type != "MESH":
         return None
-    return base + (obj.data.session_uid, _modifiers_fingerprint(obj), _mesh_fingerprint(obj.data, memo))
+    return base + (ident(obj.data), _modifiers_fingerprint(obj), _mesh_fingerprint(obj.data, memo))
 
 
 def _finite_or_none(v):
@@ -493,7 +495,7 @@ def _inverse(m):
 
 def _members(collection):
     """Session ids of the objects an instanced collection brings, as a sorted tuple."""
-    return tuple(sorted(o.session_uid for o in collection.all_objects))
+    return tuple(sorted(ident(o) for o in collection.all_objects))
 
 
 def _instanced_geometry(depsgraph, instancers):
@@ -505,7 +507,7 @@ def _instanced_geometry(depsgraph, instancers):
     for inst in depsgraph.object_instances:
         if not inst.is_instance or inst.parent is None:
             continue
-        owner = inst.parent.original.session_uid
+        owner = ident(inst.parent.original)
         ob = inst.object
         if owner not in parts or ob.type not in GEOMETRY_TYPES or ob.display_type not in SOLID_DISPLAY:
             continue
@@ -525,7 +527,7 @@ def _instanced_geometry(depsgraph, instancers):
 
 def _tree(scene, objects):
     """Scene tree over collections (groups) and objects (parents kept)."""
-    index = {o.session_uid: i for i, o in enumerate(objects)}
+    index = {ident(o): i for i, o in enumerate(objects)}
     parent, carried, node_of = [], [], {}
 
     def add(obj_index, parent_node):
@@ -536,7 +538,7 @@ def _tree(scene, objects):
     def walk(coll, parent_node):                      # collections: a handful, recursion ok
         node = add(-1, parent_node)
         for obj in coll.objects:
-            uid = obj.session_uid
+            uid = ident(obj)
             if uid in index and uid not in node_of:
                 node_of[uid] = add(index[uid], node)
         for child in coll.children:
@@ -547,6 +549,6 @@ def _tree(scene, objects):
     carried = np.array(carried, dtype=np.int64)
     for obj in objects:                               # object parenting refines the tree
         p = obj.parent
-        if p is not None and p.session_uid in node_of and obj.session_uid in node_of:
-            parent[node_of[obj.session_uid]] = node_of[p.session_uid]
+        if p is not None and ident(p) in node_of and ident(obj) in node_of:
+            parent[node_of[ident(obj)]] = node_of[ident(p)]
     return parent, carried

@@ -18,6 +18,7 @@ from ..core.settings import preset, query_resolution
 from ..core.units import ChunkCache
 from . import visibility
 from .extract import Extractor
+from .visibility import ident
 from .worker import EngineThread
 
 # Meshes of 4 x this many triangles or more are cut into chunks of about this
@@ -305,8 +306,8 @@ def _mark(depsgraph, edits=True):
             extractor.saw(update)
         if isinstance(update.id, bpy.types.Object):
             if update.is_updated_geometry:
-                geometry.append(update.id.original.session_uid)
+                geometry.append(ident(update.id.original))
             elif update.is_updated_transform:
-                moved.append(update.id.original.session_uid)
+                moved.append(ident(update.id.original))
     if geometry or moved:
         SESSION.extractor.mark(geometry, moved)
