@@ -305,8 +305,8 @@ class Extractor:
             uid = ident(idb.original)
             self.info.pop(uid, None)
             self.shown.pop(uid, None)
-            if self.dynamic.pop(uid, None) is not None and len(idb.original.children):
-                self.dynamic.clear()                  # children inherit what their parent is
+            if self.dynamic.pop(uid, None) is not True and is_dynamic(idb.original):
+                self.dynamic.clear()                  # its children may have become dynamic with it
         else:
             self.shown.clear()
             self.shown_ids = None

@@ -288,6 +288,23 @@ def case2():
     bpy.ops.occ.restore()
     x = bpy.data.objects["mover"].matrix_world.translation.x
     check("case2_restore_draws_current_frame", drawn("mover") and abs(x - (-5)) < 1e-4, x)
+    # a static object hidden by the add-on whose parent is animated afterwards
+    scene = new_scene()
+    carrier = bpy.data.objects.new("carrier", None)
+    scene.collection.objects.link(carrier)
+    carried = box("carried", (3, -0.5, 0), (4, 0.5, 1))
+    carried.parent = carrier
+    scene.frame_set(1)
+    update()
+    cull()
+    hid = hidden_by_addon("carried")
+    keyframes(carrier, [(1, (0, 0, 0)), (10, (-8, 0, 0))])
+    update()
+    scene.frame_set(10)
+    cull()
+    check("case2_parent_animated_later", hid and drawn("carried") and not hidden_by_addon("carried"),
+          (hid, drawn("carried")))
+    promise("case2_parent_animated_truth")
 
 
 def case3():

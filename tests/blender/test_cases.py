@@ -25,6 +25,7 @@ CHECKS = [
       for c in ("not_occluder", "truth", "user_show_wins")],
     "case2_dynamic_never_hidden", "case2_dynamic_in_view_drawn", "case2_truth",
     "case2_stale_record_given_back", "case2_stale_record_truth", "case2_restore_draws_current_frame",
+    "case2_parent_animated_later", "case2_parent_animated_truth",
     *[f"case3_{t}_{c}" for t in ("small", "mirrored", "large", "nonuniform") for c in ("scale_camera", "truth")],
     "case3_mirrored_through_hole", "case3_mirrored_hole_truth",
     "case4_gn_instancer_kept", "case4_vert_instances_kept", "case4_truth",
