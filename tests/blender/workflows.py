@@ -65,7 +65,7 @@ KINDS = {
     "rename_replace": 1, "duplicate": 2, "link": 2, "move_collection": 2, "frame": 4,
     "never_cull": 2, "exclude_setting": 2, "undo": 3, "redo": 1, "save_reload": 1,
     "addon_toggle": 1, "live": 2, "analyze": 1, "display_type": 2, "bad_value": 1,
-    "mesh_edit": 3, "object_scale": 2,
+    "mesh_edit": 3, "object_scale": 2, "settings": 2,
 }
 # Scene features, switched off like step kinds: a geometry-nodes instancer whose
 # instances stand far from its mesh, props animated by keyframes, props carried by
@@ -80,7 +80,7 @@ FEATURES = {"scene_gn", "scene_animated", "scene_parent", "scene_particles", "sc
 # drawn when their object is hidden; geometry nodes here use no object.
 SOURCE_HIDES_INSTANCES = {"VERTS", "FACES", "COLLECTION"}
 # Steps that need the add-on enabled (its operators or properties).
-NEEDS_ADDON = {"cull", "restore", "never_cull", "exclude_setting", "live", "analyze"}
+NEEDS_ADDON = {"cull", "restore", "never_cull", "exclude_setting", "live", "analyze", "settings"}
 # Steps after which Blender's undo system gets a step, as the UI pushes one after
 # every user edit (the add-on's Cull and Restore carry no UNDO flag: no push).
 NO_PUSH = {"cull", "restore", "undo", "redo", "save_reload", "addon_toggle", "live", "analyze"}
@@ -833,6 +833,11 @@ def do_step(w, kind):
         o = add_box(w, "Added", p, (0.5, 0.5, 0.5), c, rng.uniform(0, 3))
         model["objects"][o["wf_id"]] = object_intent(o)
         return f"add '{o.name}' in {c.name} at {tuple(round(x, 2) for x in p)}"
+    if kind == "settings":                          # the add-on's own choices: strategy, accuracy
+        occ = scene.occ
+        occ.strategy = rng.choice([i.identifier for i in occ.bl_rna.properties["strategy"].enum_items])
+        occ.preset = rng.choice([i.identifier for i in occ.bl_rna.properties["preset"].enum_items])
+        return f"strategy {occ.strategy}, accuracy {occ.preset}"
     if kind == "exclude_setting":
         c = rng.choice(user_collections() + [None])
         scene.occ.exclude_collection = c
