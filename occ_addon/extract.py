@@ -308,8 +308,12 @@ class Extractor:
             if self.dynamic.pop(uid, None) is not True and is_dynamic(idb.original):
                 self.dynamic.clear()                  # its children may have become dynamic with it
         else:
-            self.shown.clear()
-            self.shown_ids = None
+            self.visibility_changed()
+
+    def visibility_changed(self):
+        """Eye, collection or view-layer visibility may have changed."""
+        self.shown.clear()
+        self.shown_ids = None
 
     def user_shown(self, obj, uid, view_layer):
         hit = self.shown.get(uid)

@@ -291,9 +291,12 @@ def on_depsgraph_update(scene, depsgraph):
 
 @persistent
 def on_frame_change(scene, depsgraph):
-    """Animation moved things: the same marks as an edit (the frame's depsgraph reports them)."""
+    """Animation moved things: the same marks as an edit (the frame's depsgraph reports them).
+    Animation changes values, not what objects are; but it can change hide flags
+    (keyframed collection visibility): the user-shown answers are asked again."""
+    SESSION.extractor.visibility_changed()
     if depsgraph is not None:
-        _mark(depsgraph, edits=False)           # animation changes values, not what objects are
+        _mark(depsgraph, edits=False)
     for f in LISTENERS:
         f()
 
