@@ -119,7 +119,8 @@ def bootstrap(args):
     subprocess.run([sys.executable, os.path.join(ROOT, "tools", "build_extension.py"), "--no-wheels",
                     "--out", dist], cwd=ROOT, check=True)
     zips = [os.path.join(dist, f) for f in os.listdir(dist) if f.endswith(".zip")]
-    env = {**os.environ, "BLENDER_USER_RESOURCES": os.path.join(work, "user")}
+    # the same string hashes as the test (set order inside the add-on repeats too)
+    env = {**os.environ, "BLENDER_USER_RESOURCES": os.path.join(work, "user"), "PYTHONHASHSEED": "0"}
     cmd = [sys.executable, os.path.abspath(__file__), "--zip", zips[0], "--work", work] + sys.argv[1:]
     sys.exit(subprocess.run(cmd, env=env).returncode)
 
