@@ -305,7 +305,7 @@ class Extractor:
             uid = ident(idb.original)
             self.info.pop(uid, None)
             self.shown.pop(uid, None)
-            if self.dynamic.pop(uid, None) is not True and is_dynamic(idb.original):
+            if self.dynamic and self.dynamic.pop(uid, None) is not True and is_dynamic(idb.original):
                 self.dynamic.clear()                  # its children may have become dynamic with it
         else:
             self.visibility_changed()
