@@ -825,6 +825,24 @@ def do_step(w, kind):
         scene.frame_set(f)
         return f"frame {f}"
     if kind == "view_layer":
+        if len(scene.view_layers) < 3 and rng.random() < 0.3:      # a new one: everything shown there
+            new = scene.view_layers.new("Third")
+            for m in model["objects"].values():
+                m["eye"][new.name] = False
+            for path, lc in layer_collections(new):
+                model["lc"][(new.name, path)] = [lc.hide_viewport, lc.exclude]
+            bpy.context.window.view_layer = new
+            return f"new view layer '{new.name}', active"
+        if len(scene.view_layers) > 2 and rng.random() < 0.3:      # the extra one goes away
+            gone = next(v for v in scene.view_layers if v.name.startswith("Third"))
+            if gone == vl:
+                bpy.context.window.view_layer = scene.view_layers[0]
+            name = gone.name
+            scene.view_layers.remove(gone)
+            for m in model["objects"].values():
+                m["eye"].pop(name, None)
+            model["lc"] = {k: v for k, v in model["lc"].items() if k[0] != name}
+            return f"view layer '{name}' removed, active '{bpy.context.view_layer.name}'"
         other = [v for v in scene.view_layers if v != vl]
         bpy.context.window.view_layer = rng.choice(other)
         return f"view layer -> {bpy.context.view_layer.name}"
