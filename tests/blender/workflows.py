@@ -95,6 +95,11 @@ KNOWN_UNFIXED = {
         "followed by the state check).  Not fixable from the add-on while its hiding is Blender data."),
 }
 
+# Narrower switches for KNOWN_UNFIXED (a situation, not a whole step kind):
+#   "instanced_member_drawn": no member of the instanced collection 'Lib' is also drawn
+#       directly (new view layers exclude 'Lib'; a member moved elsewhere leaves 'Lib');
+#   "wire_instanced_member": members of 'Lib' keep a solid display.
+
 # What cannot be exercised in background Blender (said in the report, not silently):
 NOT_EXERCISED = {
     "cull_viewport": "background Blender has no 3D viewport: only the scene-camera source is culled",
@@ -827,6 +832,8 @@ def do_step(w, kind):
     if kind == "view_layer":
         if len(scene.view_layers) < 3 and rng.random() < 0.3:      # a new one: everything shown there
             new = scene.view_layers.new("Third")
+            if "instanced_member_drawn" in KNOWN_UNFIXED:
+                new.layer_collection.children["Lib"].exclude = True
             for m in model["objects"].values():
                 m["eye"][new.name] = False
             for path, lc in layer_collections(new):
@@ -924,6 +931,8 @@ def do_step(w, kind):
         users = [u.name for u in bpy.data.objects if u.data == o.data]
         return f"mesh of '{name}' z x{sz}, x {dx:+.2f} (mesh users {users})"
     if kind == "display_type":
+        if "wire_instanced_member" in KNOWN_UNFIXED and "Lib" in [c.name for c in o.users_collection]:
+            return f"display '{name}': a member of 'Lib' stays solid ({KNOWN_UNFIXED['wire_instanced_member']})"
         o.display_type = rng.choice(["TEXTURED", "SOLID", "WIRE", "BOUNDS"])
         return f"display '{name}' as {o.display_type}"
     if kind == "never_cull":
@@ -981,7 +990,8 @@ def do_step(w, kind):
             return f"move '{name}': already in {dest.name}"
         srcs = list(o.users_collection)
         dest.objects.link(o)
-        if srcs and rng.random() < 0.7:
+        if srcs and (rng.random() < 0.7 or ("instanced_member_drawn" in KNOWN_UNFIXED
+                                            and srcs[0].name == "Lib")):
             srcs[0].objects.unlink(o)
         forget_lost_bases(w)
         return f"move '{name}' from {[c.name for c in srcs]} to {dest.name}"
