@@ -22,13 +22,8 @@ def _on_load(*_args):
 @persistent
 def _on_undo(*_args):
     """Undo and redo replace Blender's data: caches and references are dropped,
-    the live timer follows the restored state.  An undo step can hold world
-    matrices older than the transforms beside them, and Blender re-evaluates
-    only what the undo changed: every object is tagged so the next evaluation
-    writes its current world matrix back (one tag each, O(n) once per undo)."""
+    the live timer follows the restored state."""
     SESSION.reset()
-    for obj in bpy.data.objects:
-        obj.update_tag(refresh={"OBJECT"})
     live.resync()
 
 

@@ -149,7 +149,7 @@ def is_dynamic(obj):
     return False
 
 
-def _bulk_matrices(collection, prop):
+def bulk_matrices(collection, prop):
     """``(n, 4, 4) float64`` of a matrix property over a whole collection, one ``foreach_get``.
 
     Blender stores matrices column-major and in float32, so the float32 read is exact.
@@ -251,10 +251,10 @@ class Candidates:
             kinds.append(k)
         index = np.array(index, dtype=np.int64)
         self.culled = culled_all[index]
-        m = _bulk_matrices(layer, "matrix_world")[index] if len(index) else np.zeros((0, 4, 4))
+        m = bulk_matrices(layer, "matrix_world")[index] if len(index) else np.zeros((0, 4, 4))
         hidden = np.flatnonzero(self.culled)
         if len(hidden):                               # stale matrix_world: rebuilt from matrix_basis
-            m[hidden] = _bulk_matrices(layer, "matrix_basis")[index[hidden]]
+            m[hidden] = bulk_matrices(layer, "matrix_basis")[index[hidden]]
             for k in hidden:
                 if info[int(uids_all[index[k]])][1]:  # parented: through the parent chain
                     m[k] = world_matrix(objects[k])
