@@ -398,6 +398,32 @@ def case4():
           data["objects"])
 
 
+def case4_collections():
+    """Collection instances: a member drawn directly too is never hidden (hiding it would
+    hide its instances); a collection with a wire member is never hidden as an instance."""
+    scene = new_scene()
+    lib = bpy.data.collections.new("Lib")
+    scene.collection.children.link(lib)
+    box("member", (3, -0.5, 0), (3.5, 0.5, 1), lib)                 # behind the wall, drawn directly
+    inst = bpy.data.objects.new("lib_instance", None)
+    inst.instance_type, inst.instance_collection = "COLLECTION", lib
+    inst.location = (-8.5, 0.0, 0.0)                               # its instance stands in view
+    scene.collection.objects.link(inst)
+    wired = bpy.data.collections.new("Wired")                      # not in the scene: a library
+    box("solid_part", (0, 0, 0), (0.2, 0.2, 0.2), wired)
+    w = box("wire_part", (-8, -1.5, 0), (-7.5, -1, 0.5), wired)    # far from the solid part
+    w.display_type = "WIRE"
+    inst2 = bpy.data.objects.new("wired_instance", None)
+    inst2.instance_type, inst2.instance_collection = "COLLECTION", wired
+    inst2.location = (4.0, 0.0, 0.0)                               # solid part behind the wall, wire part in view
+    scene.collection.objects.link(inst2)
+    update()
+    cull()
+    check("case4_instanced_member_kept", not hidden_by_addon("member"), hidden_by_addon("member"))
+    check("case4_wire_member_instance_kept", not hidden_by_addon("wired_instance"), hidden_by_addon("wired_instance"))
+    promise("case4_collections_truth")
+
+
 def case5():
     """Caches follow objects, not names: swapped names, delete and rename."""
     scene = new_scene()
@@ -678,7 +704,8 @@ def case_hidden_edits():
         promise(f"hidden_edit_{what}_truth")
 
 
-CASES = (case1, case2, case3, case4, case5, case6, case7, case8, case10, case11, case12, case_hidden_edits)
+CASES = (case1, case2, case3, case4, case4_collections, case5, case6, case7, case8, case10, case11, case12,
+         case_hidden_edits)
 
 
 def main():
