@@ -724,7 +724,7 @@ def check_cull(w):
                  and (o.occ_never_cull or o.name in keep))
     if bad:
         problems.append(f"e: never-cull or exclude-collection objects hidden: {bad}")
-    broken = sorted(o.name for o in scene.objects if "wf_bad" in o and hidden_by_addon(o))
+    broken = sorted(o.name for o in scene.objects if hidden_by_addon(o) and has_nan(o))
     if broken:
         problems.append(f"e: objects with a NaN are hidden (they must stay visible): {broken}")
     return problems
@@ -789,7 +789,7 @@ def do_step(w, kind):
         except RuntimeError as e:                  # an ERROR report: fine unless it is our bug
             if "failed" in str(e):
                 raise
-            broken = [o.name for o in scene.objects if "wf_bad" in o and o.name in str(e)]
+            broken = [o.name for o in scene.objects if o.name in str(e) and has_nan(o)]
             if broken and "nothing to cull" not in str(e):  # the bad one left out, nothing else to cull: fine
                 w.pending.append(f"g: one object with a NaN ({broken}) stopped the whole cull: {e}")
             return f"cull -> report: {e}"
@@ -1067,6 +1067,18 @@ def do_analyze(w):
     scene.frame_set(frame)
     w.pending += problems
     return f"analyze {first}..{first + 2} -> {sorted(r)}"
+
+
+def has_nan(o):
+    """A NaN or infinity in the object's own transform or mesh (what the user sees in its data)."""
+    import numpy as np
+    if not np.all(np.isfinite([*o.location, *o.rotation_euler, *o.scale])):
+        return True
+    if o.type == "MESH" and o.data is not None and len(o.data.vertices):
+        co = np.empty(3 * len(o.data.vertices), dtype=np.float32)
+        o.data.vertices.foreach_get("co", co)
+        return not np.all(np.isfinite(co))
+    return False
 
 
 def do_bad_value(w):
