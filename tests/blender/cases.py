@@ -422,6 +422,11 @@ def case4_collections():
     check("case4_instanced_member_kept", not hidden_by_addon("member"), hidden_by_addon("member"))
     check("case4_wire_member_instance_kept", not hidden_by_addon("wired_instance"), hidden_by_addon("wired_instance"))
     promise("case4_collections_truth")
+    report = os.path.join(WORK, "case4_collections.json")
+    bpy.ops.occ.analyze(filepath=report, frame_start=1, frame_end=1)
+    with open(report) as f:
+        seen = json.load(f)["objects"]
+    check("case4_analyze_member_seen_in_instance", seen.get("member", {}).get("frames_visible") == 1, seen)
 
 
 def case5():

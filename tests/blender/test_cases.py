@@ -31,6 +31,7 @@ CHECKS = [
     "case4_gn_instancer_kept", "case4_vert_instances_kept", "case4_truth",
     "case4_instances_occlude", "case4_occlude_truth", "case4_analyze_sees_instancer",
     "case4_instanced_member_kept", "case4_wire_member_instance_kept", "case4_collections_truth",
+    "case4_analyze_member_seen_in_instance",
     "case5_swapped_names", "case5_swap_truth", "case5_delete_rename", "case5_delete_truth",
     "case6_occluder_moved_recull", "case6_moved_truth", "case6_never_cull_recull", "case6_undo_keeps_live",
     "case6_reload_live_true_state",
