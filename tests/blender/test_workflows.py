@@ -75,6 +75,15 @@ def test_every_step_kind_ran(workflows):
     assert enabled <= ran, sorted(enabled - ran)
 
 
+def test_checks_had_teeth(workflows):
+    """The truth was drawn after many passes, with many objects hidden by the add-on at
+    those moments: the visibility check was not passed by having nothing to check."""
+    results, _ = workflows
+    stats = [s["stats"] for s in results["seeds"].values()]
+    assert sum(s["truth_checks"] for s in stats) >= 20 * len(SEEDS), stats
+    assert sum(s["hidden_at_checks"] for s in stats) >= 50 * len(SEEDS), stats
+
+
 def test_quiet_exit(workflows):
     """Nothing prints a traceback when the interpreter exits after culling (issue 9, case 11)."""
     _, p = workflows
