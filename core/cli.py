@@ -9,6 +9,7 @@ stderr with exit status 2.
 
 import argparse
 import json
+import math
 import os
 import sys
 
@@ -16,7 +17,7 @@ import numpy as np
 
 from .engine import DEFAULT_RESOLUTION, Culler, parse_resolution
 from .errors import OccError
-from .jobs import load_job, log_for, parse_names, prepare_out, require_matplotlib, resolve_cameras, resolve_scene
+from .jobs import Progress, load_job, parse_names, prepare_out, require_matplotlib, resolve_cameras, resolve_scene
 from .scene import load_scene
 from .strategies import DEFAULT_STRATEGY, STRATEGIES
 from .traversal import Visibility
@@ -24,6 +25,7 @@ from .traversal import Visibility
 EXIT_USER_ERROR = 2
 CAMERA_HELP = 'camera JSON: one camera or {"frames": [camera, ...]}'
 JSON_HELP = "JSON on stdout: per frame the visible names and every object's index, name and state"
+QUIET_HELP = "no progress on stderr (a bar on a terminal, else a short line per step); errors still show"
 
 
 STATE_NAMES = np.array([v.name.lower() for v in sorted(Visibility)])   # "visible", "occluded", "view_culled"
@@ -46,21 +48,28 @@ def _job(args):
     return load_scene(path), cameras, resolution
 
 
+def _frames_progress(args, n):
+    """A bar over the frames of ``cull`` / ``truth`` when there are several; elsewhere at most ten lines."""
+    return Progress(n, args.command, unit="frame", quiet=args.quiet or n < 2, every=math.ceil(n / 10))
+
+
 def cmd_cull(args):
     scene, cameras, resolution = _job(args)
-    with Culler(scene, resolution, strategy=args.strategy) as culler:
+    with Culler(scene, resolution, strategy=args.strategy) as culler, \
+            _frames_progress(args, len(cameras)) as progress:
         frames = []
-        for cam in cameras:
+        for i, cam in enumerate(cameras):
             r = culler.cull(cam)
             frames.append(_frame(scene, r.state, r.stats))
+            progress.step(f"frame {i}: {r.stats['visible']} of {len(scene)} visible")
     _print_frames(frames, args.json)
 
 
 def cmd_truth(args):
     scene, cameras, resolution = _job(args)
-    with Culler(scene, resolution, strategy="vfc") as culler:
+    with Culler(scene, resolution, strategy="vfc") as culler, _frames_progress(args, len(cameras)) as progress:
         frames = []
-        for cam in cameras:
+        for i, cam in enumerate(cameras):
             truth = culler.truth(cam)
             # not seen: outside the view volume (by box, as vfc decides) or hidden by others
             state = np.where(truth, Visibility.VISIBLE, np.where(
@@ -70,6 +79,7 @@ def cmd_truth(args):
                 "objects": len(scene), "visible": int(truth.sum()),
                 "occluded": int((state == Visibility.OCCLUDED).sum()),
                 "view_culled": int((state == Visibility.VIEW_CULLED).sum())}))
+            progress.step(f"frame {i}: {int(truth.sum())} of {len(scene)} visible")
     _print_frames(frames, args.json)
 
 
@@ -94,7 +104,7 @@ def _dump_json(report):
 def cmd_bench(args):
     if args.hierarchies:
         return cmd_hierarchies(args)
-    from .reports import bench_scene, write_index
+    from .reports import bench_scene, bench_steps, write_index
     strategies = parse_names(args.strategies, STRATEGIES, "strategies")
     resolution = parse_resolution(args.resolution)
     out = args.out or ((args.plot or args.snapshot) and "reports") or None
@@ -102,11 +112,12 @@ def cmd_bench(args):
         require_matplotlib()
     if out:
         prepare_out(out)
-    log = log_for(args.json)
-    report, table = bench_scene(args.scene, args.camera, strategies, resolution,
-                                args.frames, out, args.plot, args.snapshot, log)
-    if out:
-        write_index(out)
+    with Progress(bench_steps(strategies, args.plot, args.snapshot), f"bench {_short_name(args.scene)}",
+                  quiet=args.quiet) as progress:
+        report, table = bench_scene(args.scene, args.camera, strategies, resolution,
+                                    args.frames, out, args.plot, args.snapshot, progress)
+        if out:
+            write_index(out)
     if args.json:
         _dump_json({**report, "strategies": {k: {kk: vv for kk, vv in v.items() if kk != "per_frame"}
                                              for k, v in report["strategies"].items()}})
@@ -122,9 +133,9 @@ def cmd_hierarchies(args):
     if args.out:
         prepare_out(args.out)
     scene, cameras, title = load_job(args.scene, args.camera, args.frames)
-    log = log_for(args.json)
-    report = run_hierarchies(scene, cameras, builders, resolution,
-                             progress=lambda n, s: log(f"  {n:<9} median {s['frame_ms_median']:.2f} ms"))
+    with Progress(len(builders), f"hierarchies {title}", unit="builder", quiet=args.quiet) as progress:
+        report = run_hierarchies(scene, cameras, builders, resolution, progress=lambda n, s: progress.step(
+            f"{n:<9} median {s['frame_ms_median']:.2f} ms"))
     report["scene"] = title
     table = format_hierarchy_table(report, f"== {title}: hierarchies ==")
     if args.out:
@@ -144,20 +155,23 @@ def cmd_demo(args):
     """The main job: generate the sample scene(s), benchmark them, write the report folder."""
     import sample_scenes
 
-    from .reports import bench_scene, write_index
+    from .reports import bench_scene, bench_steps, write_index
     resolution = parse_resolution(args.resolution)
     require_matplotlib()
     out = prepare_out(args.out)
     names = sample_scenes.NAMES if args.all else ("city",)
-    for name in names:
-        _, table = bench_scene(name, None, STRATEGIES, resolution, args.frames, out, plot=True, snapshot=True)
-        print(table)
-    write_index(out)
+    steps = len(names) * bench_steps(STRATEGIES, plot=True, snapshot=True)
+    with Progress(steps, "demo", quiet=args.quiet) as progress:
+        for name in names:
+            _, table = bench_scene(name, None, STRATEGIES, resolution, args.frames, out, plot=True, snapshot=True,
+                                   progress=progress)
+            progress.echo(table)
+        write_index(out)
     print(f"report written to {out}/ (README.txt says what each file holds)")
 
 
 def cmd_tradeoff(args):
-    from .tradeoff import KNOBS, plot_tradeoff, run_tradeoff
+    from .tradeoff import KNOBS, plot_tradeoff, run_tradeoff, tradeoff_steps
     display = parse_resolution(args.display)
     knobs = parse_names(args.knobs, tuple(KNOBS), "knobs") if args.knobs is not None else list(KNOBS)
     out = args.out or (args.plot and "reports") or None
@@ -166,9 +180,13 @@ def cmd_tradeoff(args):
     if out:
         prepare_out(out)
     scene, cameras, title = load_job(args.scene, args.camera, args.frames)
-    log = log_for(args.json)
-    log(f"{title}: {len(scene)} objects, {len(cameras)} frames, display {args.display}")
-    report = run_tradeoff(scene, cameras, display, knobs, log, repeats=args.repeats)
+    with Progress(tradeoff_steps(knobs), f"tradeoff {title}", unit="setting", quiet=args.quiet) as progress:
+        # text: a row per setting on stdout stands for its progress line; JSON: rows stay off stdout
+        say = progress.note if args.json else progress.echo
+        say(f"{title}: {len(scene)} objects, {len(cameras)} frames, display {args.display}")
+        report = run_tradeoff(scene, cameras, display, knobs, (lambda *a: None) if args.json else progress.echo,
+                              repeats=args.repeats,
+                              progress=lambda label, r: progress.step(_tradeoff_step(label, r), line=args.json))
     report["scene"] = title
     if out:
         with open(os.path.join(out, f"{title}_tradeoff.json"), "w") as f:
@@ -180,7 +198,17 @@ def cmd_tradeoff(args):
     if args.json:
         _dump_json(report)
     else:
-        log(f"Pareto front: {', '.join(report['pareto'])}")
+        print(f"Pareto front: {', '.join(report['pareto'])}")
+
+
+def _tradeoff_step(label, r):
+    if r is None:
+        return label
+    return f"{label} {r['frame_ms_median']:.2f} ms, missed {r['pixels_missed_per_frame']:.1f} px/frame"
+
+
+def _short_name(spec):
+    return os.path.splitext(os.path.basename(spec))[0]
 
 
 def positive_int(text):
@@ -217,6 +245,7 @@ def build_parser():
     c.add_argument("--strategy", default=DEFAULT_STRATEGY, choices=STRATEGIES)
     c.add_argument("--resolution", default=res, help=f"query resolution WxH (default {res})")
     c.add_argument("--json", action="store_true", help=JSON_HELP)
+    c.add_argument("--quiet", "-q", action="store_true", help=QUIET_HELP)
     c.set_defaults(func=cmd_cull)
 
     t = sub.add_parser("truth", help="exact visible set from an object-ID buffer")
@@ -224,6 +253,7 @@ def build_parser():
     t.add_argument("--camera", help=CAMERA_HELP)
     t.add_argument("--resolution", default=res, help=f"ID-buffer resolution WxH (default {res})")
     t.add_argument("--json", action="store_true", help=JSON_HELP)
+    t.add_argument("--quiet", "-q", action="store_true", help=QUIET_HELP)
     t.set_defaults(func=cmd_truth)
 
     b = sub.add_parser("bench", help="every strategy over a camera path, against the truth")
@@ -238,6 +268,7 @@ def build_parser():
     b.add_argument("--hierarchies", help="compare hierarchy builders instead of strategies: "
                    "comma list of tree, pHBVO, DBVS, octree, balanced, auto")
     b.add_argument("--json", action="store_true", help="the report as JSON on stdout (progress on stderr)")
+    b.add_argument("--quiet", "-q", action="store_true", help=QUIET_HELP)
     b.set_defaults(func=cmd_bench)
 
     d = sub.add_parser("demo", help="generate the sample scene(s) and benchmark them")
@@ -245,6 +276,7 @@ def build_parser():
     d.add_argument("--out", default="reports", help="report folder (default reports/)")
     d.add_argument("--resolution", default=res, help=f"query resolution WxH (default {res})")
     d.add_argument("--frames", type=positive_int, help="use only this many frames, evenly spread")
+    d.add_argument("--quiet", "-q", action="store_true", help=QUIET_HELP)
     d.set_defaults(func=cmd_demo)
 
     o = sub.add_parser("tradeoff", help="sweep the speed/accuracy knobs against display truth")
@@ -258,6 +290,7 @@ def build_parser():
     o.add_argument("--out", help="folder for the JSON and the Pareto plot (default reports/ with --plot)")
     o.add_argument("--plot", action="store_true", help="the speed/accuracy plot (PNG)")
     o.add_argument("--json", action="store_true", help="the report as JSON on stdout (progress on stderr)")
+    o.add_argument("--quiet", "-q", action="store_true", help=QUIET_HELP)
     o.set_defaults(func=cmd_tradeoff)
     return p
 

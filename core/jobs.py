@@ -80,9 +80,105 @@ def load_job(scene_spec, camera_arg, frames=None):
     return load_scene(path), cameras, title
 
 
-def log_for(as_json):
-    """Progress goes to stderr when stdout carries JSON."""
-    return (lambda *a: print(*a, file=sys.stderr)) if as_json else print
+class Progress:
+    """Progress of one long command, always on stderr (stdout carries the result, or pure JSON).
+
+    On a terminal: a bar, tqdm's when it is installed, else a plain one redrawn in place.
+    Elsewhere (CI, pipes, files): one short line per step that has a text, and at most every
+    ``every``-th step.  With ``quiet``: nothing.  tqdm is imported here and only for a bar: the
+    Blender extension does not bundle it, and nothing in ``core`` needs it to import.
+    """
+
+    def __init__(self, total, desc, unit="step", quiet=False, every=1, stream=None):
+        self.total, self.desc, self.unit, self.every = int(total), desc, unit, max(1, int(every))
+        self.stream = stream or sys.stderr
+        self.n, self.label, self._tqdm = 0, "", None
+        self.mode = "quiet" if quiet else ("bar" if _isatty(self.stream) else "lines")
+        if self.mode == "bar":
+            try:
+                from tqdm import tqdm
+            except ImportError:              # the plain bar below: a missing tqdm costs only looks
+                tqdm = None
+            if tqdm is not None:
+                self._tqdm = tqdm(total=self.total, desc=desc, unit=unit, file=self.stream,
+                                  dynamic_ncols=True, leave=False)
+            else:
+                self._draw()
+
+    def step(self, text=None, line=True):
+        """One step done; ``text`` names it (bar: shown beside it; elsewhere: its line, unless
+        ``line`` is False because the caller prints its own line for it)."""
+        self.n += 1
+        self.label = text or ""
+        if self.mode == "bar":
+            if self._tqdm is not None:
+                self._tqdm.set_postfix_str(_short(self.label), refresh=False)
+                self._tqdm.update(1)
+            else:
+                self._draw()
+        elif self.mode == "lines" and text and line and (self.n % self.every == 0 or self.n == self.total):
+            print(f"  [{self.n}/{self.total}] {text}", file=self.stream, flush=True)
+
+    def note(self, text):
+        """A line of information on stderr, above the bar on a terminal; nothing when quiet."""
+        if self.mode != "quiet":
+            self._write(text, self.stream)
+
+    def echo(self, text):
+        """A line of the result on stdout, even when quiet; on a terminal it does not tear the bar."""
+        self._write(text, sys.stdout)
+
+    def close(self):
+        if self._tqdm is not None:
+            self._tqdm.close()
+            self._tqdm = None
+        elif self.mode == "bar":
+            self._clear()
+            self.mode = "closed"
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def _write(self, text, stream):
+        if self._tqdm is not None:
+            self._tqdm.write(text, file=stream)
+            return
+        if self.mode == "bar":
+            self._clear()
+        print(text, file=stream, flush=True)
+        if self.mode == "bar":
+            self._draw()
+
+    def _width(self):
+        try:                                 # the terminal of stderr, not of stdout (maybe a pipe)
+            columns = os.get_terminal_size(self.stream.fileno()).columns
+        except (AttributeError, ValueError, OSError):
+            columns = 80
+        return max(20, (columns or 80) - 1)
+
+    def _draw(self):
+        done = int(20 * self.n / max(self.total, 1))
+        text = f"{self.desc} [{'#' * done}{'-' * (20 - done)}] {self.n}/{self.total} {self.unit}s {self.label}"
+        self.stream.write("\r" + text[:self._width()].ljust(self._width()))
+        self.stream.flush()
+
+    def _clear(self):
+        self.stream.write("\r" + " " * self._width() + "\r")
+        self.stream.flush()
+
+
+def _isatty(stream):
+    try:
+        return stream.isatty()
+    except (AttributeError, ValueError):     # a closed or file-like stream: no terminal
+        return False
+
+
+def _short(text, width=32):
+    return text if len(text) <= width else text[:width - 1] + "~"
 
 
 def parse_names(text, allowed, what):

@@ -250,15 +250,24 @@ def write_index(out_dir):
     return path
 
 
+def bench_steps(strategies, plot=False, snapshot=False):
+    """Steps of :func:`bench_scene` for a progress bar: loading, each strategy, plots, pictures."""
+    return 1 + len(strategies) + bool(plot) + bool(snapshot)
+
+
 def bench_scene(spec, camera=None, strategies=STRATEGIES, resolution=DEFAULT_RESOLUTION,
-                frames=None, out_dir=None, plot=False, snapshot=False, log=print):
-    """Load a scene (file or sample name), run the benchmark, optionally write a report folder."""
+                frames=None, out_dir=None, plot=False, snapshot=False, progress=None):
+    """Load a scene (file or sample name), run the benchmark, optionally write a report folder.
+
+    ``progress``: a :class:`core.jobs.Progress` that takes :func:`bench_steps` steps (None: silent).
+    """
+    step = progress.step if progress is not None else (lambda *a, **k: None)
     t = time.perf_counter()
     scene, cameras, title = load_job(spec, camera, frames)
-    log(f"{title}: loaded {len(scene)} objects, {int(scene.triangle_counts.sum()):,} triangles "
-        f"in {time.perf_counter() - t:.1f} s; {len(cameras)} frames")
+    step(f"{title}: loaded {len(scene)} objects, {int(scene.triangle_counts.sum()):,} triangles "
+         f"in {time.perf_counter() - t:.1f} s; {len(cameras)} frames")
     report = run_bench(scene, cameras, list(strategies), resolution,
-                       progress=lambda n, s: log(f"  {n:<9} median {s['frame_ms_median']:.2f} ms"))
+                       progress=lambda n, s: step(f"{title} {n:<11} median {s['frame_ms_median']:.2f} ms"))
     report["scene"] = title
     table = format_table(report, f"== {title} ==")
     if out_dir:
@@ -269,8 +278,10 @@ def bench_scene(spec, camera=None, strategies=STRATEGIES, resolution=DEFAULT_RES
             f.write(table + "\n")
         if plot:
             write_plots(report, out_dir, title)
+            step(f"{title} plots", line=False)
         if snapshot:
             k = len(cameras) // 2
             write_snapshot(scene, cameras[k], out_dir, title, resolution,
                            frame_label=f"frame {k} of {len(cameras)}")
+            step(f"{title} pictures", line=False)
     return report, table

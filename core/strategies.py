@@ -29,7 +29,8 @@ less before a query can only make it say "visible" more often.
                stage 3 queries all that remain.
 - ``om_coherent`` om_multi that draws last pass's visible leaves first, without
                queries, re-checking each every few passes (temporal coherence);
-               after a camera cut or a sparse pass it starts fresh.
+               after a camera cut or a sparse pass it starts fresh; at most
+               ``COHERENT_READS`` multiple queries (GPU round trips) a pass.
 - ``two_pass`` GPU-driven: last pass's visible leaves drawn first, every other leaf
                of the frustum tested in one batch, the nearer half of those that pass
                drawn and the rest tested once more (a handful of GL calls a pass);
@@ -52,6 +53,7 @@ from .tolerance import tol
 from .traversal import Visibility
 
 OM_MAX_BATCHES = 5
+COHERENT_READS = 5             # read-backs a pass of om_coherent (and auto): a GPU round trip each
 MAX_TEST_CANDIDATES = 512      # bounds the pairwise work of one test list
 
 
@@ -200,6 +202,17 @@ def _test_list(frame, pending):
     return cand[taken], np.concatenate([cand[~taken], pending[MAX_TEST_CANDIDATES:]])
 
 
+def _frustum_leaves_below(frame, nodes):
+    """Leaves inside the frustum in the subtrees of reached ``nodes`` (reaching the
+    nodes between, with their rectangles)."""
+    out, front = [], nodes
+    while len(front):
+        leaf = frame.h.is_leaf[front]
+        out.append(front[leaf])
+        front = frame.children_in_frustum(front[~leaf])
+    return np.concatenate(out) if out else np.zeros(0, dtype=np.int64)
+
+
 def _resolve(frame, nodes, visible):
     """Act on query answers: occlude the hidden, draw visible leaves, open visible
     inner nodes; returns the opened children."""
@@ -257,6 +270,11 @@ class OmMulti(Strategy):
     ancestors are opened without one; each such leaf is queried again every
     ``RECHECK`` passes (staggered), so one that became hidden is culled soon.
     Only skipping queries, never culling without one, it stays conservative.
+
+    ``read_budget`` (this project's, for the coherent default): at most that many
+    multiple queries, hence blocking read-backs, a pass -- stage 2 gets all but two
+    of them, and stage 3 asks what remains in one batch and then every leaf below
+    the visible ones in another, instead of level by level.
     The memory is used only when the camera barely moved since the last pass
     (:func:`camera_cut`): after a cut, or a sparse pass (the add-on's), the pass
     starts fresh, so memory never makes a pass worse than a fresh one by more
@@ -265,9 +283,10 @@ class OmMulti(Strategy):
 
     RECHECK = 8
 
-    def __init__(self, max_tests=8, coherent=False):
+    def __init__(self, max_tests=8, coherent=False, read_budget=None):
         self.max_tests = max(1, int(max_tests))
         self.coherent = coherent
+        self.read_budget = read_budget
         self.assumed = None
         self.last_camera = None
         self.frame_no = 0
@@ -319,18 +338,31 @@ class OmMulti(Strategy):
     def _traverse(self, frame, chunk):
         pending = _stage1(frame, np.zeros(1, dtype=np.int64), chunk)
         rounds = 0
+        stage2 = self.max_tests if self.read_budget is None else min(self.max_tests, max(self.read_budget - 2, 0))
         # Stage 2: occupancy-map-arranged multiple queries.
-        while len(pending) and rounds < self.max_tests:
+        while len(pending) and rounds < stage2:
             pending = frame.sort_near(pending)
             test, pending = _test_list(frame, pending)
             opened = _resolve(frame, test, frame.query(test))
             pending = np.concatenate([pending, _stage1(frame, opened, chunk)])
             rounds += 1
-        # Stage 3: everything that remains, brute force, level by level.
-        while len(pending):
+        if self.read_budget is None:
+            # Stage 3: everything that remains, brute force, level by level.
+            while len(pending):
+                opened = _resolve(frame, pending, frame.query(pending))
+                pending = _stage1(frame, opened, chunk)
+                rounds += 1
+        elif len(pending):
+            # Stage 3 within the read budget: what remains in one batch, then every
+            # leaf below those found visible in a second one.
             opened = _resolve(frame, pending, frame.query(pending))
-            pending = _stage1(frame, opened, chunk)
             rounds += 1
+            # what the map proves visible below is drawn first, the rest's leaves tested
+            leaves = _frustum_leaves_below(frame, _stage1(frame, opened, chunk))
+            leaves = leaves[~frame.predrawn[leaves]]
+            if len(leaves):
+                _resolve(frame, leaves, frame.query(leaves))
+                rounds += 1
         self.max_tests = max(1, math.ceil(0.7 * rounds)) if rounds else self.max_tests
 
 
@@ -408,91 +440,120 @@ class Auto(Strategy):
     frustum culling alone where they cannot (few or cheap triangles behind what is
     seen, or a GPU that draws everything faster than the tests' round trips).
 
-    Costs are measured, not assumed: on its first pass it times drawing about
-    ``CALIBRATE_TRIANGLES`` triangles and a query batch's round trip (then clears
-    the depth buffer), and it keeps learning the cost of a triangle from every
-    frustum-only pass.  After each occlusion pass it compares the pass's time with
-    what frustum culling would have cost -- the triangles drawn plus those the
-    tests proved hidden, at the measured cost, plus the frustum-only overhead last
-    seen -- and after ``LOSSES`` passes in a row where the tests did not pay it
-    switches to frustum culling, probing occlusion again every ``PROBE_EVERY``
-    passes.  Both modes are conservative, so the choice changes speed only.
+    Costs are measured on real passes, not assumed: the first pass tests occlusion
+    (and times a query batch's round trip); the second draws everything in the
+    frustum, which gives the cost of a triangle as the scene really draws (fill
+    included) and of a frustum-only pass beyond its drawing; one such pass comes
+    again every ``PROBE_EVERY`` test passes while the tests cost more than ``CLOSE``
+    of that estimate (where they clearly win, re-learning would only cost).  After each test pass it compares the
+    pass's time with what frustum culling would have cost -- the triangles drawn
+    plus those the tests proved hidden, at the measured cost, plus the frustum-only
+    overhead -- and after ``LOSSES`` passes in a row where the tests did not pay it
+    switches to frustum culling, probing the tests again every ``PROBE_EVERY``
+    passes, or at once when a frustum-only pass is ``PROBE_SLOWER`` times slower
+    than the last test pass (``FIRST_SLOWER`` for the first one after a switch).
+    Both modes are conservative, so the choice changes speed only.
     """
 
-    CALIBRATE_TRIANGLES = 200_000
-    LOSSES = 2
+    LOSSES = 3                   # passes in a row where the tests did not pay (timing noise is common)
     PROBE_EVERY = 16
-    PROBE_SLOWER = 1.5           # a frustum-only pass this much slower than the last test pass: probe at once
+    PROBE_SLOWER = 2.0           # a frustum-only pass this much slower than the last test pass: probe at once
+    FIRST_SLOWER = 1.0           # ... and the first frustum-only pass after a switch: was the switch right?
+    PROBE_MARGIN = 0.9           # a probe switches back when it beats the frustum-only estimate by this much
+    LOSS_MARGIN = 1.15           # a test pass loses when it costs this much more than the estimate (noise)
+    CLOSE = 0.5                  # test passes above this share of the estimate re-learn the costs every PROBE_EVERY
     LEARN = 0.3                  # weight of a new measurement in the running cost
 
     def __init__(self, max_tests=8, costs=None):
-        self.occlusion = OmMulti(max_tests, coherent=True)
-        # tri_ms: ms per triangle drawn; round_trip_ms: one query batch; vfc_cpu_ms:
-        # a frustum-only pass's time beyond its drawing
+        self.occlusion = OmMulti(max_tests, coherent=True, read_budget=COHERENT_READS)
+        # tri_ms: ms per triangle a frustum-only pass draws; vfc_cpu_ms: such a pass's
+        # time beyond its drawing; round_trip_ms: one query batch
         self.costs = dict(costs) if costs is not None else None
         self.use_tests = True
         self.losses = 0
-        self.since_probe = 0
-        self.last_test_ms = None         # the last occlusion pass's time
-        self.learned = False             # the triangle cost measured on a real frustum-only pass
+        self.since_probe = 0             # frustum-only passes since the last test pass
+        self.since_learn = 0             # test passes since the last frustum-only one
+        self.last_test_ms = None
+        self.close = True                # the last test pass was near the frustum-only estimate
 
     def reset(self):
         self.occlusion.reset()
 
     forget = reset
 
-    def _calibrate(self, frame):
-        r = frame.r
-        tri = np.asarray(r.tri_counts)
-        order = np.argsort(tri)[::-1]
-        units = order[:max(1, int(np.searchsorted(np.cumsum(tri[order]), self.CALIBRATE_TRIANGLES)) + 1)]
-        r.finish()
-        t = time.perf_counter()
-        drawn = r.draw(units)
-        r.finish()
-        tri_ms = 1e3 * (time.perf_counter() - t) / max(drawn, 1)
-        box = frame.boxes(np.zeros(1, dtype=np.int64))
+    @property
+    def learned(self):
+        """Whether a frustum-only pass's costs were measured (or given)."""
+        return self.costs is not None and self.costs.get("tri_ms") is not None
+
+    def _round_trip(self, frame):
+        start = time.perf_counter()
+        # a small box ahead of the eye (only the round trip's time is used)
+        centre = frame.camera.direction * (0.01 * frame.scene_size)
+        box = (centre + np.array([[-1.0], [1.0]]) * (1e-3 * frame.scene_size))[None]
         trips = []
         for _ in range(3):
             t = time.perf_counter()
-            r.query(box)
+            frame.r.query(box)
             trips.append(1e3 * (time.perf_counter() - t))
-        r.begin_frame(frame.camera)        # the calibration's depth is no occluder
-        self.costs = {"tri_ms": tri_ms, "round_trip_ms": float(np.median(trips)), "vfc_cpu_ms": 0.0}
+        frame.t_query += time.perf_counter() - start     # GL work: not the pass's CPU time
+        self.costs = {"tri_ms": None, "vfc_cpu_ms": 0.0, "round_trip_ms": float(np.median(trips))}
 
     def __call__(self, frame, chunk=16, truth=None):
         if self.costs is None:
-            self._calibrate(frame)
-        c = self.costs
-        probe = not self.use_tests and self.since_probe >= self.PROBE_EVERY
-        if self.use_tests or probe:
-            self.since_probe = 0
-            frame.stats["occlusion_pass"] = 1
-            self.occlusion(frame, chunk)
-            frame.flush()
-            frame.r.finish()
-            spent = self.last_test_ms = 1e3 * (time.perf_counter() - frame.t0)
-            s = frame.stats
-            frustum_only = (s["triangles_drawn"] + s["triangles_occluded"]) * c["tri_ms"] + c["vfc_cpu_ms"]
-            paid = spent < frustum_only
-            self.losses = 0 if paid else self.losses + 1
-            self.use_tests = paid if probe else self.losses < self.LOSSES
-            return
-        self.since_probe += 1
+            self._round_trip(frame)
+        if self.use_tests:
+            if (not self.learned and self.since_learn >= 1) or (self.close and self.since_learn >= self.PROBE_EVERY):
+                self._frustum_only(frame, learning=True)
+            else:
+                self._tests(frame, chunk, probe=False)
+        elif self.since_probe >= self.PROBE_EVERY:
+            self._tests(frame, chunk, probe=True)
+        else:
+            self._frustum_only(frame, learning=False)
+
+    def _tests(self, frame, chunk, probe):
+        self.since_probe = 0
+        self.since_learn += 1
+        frame.stats["occlusion_pass"] = 1
+        self.occlusion(frame, chunk)
+        frame.finish_gl()
+        spent = self.last_test_ms = 1e3 * (time.perf_counter() - frame.t0)
+        if not self.learned:
+            return                                   # nothing to compare with yet
+        c, s = self.costs, frame.stats
+        frustum_only = (s["triangles_drawn"] + s["triangles_occluded"]) * c["tri_ms"] + c["vfc_cpu_ms"]
+        paid = spent < frustum_only * (self.PROBE_MARGIN if probe else self.LOSS_MARGIN)
+        self.close = spent > self.CLOSE * frustum_only
+        self.losses = 0 if paid else self.losses + 1
+        self.use_tests = paid if probe else self.losses < self.LOSSES
+
+    def _frustum_only(self, frame, learning):
+        if learning:
+            self.since_learn = 0
+        else:
+            self.since_probe += 1
         leaves = frame.frustum_leaves()
         t = time.perf_counter()
         frame.draw_leaves(leaves)
-        frame.flush()
-        frame.r.finish()
+        frame.finish_gl()
         end = time.perf_counter()
+        c = self.costs
         drawn = frame.stats["triangles_drawn"]
         learn = self.LEARN if self.learned else 1.0
         if drawn:
-            c["tri_ms"] += learn * (1e3 * (end - t) / drawn - c["tri_ms"])
+            tri_ms = 1e3 * (end - t) / drawn
+            c["tri_ms"] = tri_ms if c["tri_ms"] is None else c["tri_ms"] + learn * (tri_ms - c["tri_ms"])
+        elif c["tri_ms"] is None:
+            return                                   # nothing drawn: learn on a later pass
         c["vfc_cpu_ms"] += learn * (1e3 * (t - frame.t0) - c["vfc_cpu_ms"])
-        self.learned = True
-        if self.last_test_ms is not None and 1e3 * (end - frame.t0) > self.PROBE_SLOWER * self.last_test_ms:
-            self.since_probe = self.PROBE_EVERY          # the view got heavier: test again next pass
+        if learning:
+            return
+        # the first frustum-only pass after a switch is measured against the last test
+        # pass as it is (was the switch right?), later ones with a margin (the view got heavier)
+        slower = self.PROBE_SLOWER if self.since_probe > 1 else self.FIRST_SLOWER
+        if self.last_test_ms is not None and 1e3 * (end - frame.t0) > slower * self.last_test_ms:
+            self.since_probe = self.PROBE_EVERY          # test again next pass
 
 
 @dataclass(frozen=True)
@@ -520,7 +581,7 @@ REGISTRY = {info.name: info for info in (
                  "Staneker et al. 2003: occupancy map, remaining queries batched"),
     StrategyInfo("om_multi", lambda m: OmMulti(m), "Multiple queries",
                  "Staneker et al. 2004: occupancy-map-arranged multiple queries", True),
-    StrategyInfo("om_coherent", lambda m: OmMulti(m, coherent=True), "Coherent",
+    StrategyInfo("om_coherent", lambda m: OmMulti(m, coherent=True, read_budget=COHERENT_READS), "Coherent",
                  "Occupancy map, multiple queries, last pass's visible first", True),
     StrategyInfo("two_pass", lambda m: TwoPass(m), "Two passes",
                  "Last pass's visible first, every other leaf tested in one batch (GPU-driven)", True),

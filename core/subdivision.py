@@ -23,6 +23,12 @@ Builders:
 Items far larger than their node (longest side above ``PULL_UP`` of the node's)
 stay at that node instead of inflating every box below (``pull_up``).  Binary
 trees collapse into ``max_children``-ary ones by opening the largest child.
+
+Memory: items are axis-major corner arrays reordered in place (a node is a
+range of them, split by stable partitions through one scratch row per dtype);
+a heavy mesh hands in float32 corners as :class:`ItemBoxes` and nothing of the
+size of its triangles is copied.  pHBVO decides ``PLAN_DEPTH`` levels at once
+above ``PLAN_ITEMS`` items, so large nodes move their items once per three levels.
 """
 
 import time
@@ -36,10 +42,14 @@ from .errors import OccError
 BUILDERS = ("pHBVO", "DBVS", "octree", "balanced")
 SAH_BINS = 32
 SAH_CHECK_ITEMS = 200_000  # up to here pHBVO also builds the balanced tree and keeps the cheaper
-SAH_SAMPLE = 4096      # items the SAH cost curve of one split is evaluated on
+SAH_SAMPLE = 1024      # items the SAH cost curves of one split are evaluated on (10 M grid: 512,
+                       # 1024, 2048 give the same SAH cost, 6.2, 6.5, 7.1 s of CPU for make_units)
 PULL_UP = 0.5            # an item longer than half its node's longest side stays there
 FORCE_SPLIT = 4          # above FORCE_SPLIT * leaf_size items a node is split even if SAH says no
 TRAVERSAL_COST = 1.0     # SAH cost of visiting a node, in units of one item
+PLAN_ITEMS = 128 * SAH_SAMPLE  # pHBVO nodes above this many items decide PLAN_DEPTH levels at once
+PLAN_DEPTH = 3           # from one sample of PLAN_SAMPLE items, and move the items once for them
+PLAN_SAMPLE = 8 * SAH_SAMPLE
 
 
 @dataclass(eq=False)
@@ -86,24 +96,16 @@ def _centre(lo, hi, axis):
     return c
 
 
-def _split_sah(lo, hi, box, leaf_size):
-    """Binned SAH over three axes -> part labels ``(m,) bool`` (nodes above leaf_size
-    are always split, so leaves hold at most leaf_size items as with every builder).
-
-    The cost curves of the three axes are evaluated at once on at most
-    ``SAH_SAMPLE`` items (every ``m / SAH_SAMPLE``-th of the node's, a spread
-    sample at no gather cost), then every item is partitioned by the chosen
-    plane: a 20-million-triangle mesh builds in seconds.
-    """
-    n = lo.shape[1]
-    step = -(-n // SAH_SAMPLE)
-    slo, shi = lo[:, ::step].astype(np.float64), hi[:, ::step].astype(np.float64)
+def _sah_plane(slo, shi, n):
+    """The cheapest binned SAH plane ``(axis, position)`` over three axes for sample
+    corners ``slo, shi`` ``(3, m) float64`` standing for ``n`` items; None when no
+    plane separates the sample's centres."""
     c = 0.5 * (slo + shi)                                          # (3, m) centres of the sample
     m = c.shape[1]
     cmin, cmax = c.min(axis=1), c.max(axis=1)
     ext = cmax - cmin
     if not (ext > 0.0).any():
-        return _split_median(lo, hi, box, leaf_size)
+        return None
     scale = np.where(ext > 0.0, SAH_BINS / np.where(ext > 0.0, ext, 1.0), 0.0)
     bins = np.minimum(((c - cmin[:, None]) * scale[:, None]).astype(np.int64), SAH_BINS - 1)
     key = (bins + SAH_BINS * np.arange(3)[:, None]).ravel()        # (axis, bin) of each sample item, per axis
@@ -128,17 +130,83 @@ def _split_sah(lo, hi, box, leaf_size):
     ra = ra[:, ::-1][:, 1:]
     lc = np.cumsum(count, axis=1)[:, :-1]
     rc = m - lc
-    whole = max(surface_area(box[None])[0], 1e-300)
+    whole = max(area(slo.min(axis=1), shi.max(axis=1)), 1e-300)
     cost = np.where((lc > 0) & (rc > 0) & (ext > 0.0)[:, None],
                     TRAVERSAL_COST + (la * lc + ra * rc) / whole * (n / m), np.inf)
     axis, s = np.unravel_index(int(np.argmin(cost)), cost.shape)
     if not np.isfinite(cost[axis, s]):
+        return None
+    return int(axis), cmin[axis] + (s + 1) / SAH_BINS * ext[axis]
+
+
+def _sample(lo, hi, size):
+    """Every ``m / size``-th item's corners as float64 ``(3, <= size)``: a spread
+    sample at no gather cost."""
+    step = -(-lo.shape[1] // size)
+    return lo[:, ::step].astype(np.float64), hi[:, ::step].astype(np.float64)
+
+
+def _split_sah(lo, hi, box, leaf_size):
+    """Binned SAH over three axes -> part labels ``(m,) bool`` (nodes above leaf_size
+    are always split, so leaves hold at most leaf_size items as with every builder).
+
+    The cost curves of the three axes are evaluated at once on at most
+    ``SAH_SAMPLE`` items of the node's (:func:`_sample`), then every item is
+    partitioned by the chosen plane.
+    """
+    plane = _sah_plane(*_sample(lo, hi, SAH_SAMPLE), lo.shape[1])
+    if plane is None:
         return _split_median(lo, hi, box, leaf_size)
-    plane = cmin[axis] + (s + 1) / SAH_BINS * ext[axis]
-    right = _centre(lo, hi, int(axis)) >= plane
+    right = _centre(lo, hi, plane[0]) >= plane[1]
     if right.all() or not right.any():           # the sample missed the rest's spread
         return _split_median(lo, hi, box, leaf_size)
     return right
+
+
+def _sah_plan(slo, shi, n, depth):
+    """SAH splits ``PLAN_DEPTH`` levels deep decided on one sample: a nested
+    ``(axis, position, left plan, right plan)``, None for a part left whole."""
+    if depth == 0 or slo.shape[1] < 2 * SAH_BINS:
+        return None
+    plane = _sah_plane(slo, shi, n)
+    if plane is None:
+        return None
+    right = 0.5 * (slo[plane[0]] + shi[plane[0]]) >= plane[1]
+    k = int(np.count_nonzero(right))
+    if k in (0, len(right)):
+        return None
+    left = ~right
+    return (*plane, _sah_plan(slo[:, left], shi[:, left], n * (len(right) - k) / len(right), depth - 1),
+            _sah_plan(slo[:, right], shi[:, right], n * k / len(right), depth - 1))
+
+
+def _leaves(plan):
+    return 1 if plan is None else _leaves(plan[2]) + _leaves(plan[3])
+
+
+def _classify(lo, hi, plan, labels=None, first=0):
+    """Part of each item in a plan's parts (numbered depth first): ``(m,) uint8``."""
+    if labels is None:
+        labels = np.zeros(lo.shape[1], dtype=np.uint8)
+    if plan is not None:
+        axis, position, left, right = plan
+        go = labels == first                     # the items of this part of the plan so far
+        go &= _centre(lo, hi, axis) >= position  # one axis's centres at a time: memory over speed
+        np.add(labels, _leaves(left), out=labels, where=go)
+        del go
+        _classify(lo, hi, left, labels, first)
+        _classify(lo, hi, right, labels, first + _leaves(left))
+    return labels
+
+
+def _placed(plan, bounds, first=0):
+    """A plan with its split positions in the item order: ``(middle, left, right)``,
+    None for a part; ``bounds`` are the parts' item ranges' edges."""
+    if plan is None:
+        return None
+    nl = _leaves(plan[2])
+    return (int(bounds[first + nl]), _placed(plan[2], bounds, first),
+            _placed(plan[3], bounds, first + nl))
 
 
 def _split_median(lo, hi, box, leaf_size):
@@ -267,9 +335,12 @@ def _build(items, split, leaf_size, max_children, pull_up):
     perm = np.arange(k, dtype=np.int32 if k < 2**31 else np.int64)    # 4 bytes a move where they suffice
     partition = _Partitioner([*lo, *hi, perm])
     own, kids, box = [], [], []
-    stack = [(0, k, -1)]
+    stack = [(0, k, -1, None)]
     while stack:                                   # one iteration per node
-        s, e, parent = stack.pop()
+        s, e, parent, plan = stack.pop()
+        if plan is not None and plan[0] in (s, e):   # a planned split the items did not follow
+            stack.append((s, e, parent, plan[1] if plan[0] == e else plan[2]))
+            continue
         node = len(own)
         nb = _box(lo[:, s:e], hi[:, s:e])
         own.append(None)
@@ -277,6 +348,12 @@ def _build(items, split, leaf_size, max_children, pull_up):
         box.append(nb)
         if parent >= 0:
             kids[parent].append(node)
+        if plan is not None:                       # inside a plan: its items are in place already
+            if e - s <= leaf_size:
+                own[node] = (s, e - s)
+            else:
+                stack += [(plan[0], e, node, plan[2]), (s, plan[0], node, plan[1])]
+            continue
         rest, r = nb, s
         if pull_up and e - s > leaf_size:
             big = _longest_side(lo[:, s:e], hi[:, s:e]) > PULL_UP * (nb[MAX] - nb[MIN]).max()
@@ -286,6 +363,17 @@ def _build(items, split, leaf_size, max_children, pull_up):
                 own[node] = (s, nbig)
                 r = s + nbig
                 rest = _box(lo[:, r:e], hi[:, r:e])
+        if split is _split_sah and e - r > PLAN_ITEMS:
+            # Several levels from one sample, the items moved once for all of them
+            # (inner nodes of a plan pull up nothing: their parts do).
+            whole = _sah_plan(*_sample(lo[:, r:e], hi[:, r:e], PLAN_SAMPLE), e - r, PLAN_DEPTH)
+            if whole is not None:
+                counts = partition(r, e, _classify(lo[:, r:e], hi[:, r:e], whole))
+                bounds = r + np.concatenate([[0], np.cumsum(np.pad(counts, (0, _leaves(whole) - len(counts))))])
+                placed = _placed(whole, bounds)
+                if placed[0] not in (r, e):
+                    stack += [(placed[0], e, node, placed[2]), (r, placed[0], node, placed[1])]
+                    continue
         labels = None
         if e - r > leaf_size:
             labels = split(lo[:, r:e], hi[:, r:e], rest, leaf_size)
@@ -295,7 +383,7 @@ def _build(items, split, leaf_size, max_children, pull_up):
         counts = partition(r, e, labels)
         starts = r + np.cumsum(counts) - counts
         for part in np.flatnonzero(counts)[::-1]:
-            stack.append((int(starts[part]), int(starts[part] + counts[part]), node))
+            stack.append((int(starts[part]), int(starts[part] + counts[part]), node, None))
     if max_children > 2:
         _collapse(kids, own, box, max_children)
     del partition                                  # its scratch rows go before the int64 order comes

@@ -86,23 +86,35 @@ def pareto(points, spread=None):
     return np.flatnonzero(~dominated)
 
 
-def run_tradeoff(scene, cameras, display, knobs=tuple(KNOBS), log=print, repeats=3):
+def tradeoff_steps(knobs=tuple(KNOBS)):
+    """Steps of :func:`run_tradeoff` for a progress bar: the display truth, each preset and setting."""
+    return 1 + len(PRESETS) + sum(len(KNOBS[k]) for k in knobs)
+
+
+def run_tradeoff(scene, cameras, display, knobs=tuple(KNOBS), log=print, repeats=3, progress=None):
     """Presets and knob settings over the path, each ``repeats`` times; the report dict with
-    the noise-aware Pareto front of presets and settings (labels ``preset=<name>``, ``knob=value``)."""
+    the noise-aware Pareto front of presets and settings (labels ``preset=<name>``, ``knob=value``).
+
+    ``log``: one line per setting with its figures; ``progress(label, result)``: after each of the
+    :func:`tradeoff_steps` steps (``result`` None for the display truth)."""
     unknown = [k for k in knobs if k not in KNOBS]
     if unknown:
         raise OccError(f"unknown knobs {', '.join(unknown)}; choose from {', '.join(KNOBS)}")
+    progress = progress or (lambda label, result: None)
     truth = display_truth(scene, cameras, display)
+    progress("display truth", None)
     report = {"display": list(display), "frames": len(cameras), "repeats": repeats, "knobs": {},
               "presets": {}}
     for name in PRESETS:
         report["presets"][name] = measure(scene, cameras, truth, display, PRESETS[name], {}, repeats=repeats)
         log(f"  preset {name:<12} {_fmt(report['presets'][name])}")
+        progress(f"preset={name}", report["presets"][name])
     for knob in knobs:
         rows = {}
         for label, changes, kw in KNOBS[knob]:
             rows[label] = measure(scene, cameras, truth, display, CullOptions(**changes), kw, repeats=repeats)
             log(f"  {knob:<22} {label:<9} {_fmt(rows[label])}")
+            progress(f"{knob}={label}", rows[label])
         report["knobs"][knob] = rows
     candidates = [(f"preset={n}", r) for n, r in report["presets"].items()]
     candidates += [(f"{knob}={label}", r) for knob, rows in report["knobs"].items() for label, r in rows.items()]

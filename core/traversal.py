@@ -11,7 +11,7 @@ from enum import IntEnum
 import numpy as np
 
 from .bounds import MAX, MIN, corners
-from .frustum import classify, planes_from_matrix
+from .frustum import ALL_PLANES, planes_from_matrix
 from .occupancy import OccupancyMap, project_rects
 from .tolerance import tol
 
@@ -31,6 +31,30 @@ STAT_KEYS = ("queries", "queries_skipped", "near_visible", "multiple_queries", "
 # The 6 faces of a box as corner quads (bounds.corners' bit order), counter-clockwise
 # seen from outside: the projected outline's area is the sum of the front faces'.
 BOX_FACES = np.array([[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]])
+
+
+def classify_fast(planes, boxes, masks=None):
+    """:func:`core.frustum.classify` with the p- and n-vertex dot products as two
+    small matrix products (``max(n, 0) . MAX + min(n, 0) . MIN``) instead of
+    gathered corners: the same answers (same tolerance), a few times faster on the
+    thousands of nodes a pass reaches.  Returns ``(outside (n,) bool, remaining (n,) uint8)``."""
+    b = boxes
+    n = len(b)
+    normal = planes[:, :3]
+    pos, neg = np.maximum(normal, 0.0).T, np.minimum(normal, 0.0).T          # (3, 6)
+    lo, hi = b[:, MIN], b[:, MAX]
+    dp = hi @ pos + lo @ neg + planes[:, 3]                                   # p-vertex distances
+    dn = lo @ pos + hi @ neg + planes[:, 3]                                   # n-vertex distances
+    scale = np.abs(b).reshape(n, 6).max(axis=1, initial=0.0)[:, None] + np.abs(planes[:, 3])
+    if masks is None:
+        masks = np.full(n, ALL_PLANES, dtype=np.uint8)
+    active = (masks[:, None] & PLANE_BITS) != 0
+    outside = np.any(active & (dp < -tol.plane_rel * scale), axis=1)
+    inside_bits = np.bitwise_or.reduce(np.where(active & (dn >= 0.0), PLANE_BITS, 0), axis=1)
+    return outside, (masks & ~inside_bits.astype(np.uint8)).astype(np.uint8)
+
+
+PLANE_BITS = (np.uint8(1) << np.arange(6, dtype=np.uint8))[None]
 
 
 class Frame:
@@ -115,7 +139,7 @@ class Frame:
         if masks is not None and not masks.any():      # inside every plane already (plane masking)
             outside, remaining = np.zeros(len(nodes), dtype=bool), masks
         else:
-            outside, remaining = classify(self.planes, b, masks)
+            outside, remaining = classify_fast(self.planes, b, masks)
         keep = nodes[~outside]
         self.reached[nodes] = True
         self.in_frustum[keep] = True
@@ -314,7 +338,7 @@ class Frame:
         todo = leaves[~self.reached[leaves]]
         if len(todo):
             t = time.perf_counter()
-            outside, _ = classify(self.planes, self.boxes(todo))
+            outside, _ = classify_fast(self.planes, self.boxes(todo))
             self.in_frustum[todo[~outside]] = True
             self.reached[todo] = True
             self.t_reach += time.perf_counter() - t
@@ -336,11 +360,15 @@ class Frame:
         out[uo[starts]] = np.minimum.reduceat(self.state, starts)
         return out
 
-    def finish(self):
+    def finish_gl(self):
+        """Send what is collected and wait for the GPU (timed as drawing)."""
         self.flush()
         t = time.perf_counter()
         self.r.finish()
         self.t_draw += time.perf_counter() - t
+
+    def finish(self):
+        self.finish_gl()
         total = time.perf_counter() - self.t0
         s = self.stats
         s["frustum_ms"] = 1e3 * self.t_reach

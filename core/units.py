@@ -26,7 +26,7 @@ class Units:
     first: np.ndarray
     count: np.ndarray
     local_bounds: np.ndarray
-    face_order: list          # per mesh: (f,) face permutation, or None for the stored order
+    face_order: list          # per mesh: (f,) int32 (int64 beyond 2**31 faces) face permutation, or None
     trees: list               # per object: chunk Tree over its units, or None
     of_object: list           # per object: (k,) its units
 
@@ -137,8 +137,10 @@ def _chunk_mesh(v, f, build_tree):
     hi = np.empty((len(owners), 3))
     lo[by_start] = np.minimum.reduceat(items.lo, first[by_start], axis=1).T
     hi[by_start] = np.maximum.reduceat(items.hi, first[by_start], axis=1).T
-    # item i of the chunk tree (as the hierarchy sees it) is chunk i
-    return tree.order, first, count, np.stack([lo, hi], axis=1), _tree_over_chunks(tree, owners)
+    # item i of the chunk tree (as the hierarchy sees it) is chunk i; the face order,
+    # kept as long as the mesh is, in 4 bytes a triangle where they suffice
+    order = tree.order.astype(np.int32) if len(tree.order) < 2**31 else tree.order
+    return order, first, count, np.stack([lo, hi], axis=1), _tree_over_chunks(tree, owners)
 
 
 def chunked(scene, should_chunk, build_tree, cache=None):

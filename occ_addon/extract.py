@@ -16,7 +16,7 @@ else is handled conservatively by construction:
   add-on had hidden is shown again before the pass (so it is evaluated now);
 - an object the user hid in any way is no candidate (and one the add-on had
   hidden is given back to the user's hide);
-- wire and bounds display, and every type that is not solid mesh-like geometry
+- wire and bounds display, "in front" display, and every type that is not solid mesh-like geometry
   (point clouds, volumes, grease pencil, hair curves, empties, lights): never
   occluders and never hidden;
 - children drawn only as vertex/face instances: not candidates (not drawn
@@ -30,9 +30,10 @@ else is handled conservatively by construction:
   dynamic: hidden, it would not be evaluated).
 
 Objects are identified by ``session_uid`` (unique for the Blender session,
-kept by renames); caches are keyed by it and by the mesh datablock's id, and
-are dropped on undo, redo and file load (:meth:`Session.reset`), where Blender
-may give an unchanged id back with other contents.
+kept by renames; see :func:`.visibility.ident` for Blender 3.4); caches are
+keyed by it and by the mesh datablock's id, and are dropped on undo, redo and
+file load (:meth:`Session.reset`), where Blender may give an unchanged id back
+with other contents.
 
 Each pass asks two questions of different cost: which objects take part and
 where they are (:meth:`Extractor.candidates`: one ``visible_get`` per object,
@@ -49,6 +50,7 @@ import numpy as np
 
 from ..core import OccError, Scene
 from . import visibility
+from .visibility import ident
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
 SOLID_DISPLAY = {"SOLID", "TEXTURED"}            # wire and bounds display never occlude
@@ -94,8 +96,8 @@ def kind(obj):
     is its own, where drawn, and its instances'), "collection" or None: how
     ``obj`` can take part, by its settings alone."""
     if obj.type in GEOMETRY_TYPES:
-        if obj.display_type not in SOLID_DISPLAY:
-            return None
+        if obj.display_type not in SOLID_DISPLAY or obj.show_in_front:
+            return None                   # wire or bounds occlude nothing; "in front" is drawn over walls
         parent = obj.parent
         if parent is not None and parent.instance_type in {"VERTS", "FACES"}:
             return None                   # drawn only as the parent's instances
@@ -147,7 +149,7 @@ def is_dynamic(obj):
     return False
 
 
-def _bulk_matrices(collection, prop):
+def bulk_matrices(collection, prop):
     """``(n, 4, 4) float64`` of a matrix property over a whole collection, one ``foreach_get``.
 
     Blender stores matrices column-major and in float32, so the float32 read is exact.
@@ -188,7 +190,7 @@ def user_shown(obj, view_layer, shown):
     """Whether Blender would draw ``obj`` if the add-on had not hidden it: the
     user's eye, its collections' eye, monitor and exclude (``shown``: see
     :func:`shown_by_collections`), the view layer."""
-    uid = obj.session_uid
+    uid = ident(obj)
     k = np.searchsorted(shown, uid)
     return k < len(shown) and shown[k] == uid and not obj.hide_get(view_layer=view_layer)
 
@@ -201,9 +203,9 @@ def bystanders(view_layer, held):
     engine's objects): wire and bounds display, point clouds, volumes, grease
     pencil, hair, vertex-instanced children, NaN values.  Never culled, so
     counted visible by analyze."""
-    held = {o.session_uid for o in held}
+    held = {ident(o) for o in held}
     return [o for o in view_layer.objects
-            if (o.type in DRAWN_TYPES or is_instancer(o)) and o.session_uid not in held and o.visible_get()]
+            if (o.type in DRAWN_TYPES or is_instancer(o)) and ident(o) not in held and o.visible_get()]
 
 
 class Candidates:
@@ -249,10 +251,10 @@ class Candidates:
             kinds.append(k)
         index = np.array(index, dtype=np.int64)
         self.culled = culled_all[index]
-        m = _bulk_matrices(layer, "matrix_world")[index] if len(index) else np.zeros((0, 4, 4))
+        m = bulk_matrices(layer, "matrix_world")[index] if len(index) else np.zeros((0, 4, 4))
         hidden = np.flatnonzero(self.culled)
         if len(hidden):                               # stale matrix_world: rebuilt from matrix_basis
-            m[hidden] = _bulk_matrices(layer, "matrix_basis")[index[hidden]]
+            m[hidden] = bulk_matrices(layer, "matrix_basis")[index[hidden]]
             for k in hidden:
                 if info[int(uids_all[index[k]])][1]:  # parented: through the parent chain
                     m[k] = world_matrix(objects[k])
@@ -300,14 +302,18 @@ class Extractor:
         changes report the scene or a collection."""
         idb = update.id
         if isinstance(idb, bpy.types.Object):
-            uid = idb.original.session_uid
+            uid = ident(idb.original)
             self.info.pop(uid, None)
             self.shown.pop(uid, None)
-            if self.dynamic.pop(uid, None) is not None and len(idb.original.children):
-                self.dynamic.clear()                  # children inherit what their parent is
+            if self.dynamic and self.dynamic.pop(uid, None) is not True and is_dynamic(idb.original):
+                self.dynamic.clear()                  # its children may have become dynamic with it
         else:
-            self.shown.clear()
-            self.shown_ids = None
+            self.visibility_changed()
+
+    def visibility_changed(self):
+        """Eye, collection or view-layer visibility may have changed."""
+        self.shown.clear()
+        self.shown_ids = None
 
     def user_shown(self, obj, uid, view_layer):
         hit = self.shown.get(uid)
@@ -340,12 +346,12 @@ class Extractor:
 
     def knows(self, obj, k):
         """Whether the geometry of ``obj`` (hidden by the add-on) is cached and current."""
-        hit = self.cache.get(obj.session_uid)
+        hit = self.cache.get(ident(obj))
         if hit is None:
             return False
         if k == "collection":
             return not self._instance_stale(obj)
-        return obj.session_uid not in self.dirty
+        return ident(obj) not in self.dirty
 
     def needs_geometry(self, cand):
         """Whether :meth:`scene` must read geometry again for these candidates."""
@@ -367,13 +373,14 @@ class Extractor:
         triangles, ``kept`` their indices into ``cand``, ``bad`` the names left out
         for NaN or infinite vertices."""
         depsgraph = context.evaluated_depsgraph_get()
-        fresh = {o.session_uid: o for o, k, c in zip(cand.objects, cand.kinds, cand.culled, strict=True)
+        fresh = {ident(o): o for o, k, c in zip(cand.objects, cand.kinds, cand.culled, strict=True)
                  if not c and ((k == "collection" and self._instance_stale(o))
-                               or (k == "instancer" and (o.session_uid in self.dirty
-                                                         or o.session_uid not in self.cache)))}
+                               or (k == "instancer" and (ident(o) in self.dirty
+                                                         or ident(o) not in self.cache)))}
         for uid, (v, f) in _instanced_geometry(depsgraph, fresh).items():
             o = fresh[uid]
-            inv = _inverse(np.array(o.matrix_world, dtype=np.float64))   # instancer-local: a move is a matrix
+            # instancer-local (a move is then a matrix), by the same evaluation as the instances
+            inv = _inverse(np.array(o.evaluated_get(depsgraph).matrix_world, dtype=np.float64))
             v = v @ inv[:3, :3].T + inv[:3, 3]
             if o.type == "EMPTY":
                 key = ("instance", uid, _members(o.instance_collection))
@@ -399,7 +406,7 @@ class Extractor:
             if key not in mesh_index:
                 mesh_index[key] = len(meshes)
                 meshes.append((v, f))
-            uids.append(obj.session_uid)
+            uids.append(ident(obj))
             mesh_of.append(mesh_index[key])
             kept.append(i)
         self.forget_changes()
@@ -414,7 +421,7 @@ class Extractor:
         return scene, kept, bad
 
     def _instance_stale(self, obj):
-        hit = self.cache.get(obj.session_uid)
+        hit = self.cache.get(ident(obj))
         if hit is None:
             return True
         members = _members(obj.instance_collection)
@@ -424,12 +431,12 @@ class Extractor:
         """``(key, v, f)`` from the cache when still valid, else from the depsgraph
         (a shared mesh once per pass: ``read``); None when unknown.  ``v`` is None
         for geometry with NaN or infinite vertices."""
-        uid = obj.session_uid
+        uid = ident(obj)
         hit = self.cache.get(uid)
         if k != "mesh" or culled:                     # instancers: read above; hidden: not evaluated
             return hit
         shared = obj.type == "MESH" and not obj.modifiers and obj.data.users > 1
-        key = ("mesh", obj.data.session_uid) if shared else ("object", uid)
+        key = ("mesh", ident(obj.data)) if shared else ("object", uid)
         if hit is not None and hit[0] == key and uid not in self.dirty:
             return hit
         if key not in read:
@@ -443,7 +450,7 @@ class Extractor:
 
 def _mesh_fingerprint(mesh, memo):
     """Sizes and a checksum of a mesh's vertex positions (once per mesh: ``memo``)."""
-    key = ("fp", mesh.session_uid)
+    key = ("fp", ident(mesh))
     hit = memo.get(key)
     if hit is None:
         co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
@@ -463,18 +470,18 @@ def fingerprint(obj, k, memo):
     be told cheaply (curves, text, metaballs): such an object is shown again to
     be read.  Modifier settings are not in it: edited while hidden, they are
     seen once the object is shown."""
-    base = (k, obj.display_type, obj.instance_type)
+    base = (k, obj.display_type, obj.show_in_front, obj.instance_type)
     if k == "collection":
         parts = [base]
         for m in obj.instance_collection.all_objects:
             if m.type != "MESH":
                 return None
-            parts.append((m.session_uid, m.display_type, _modifiers_fingerprint(m),
+            parts.append((ident(m), m.display_type, _modifiers_fingerprint(m),
                           _mesh_fingerprint(m.data, memo), tuple(map(tuple, m.matrix_basis))))
         return tuple(parts)
     if obj.type != "MESH":
         return None
-    return base + (obj.data.session_uid, _modifiers_fingerprint(obj), _mesh_fingerprint(obj.data, memo))
+    return base + (ident(obj.data), _modifiers_fingerprint(obj), _mesh_fingerprint(obj.data, memo))
 
 
 def _finite_or_none(v):
@@ -492,7 +499,7 @@ def _inverse(m):
 
 def _members(collection):
     """Session ids of the objects an instanced collection brings, as a sorted tuple."""
-    return tuple(sorted(o.session_uid for o in collection.all_objects))
+    return tuple(sorted(ident(o) for o in collection.all_objects))
 
 
 def _instanced_geometry(depsgraph, instancers):
@@ -504,7 +511,7 @@ def _instanced_geometry(depsgraph, instancers):
     for inst in depsgraph.object_instances:
         if not inst.is_instance or inst.parent is None:
             continue
-        owner = inst.parent.original.session_uid
+        owner = ident(inst.parent.original)
         ob = inst.object
         if owner not in parts or ob.type not in GEOMETRY_TYPES or ob.display_type not in SOLID_DISPLAY:
             continue
@@ -524,7 +531,7 @@ def _instanced_geometry(depsgraph, instancers):
 
 def _tree(scene, objects):
     """Scene tree over collections (groups) and objects (parents kept)."""
-    index = {o.session_uid: i for i, o in enumerate(objects)}
+    index = {ident(o): i for i, o in enumerate(objects)}
     parent, carried, node_of = [], [], {}
 
     def add(obj_index, parent_node):
@@ -535,7 +542,7 @@ def _tree(scene, objects):
     def walk(coll, parent_node):                      # collections: a handful, recursion ok
         node = add(-1, parent_node)
         for obj in coll.objects:
-            uid = obj.session_uid
+            uid = ident(obj)
             if uid in index and uid not in node_of:
                 node_of[uid] = add(index[uid], node)
         for child in coll.children:
@@ -546,6 +553,6 @@ def _tree(scene, objects):
     carried = np.array(carried, dtype=np.int64)
     for obj in objects:                               # object parenting refines the tree
         p = obj.parent
-        if p is not None and p.session_uid in node_of and obj.session_uid in node_of:
-            parent[node_of[obj.session_uid]] = node_of[p.session_uid]
+        if p is not None and ident(p) in node_of and ident(obj) in node_of:
+            parent[node_of[ident(obj)]] = node_of[ident(p)]
     return parent, carried

@@ -22,6 +22,7 @@ from .session import LISTENERS, SESSION, camera_for
 POLL_S = 0.1          # timer period
 DEBOUNCE_S = 0.15     # the view (or the scene) must rest this long before a pass
 CUT_DEG = 10.0        # a view turned further than this between passes is a cut: the strategy starts fresh
+CUT_MOVE = 0.05       # and so is one moved further than this fraction of the scene's size
 
 _state = {"last_view": None, "changed_at": None, "dirty_at": None, "passed_view": None}
 
@@ -35,15 +36,22 @@ def changed():
 LISTENERS.append(changed)
 
 
+def _eye(view):
+    return -view[:3, :3].T @ view[:3, 3]
+
+
 def _is_cut(old, new):
-    """Whether the view matrix turned more than CUT_DEG, or the projection or size changed."""
+    """Whether the view turned more than CUT_DEG, moved more than CUT_MOVE of the
+    scene's size, or the projection or display size changed."""
     if old is None:
         return True
     if not np.array_equal(old[16:], new[16:]):
         return True
-    r = old[:16].reshape(4, 4)[:3, :3].T @ new[:16].reshape(4, 4)[:3, :3]
+    a, b = old[:16].reshape(4, 4), new[:16].reshape(4, 4)
+    r = a[:3, :3].T @ b[:3, :3]
     cos = np.clip((np.trace(r) - 1.0) / 2.0, -1.0, 1.0)
-    return np.degrees(np.arccos(cos)) > CUT_DEG
+    size = SESSION.culler.scene_size if SESSION.culler is not None else 0.0
+    return bool(np.degrees(np.arccos(cos)) > CUT_DEG or np.linalg.norm(_eye(a) - _eye(b)) > CUT_MOVE * size)
 
 
 def _tick():

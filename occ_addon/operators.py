@@ -11,7 +11,7 @@ from bpy.props import BoolProperty, IntProperty, StringProperty
 
 from ..core import OccError, Visibility
 from . import live, overlay, visibility
-from .extract import bystanders
+from .extract import bystanders, is_instancer
 from .session import SESSION, camera_for, scene_camera
 
 
@@ -103,9 +103,12 @@ class OCC_OT_analyze(bpy.types.Operator):
                 scene.frame_set(f)
                 camera, display = scene_camera(context)
                 result, objects = SESSION.compute(context, camera, display)   # nothing is hidden
-                names = [o.name for o, s in zip(objects, result.state, strict=True) if s == Visibility.VISIBLE]
+                shown = [o for o, s in zip(objects, result.state, strict=True) if s == Visibility.VISIBLE]
                 extra = bystanders(context.view_layer, objects)   # drawn, never culled: visible
-                objects, names = objects + extra, names + [o.name for o in extra]
+                # an object is seen where a visible collection instance draws it, too
+                members = [m for o in shown if is_instancer(o) for m in o.instance_collection.all_objects]
+                objects = objects + extra + members
+                names = list(dict.fromkeys(o.name for o in shown + extra + members))
                 per_frame.append({"frame": f, "visible": names})
                 for o in objects:
                     seen.setdefault(o.name, 0)

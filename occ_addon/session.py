@@ -16,8 +16,9 @@ from bpy.app.handlers import persistent
 from ..core import Camera, Culler, OccError, Visibility
 from ..core.settings import preset, query_resolution
 from ..core.units import ChunkCache
-from . import visibility
+from . import extract, visibility
 from .extract import Extractor
+from .visibility import ident
 from .worker import EngineThread
 
 # Meshes of 4 x this many triangles or more are cut into chunks of about this
@@ -35,6 +36,7 @@ class Session:
         self.uids = None           # candidate session ids the engine was built for
         self.kept = None           # (k,) indices of the candidates the engine holds
         self.kept_uids = None      # (k,) their session ids
+        self.kept_collection = None  # (k,) bool: collection instances
         self.resolution = None
         self.last = None           # the last applied pass, for the overlay (see :meth:`cull`)
         self.version = 0           # bumped by every applied pass
@@ -47,7 +49,7 @@ class Session:
         Blender may hand back the same session ids with other contents."""
         self.release()
         self.extractor = Extractor()
-        self.uids = self.kept = self.kept_uids = None
+        self.uids = self.kept = self.kept_uids = self.kept_collection = None
         self.bad_geometry = []
         self.last = None
         self.version += 1
@@ -98,6 +100,7 @@ class Session:
                                               chunk_triangles=CHUNK_TRIANGLES, chunk_cache=self.chunks)
             self.uids, self.kept, self.resolution = uids, kept, resolution
             self.kept_uids = cand.uids[kept]
+            self.kept_collection = np.array([cand.kinds[i] == "collection" for i in kept], dtype=bool)
             self.bad_geometry = bad
         else:
             self.warnings += self.bad_geometry
@@ -160,9 +163,10 @@ class Session:
 
     def protected(self, context, objects, culled):
         """``(k,) bool`` over the engine's objects: never hidden.  The user's
-        "never cull" flag and exclusion collection, and dynamic objects (Blender
-        stops evaluating what is hidden: see :func:`.extract.is_dynamic`), judged
-        only where the engine would hide."""
+        "never cull" flag and exclusion collection, members of instanced
+        collections, instances of collections with members that draw without
+        occluding, and dynamic objects (Blender stops evaluating what is hidden:
+        see :func:`.extract.is_dynamic`), judged only where the engine would hide."""
         settings = context.scene.occ
         out = np.zeros(len(objects), dtype=bool)
         flagged = visibility.uids()[visibility.flags("occ_never_cull")]
@@ -170,6 +174,20 @@ class Session:
         if coll is not None:
             members = coll.all_objects if settings.exclude_children else coll.objects
             flagged = np.concatenate([flagged, visibility.uids(members)])
+        # Collection instances: their members are drawn in them too, so hiding a member
+        # would hide its instances; and an instance whose collection holds something
+        # that draws but does not occlude (wire, "in front", point clouds, ...) is
+        # larger than its box.
+        colls = {}
+        for k in np.flatnonzero(self.kept_collection):
+            c = objects[k].instance_collection
+            colls.setdefault(ident(c), (c, []))[1].append(k)
+        for c, at in colls.values():
+            members = c.all_objects
+            flagged = np.concatenate([flagged, visibility.uids(members)])
+            if culled[at].any() and any(extract.kind(m) is None and m.type in extract.DRAWN_TYPES
+                                        for m in members):
+                out[at] = True
         out[np.isin(self.kept_uids, flagged)] = True
         extractor = self.extractor
         for k in np.flatnonzero(culled & ~out):        # O(hidden), cached: what Blender has no bulk form of
@@ -290,9 +308,12 @@ def on_depsgraph_update(scene, depsgraph):
 
 @persistent
 def on_frame_change(scene, depsgraph):
-    """Animation moved things: the same marks as an edit (the frame's depsgraph reports them)."""
+    """Animation moved things: the same marks as an edit (the frame's depsgraph reports them).
+    Animation changes values, not what objects are; but it can change hide flags
+    (keyframed collection visibility): the user-shown answers are asked again."""
+    SESSION.extractor.visibility_changed()
     if depsgraph is not None:
-        _mark(depsgraph, edits=False)           # animation changes values, not what objects are
+        _mark(depsgraph, edits=False)
     for f in LISTENERS:
         f()
 
@@ -305,8 +326,8 @@ def _mark(depsgraph, edits=True):
             extractor.saw(update)
         if isinstance(update.id, bpy.types.Object):
             if update.is_updated_geometry:
-                geometry.append(update.id.original.session_uid)
+                geometry.append(ident(update.id.original))
             elif update.is_updated_transform:
-                moved.append(update.id.original.session_uid)
+                moved.append(ident(update.id.original))
     if geometry or moved:
         SESSION.extractor.mark(geometry, moved)

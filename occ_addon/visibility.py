@@ -42,9 +42,22 @@ def flags(prop, collection=None):
     return out
 
 
+# Blender 3.5+ gives every datablock a session id (kept by renames, never reused in a
+# session); Blender 3.4 has none: there the address stands in (reused only after a
+# deletion, and a new object is always reported to the depsgraph handler as changed).
+HAS_SESSION_UID = "session_uid" in bpy.types.ID.bl_rna.properties
+
+
+def ident(idblock):
+    """The identity of a datablock for this Blender session."""
+    return idblock.session_uid if HAS_SESSION_UID else idblock.as_pointer()
+
+
 def uids(collection=None):
-    """``(n,) int64`` session ids over ``collection`` (default ``bpy.data.objects``)."""
+    """``(n,) int64`` identities (:func:`ident`) over ``collection`` (default ``bpy.data.objects``)."""
     objs = bpy.data.objects if collection is None else collection
+    if not HAS_SESSION_UID:
+        return np.fromiter((o.as_pointer() for o in objs), dtype=np.int64, count=len(objs))
     out = np.zeros(len(objs), dtype=np.int64)
     objs.foreach_get("session_uid", out)
     return out

@@ -94,3 +94,21 @@ def test_license_is_the_gpl3_the_manifest_names():
     assert "GNU GENERAL PUBLIC LICENSE" in text and "Version 3, 29 June 2007" in text
     with open(os.path.join(ROOT, "blender_manifest.toml"), "rb") as f:
         assert tomllib.load(f)["license"] == ["SPDX:GPL-3.0-or-later"]
+
+
+def test_a_blender_too_old_for_extensions_is_passed_over(tmp_path):
+    """Debian's Blender 3.4 on PATH has no `--command extension`: the build goes on without it,
+    and naming it explicitly is a one-line error."""
+    fake = tmp_path / "bin" / "blender"
+    fake.parent.mkdir()
+    fake.write_text("#!/bin/sh\necho 'Blender 3.4.1'\n")
+    fake.chmod(0o755)
+    env = {**os.environ, "PATH": f"{fake.parent}{os.pathsep}{os.environ['PATH']}"}
+    env.pop("BLENDER", None)
+    p = subprocess.run([sys.executable, BUILD, "--no-wheels", "--builder", "auto", "--out", str(tmp_path / "out")],
+                       cwd=ROOT, capture_output=True, text=True, timeout=300, env=env)
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert "too old to build extensions" in p.stdout and len(glob.glob(str(tmp_path / "out" / "*.zip"))) == 1
+    p = subprocess.run([sys.executable, BUILD, "--no-wheels", "--blender", str(fake), "--out", str(tmp_path / "o2")],
+                       cwd=ROOT, capture_output=True, text=True, timeout=300, env=env)
+    assert p.returncode == 1 and "needs Blender 4.2 or later" in p.stderr

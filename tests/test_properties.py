@@ -269,3 +269,19 @@ def test_test_list_takes_a_box_that_still_has_a_free_tile():
     t = np.array([[0, 0, 4, 4], [4, 0, 8, 4], [1, 1, 3, 3]])
     assert free_tile_first(t, 10, 10).tolist() == [True, True, False]
     assert non_overlapping_first(t).tolist() == [True, False, False]
+
+
+@SETTINGS
+@given(seeds)
+def test_fast_classification_equals_the_reference(seed):
+    """The engine's per-pass plane test (two matrix products) answers exactly as
+    core.frustum.classify (gathered p- and n-vertices), masks included."""
+    from core.traversal import classify_fast
+    rng = np.random.default_rng(seed)
+    cam = random_camera(rng)
+    boxes = random_boxes(rng, 200) - cam.eye
+    planes = planes_from_matrix(cam.relative_view_projection())
+    masks = rng.integers(0, 64, len(boxes)).astype(np.uint8)
+    for m in (None, masks):
+        a, b = classify(planes, boxes, m), classify_fast(planes, boxes, m)
+        assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])

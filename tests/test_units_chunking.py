@@ -100,3 +100,65 @@ def test_item_boxes_build_matches_array_build(builder):
 def test_item_boxes_shape_is_checked():
     with pytest.raises(OccError, match=r"\(3, k\)"):
         ItemBoxes(np.zeros((2, 5)), np.zeros((2, 5)))
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_planned_levels_keep_the_invariants(seed, monkeypatch):
+    """pHBVO decides several levels from one sample above PLAN_ITEMS items (a 20 M
+    triangle mesh moves its items once per PLAN_DEPTH levels): lowered here so that
+    seeded random boxes take that path, the tree is still a tight partition."""
+    import core.subdivision as sd
+    from tests.test_subdivision import check_tree, random_boxes
+
+    monkeypatch.setattr(sd, "PLAN_ITEMS", 150)
+    monkeypatch.setattr(sd, "PLAN_SAMPLE", 1024)
+    plans = []
+    classify = sd._classify
+    monkeypatch.setattr(sd, "_classify", lambda *a: plans.append(a[2]) or classify(*a))
+    rng = np.random.default_rng(seed)
+    boxes = random_boxes(rng, int(rng.integers(400, 4000)))
+    max_children = [2, 4, 8][seed % 3]
+    tree = build_tree(boxes, "pHBVO", leaf_size=int(rng.integers(4, 40)), max_children=max_children,
+                      pull_up=bool(seed % 2))
+    check_tree(tree, boxes, max_children)
+    assert plans                                                        # the planned path ran
+    verts, faces = random_mesh(rng, 3000, 6000)
+    units = make_units(chunk_scene(verts, faces), "tree", chunk_triangles=16, chunk_min_triangles=1)
+    order = units.face_order[0]
+    assert np.array_equal(np.sort(order), np.arange(len(faces)))
+    tri = verts[faces[order]]
+    for s, c, box in zip(units.first, units.count, units.local_bounds, strict=True):
+        t = tri[s:s + c].reshape(-1, 3)
+        assert np.all(box[MIN] <= t.min(axis=0)) and np.all(t.max(axis=0) <= box[MAX])
+    tree = units.trees[0]
+    kids = np.flatnonzero(tree.parent >= 0)
+    assert np.all(contains(tree.bounds[tree.parent[kids]], tree.bounds[kids]))
+
+
+def test_plan_parts_follow_their_planes():
+    """Each item's part in a plan is the one its centre's side of every plane on its
+    path names, and the placed split positions fall between the parts."""
+    import core.subdivision as sd
+
+    rng = np.random.default_rng(5)
+    lo = rng.uniform(-50, 50, (3, 5000))
+    hi = lo + rng.exponential(1.0, (3, 5000))
+    plan = sd._sah_plan(lo, hi, 5000, 3)
+    assert sd._leaves(plan) == 8                                       # three full levels here
+    labels = sd._classify(lo, hi, plan)
+    centre = 0.5 * (lo + hi)
+    for i in range(0, 5000, 7):                                        # the plan walked item by item
+        p, first = plan, 0
+        while p is not None:
+            axis, position, left, right = p
+            if centre[axis, i] >= position:
+                p, first = right, first + sd._leaves(left)
+            else:
+                p = left
+        assert labels[i] == first
+    counts = np.bincount(labels, minlength=8)
+    bounds = np.concatenate([[0], np.cumsum(counts)])
+    placed = sd._placed(plan, bounds)
+    assert placed[0] == bounds[4]                                      # root: parts 0-3 | 4-7
+    assert placed[1][0] == bounds[2] and placed[2][0] == bounds[6]
+    assert placed[1][1][0] == bounds[1] and placed[2][2][0] == bounds[7]

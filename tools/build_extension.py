@@ -55,10 +55,34 @@ def wheel_platforms(wheel):
     return ()
 
 
+MIN_BLENDER = (4, 2)         # the first Blender with `--command extension`
+
+
+def blender_version(path):
+    """``(major, minor)`` of a Blender binary, from ``blender --version``, or None."""
+    try:
+        out = subprocess.run([path, "--version"], capture_output=True, text=True, timeout=120).stdout
+    except (OSError, subprocess.TimeoutExpired):
+        return None
+    m = re.search(r"^Blender (\d+)\.(\d+)", out, flags=re.M)
+    return (int(m.group(1)), int(m.group(2))) if m else None
+
+
 def find_blender(arg):
-    path = arg or os.environ.get("BLENDER") or shutil.which("blender")
-    if path and not (os.path.isfile(path) and os.access(path, os.X_OK)):
+    """The Blender to build with: the one asked for (it must be 4.2+), else a 4.2+ on PATH, else None."""
+    asked = arg or os.environ.get("BLENDER")
+    path = asked or shutil.which("blender")
+    if not path:
+        return None
+    if not (os.path.isfile(path) and os.access(path, os.X_OK)):
         sys.exit(f"error: no Blender binary at {path}")
+    version = blender_version(path)
+    if version is None or version < MIN_BLENDER:
+        found = "an unknown version" if version is None else "Blender {}.{}".format(*version)
+        if asked:
+            sys.exit(f"error: {path} is {found}; building extensions needs Blender 4.2 or later")
+        print(f"note: {path} is {found}, too old to build extensions (4.2+); building without it")
+        return None
     return path
 
 

@@ -72,25 +72,35 @@ def query_costs(scene, culler, cam, counts, repeat, log=print):
 
 def reduction_costs(scene, culler, cameras, query_res, display, strategy, log=print):
     """A culling pass over ``cameras`` with queries at ``query_res``: plain, with the
-    reduction from ``display``, and plain at ``display``.  Medians per frame."""
+    reduction from ``display``, and plain at ``display``; the three run frame by frame
+    in turn (load changes hit them alike).  Medians per frame."""
     from ..engine import Culler
-    out = {}
     setups = {f"query {query_res[0]}x{query_res[1]}": (query_res, None),
               f"query {query_res[0]}x{query_res[1]}, display {display[0]}x{display[1]}": (query_res, display),
               f"query {display[0]}x{display[1]}": (display, None)}
+    cullers = {}
     for name, (res, disp) in setups.items():
-        with Culler(scene, res, strategy=strategy, ctx=culler.renderer.ctx) as c:
-            if disp is not None:
-                old = c.renderer
-                c.renderer = GLRenderer(scene, *res, ctx=old.ctx, units=c.units, display=disp)
-                old.release()
-            stats = [c.cull(cam).stats for cam in cameras[:1] + cameras]
-            stats = stats[1:]                                  # the first is a warm-up
-        med = {k: float(np.median([s[k] for s in stats]))
-               for k in ("total_ms", "query_ms", "draw_ms", "visible", "occluded")}
+        c = Culler(scene, res, strategy=strategy, ctx=culler.renderer.ctx)
+        if disp is not None:
+            old = c.renderer
+            c.renderer = GLRenderer(scene, *res, ctx=old.ctx, units=c.units, display=disp)
+            old.release()
+        cullers[name] = c
+    stats = {name: [] for name in setups}
+    for i, cam in enumerate(cameras[:1] + cameras):
+        for name, c in cullers.items():
+            s = c.cull(cam).stats
+            if i:                                              # the first frame is a warm-up
+                stats[name].append({**s, **c.renderer.counters})
+    out = {}
+    for name, c in cullers.items():
+        c.close()
+        med = {k: float(np.median([s[k] for s in stats[name]]))
+               for k in ("total_ms", "query_ms", "draw_ms", "visible", "occluded", "gl_calls")}
         out[name] = med
         log(f"  {name:<40} total {med['total_ms']:7.1f}  query {med['query_ms']:7.1f}  "
-            f"draw {med['draw_ms']:7.1f} ms  visible {med['visible']:.0f}  occluded {med['occluded']:.0f}")
+            f"draw {med['draw_ms']:7.1f} ms  GL calls {med['gl_calls']:5.1f}  visible {med['visible']:.0f}  "
+            f"occluded {med['occluded']:.0f}")
     return out
 
 

@@ -10,7 +10,7 @@ scene 1e6 units from the origin renders as well as one at it; this is done in
 Two GL paths (see :mod:`core.gl.context`; ``OCC_GL=4.1`` forces the second):
 
 - 4.3: a ``draw`` is one ``glMultiDrawElementsIndirect`` whose commands and per-draw
-  MVPs go up in one buffer write (a per-frame stream, picked by baseInstance).  A
+  MVPs go up in one buffer write (a ring of draw data, picked by baseInstance).  A
   query batch is ONE instanced draw of all its boxes (corners expanded in the vertex
   shader), early depth test ``<=``, no depth or colour write; every passing fragment
   adds one to its box's counter in a storage buffer (or, with ``counts=False``, sets
@@ -54,6 +54,8 @@ RECORD = np.dtype([("mvp", "<f4", (16,)), ("id", "<u4")])
 STREAM_ALIGN = 340                      # lcm(CMD_BYTES, RECORD.itemsize): a chunk starts on both
 # GL state this package set last, per context: renderers sharing a context share it.
 _CONTEXT_STATE = weakref.WeakKeyDictionary()
+F32_SAFE = 1e30                         # far inside float32's range, after a projection too
+NDC_CORNERS = np.array([(x, y, z, 1.0) for z in (-1, 1) for y in (-1, 1) for x in (-1, 1)])
 COUNTER_KEYS = ("gl_calls", "blocking_reads", "query_fragments", "draws", "query_batches")
 BOX_TRIANGLES = S.BOX_TRIANGLES
 
@@ -61,6 +63,18 @@ BOX_TRIANGLES = S.BOX_TRIANGLES
 def box_vertices(boxes):
     """Triangle-list vertices of boxes: ``(k, 2, 3)`` -> ``(k * 36, 3) float32``."""
     return corners(boxes)[:, BOX_TRIANGLES].reshape(-1, 3).astype(np.float32)
+
+
+def _view_extent(clip):
+    """Half-size of a cube about the eye that holds the whole view frustum of ``clip``
+    (camera-relative), with a margin; at most ``F32_SAFE``."""
+    try:
+        c = NDC_CORNERS @ np.linalg.inv(clip).T
+    except np.linalg.LinAlgError:
+        return F32_SAFE
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.abs(c[:, :3] / c[:, 3:]).max()
+    return float(min(2.0 * r, F32_SAFE)) if np.isfinite(r) else F32_SAFE
 
 
 def _ceil_to(x, m):
@@ -203,6 +217,7 @@ class GLRenderer:
         self.eye = np.zeros(3)
         self.clip = np.eye(4)
         self.front_face = "ccw"
+        self.view_extent = F32_SAFE
         self._vp_set = set()
         self._dirty = None             # query-pixel rectangle drawn at display resolution since
                                        # the last reduction, [x0, y0, x1, y1] inclusive, or None
@@ -219,7 +234,9 @@ class GLRenderer:
         self.id_prog = self._program(S.ID_VERTEX_43, S.ID_FRAGMENT)
         self.box_progs = {True: self._program(S.BOX_VERTEX_43, S.BOX_COUNT_FRAGMENT_43),
                           False: self._program(S.BOX_VERTEX_43, S.BOX_FLAG_FRAGMENT_43)}
-        # The per-frame stream: chunks of [indirect commands | per-instance records].
+        # The draw stream, a ring: chunks of [indirect commands | per-instance records]
+        # appended frame after frame; when full it is orphaned (draws in flight keep the
+        # old storage) and filled again from 0.
         self.stream_size = _pow2(STREAM_ALIGN + (CMD_BYTES + RECORD.itemsize) * max(len(self.units), 1)
                                  + RECORD.itemsize, least=4096)
         self.stream = ctx.buffer(reserve=self.stream_size)
@@ -298,6 +315,7 @@ class GLRenderer:
         # A mirrored camera (negative-determinant view) flips the winding on screen; with
         # OpenGL's clip z pointing away from the eye, an unmirrored camera has det < 0.
         self.front_face = "ccw" if np.linalg.det(self.clip) < 0 else "cw"
+        self.view_extent = _view_extent(self.clip)
         self._state.clear()                                # set everything once a frame
         self.ctx.enable(self.ctx.DEPTH_TEST)
         self.fbo.clear(depth=1.0)                          # leaves the bound framebuffer's mask as is
@@ -307,10 +325,6 @@ class GLRenderer:
             self._count()
         self._dirty = None
         self._vp_set = set()                               # box programs given this frame's matrix
-        if self.path == "4.3" and self.stream_at:
-            self.stream.orphan(self.stream_size)           # last frame's draws keep their storage
-            self.stream_at = 0
-            self._count()
 
     def _mvps(self, units):
         """Camera-relative MVPs of ``units``: float64 math, then ``(k, 4, 4) float32``
@@ -403,7 +417,9 @@ class GLRenderer:
     def query_async(self, boxes_rel, counts=True):
         """Issue a query batch now; its :class:`PendingQuery` reads the answer later, so
         CPU work can overlap the GPU.  Later draws do not change this batch's answer."""
-        boxes_rel = np.asarray(boxes_rel, dtype=np.float64)
+        # Exact: clipped to a cube around the view frustum, a box keeps every sample it
+        # has (its part in the frustum is unchanged), and huge boxes stay in float32.
+        boxes_rel = np.clip(np.asarray(boxes_rel, dtype=np.float64), -self.view_extent, self.view_extent)
         k = len(boxes_rel)
         if k == 0:
             return PendingQuery(lambda: _DONE_EMPTY.copy())

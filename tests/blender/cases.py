@@ -288,6 +288,23 @@ def case2():
     bpy.ops.occ.restore()
     x = bpy.data.objects["mover"].matrix_world.translation.x
     check("case2_restore_draws_current_frame", drawn("mover") and abs(x - (-5)) < 1e-4, x)
+    # a static object hidden by the add-on whose parent is animated afterwards
+    scene = new_scene()
+    carrier = bpy.data.objects.new("carrier", None)
+    scene.collection.objects.link(carrier)
+    carried = box("carried", (3, -0.5, 0), (4, 0.5, 1))
+    carried.parent = carrier
+    scene.frame_set(1)
+    update()
+    cull()
+    hid = hidden_by_addon("carried")
+    keyframes(carrier, [(1, (0, 0, 0)), (10, (-8, 0, 0))])
+    update()
+    scene.frame_set(10)
+    cull()
+    check("case2_parent_animated_later", hid and drawn("carried") and not hidden_by_addon("carried"),
+          (hid, drawn("carried")))
+    promise("case2_parent_animated_truth")
 
 
 def case3():
@@ -379,6 +396,37 @@ def case4():
         data = json.load(f)
     check("case4_analyze_sees_instancer", data["objects"].get("gn_base", {}).get("frames_visible") == 1,
           data["objects"])
+
+
+def case4_collections():
+    """Collection instances: a member drawn directly too is never hidden (hiding it would
+    hide its instances); a collection with a wire member is never hidden as an instance."""
+    scene = new_scene()
+    lib = bpy.data.collections.new("Lib")
+    scene.collection.children.link(lib)
+    box("member", (3, -0.5, 0), (3.5, 0.5, 1), lib)                 # behind the wall, drawn directly
+    inst = bpy.data.objects.new("lib_instance", None)
+    inst.instance_type, inst.instance_collection = "COLLECTION", lib
+    inst.location = (-8.5, 0.0, 0.0)                               # its instance stands in view
+    scene.collection.objects.link(inst)
+    wired = bpy.data.collections.new("Wired")                      # not in the scene: a library
+    box("solid_part", (0, 0, 0), (0.2, 0.2, 0.2), wired)
+    w = box("wire_part", (-8, -1.5, 0), (-7.5, -1, 0.5), wired)    # far from the solid part
+    w.display_type = "WIRE"
+    inst2 = bpy.data.objects.new("wired_instance", None)
+    inst2.instance_type, inst2.instance_collection = "COLLECTION", wired
+    inst2.location = (4.0, 0.0, 0.0)                               # solid part behind the wall, wire part in view
+    scene.collection.objects.link(inst2)
+    update()
+    cull()
+    check("case4_instanced_member_kept", not hidden_by_addon("member"), hidden_by_addon("member"))
+    check("case4_wire_member_instance_kept", not hidden_by_addon("wired_instance"), hidden_by_addon("wired_instance"))
+    promise("case4_collections_truth")
+    report = os.path.join(WORK, "case4_collections.json")
+    bpy.ops.occ.analyze(filepath=report, frame_start=1, frame_end=1)
+    with open(report) as f:
+        seen = json.load(f)["objects"]
+    check("case4_analyze_member_seen_in_instance", seen.get("member", {}).get("frames_visible") == 1, seen)
 
 
 def case5():
@@ -558,6 +606,11 @@ def case10():
         with open(report) as f:
             seen = json.load(f)["objects"]
         check(f"case10_{display.lower()}_analyzed_visible", seen.get("wall", {}).get("frames_visible") == 1, seen)
+    new_scene()
+    box("in_front", (3, -1, 0), (4, 1, 1)).show_in_front = True     # drawn over the wall
+    update()
+    cull()
+    check("case10_in_front_never_hidden", drawn("in_front"), "")
     scene = new_scene()
     scene.camera.data.type = "PANO"
     r, err = cull()
@@ -656,7 +709,8 @@ def case_hidden_edits():
         promise(f"hidden_edit_{what}_truth")
 
 
-CASES = (case1, case2, case3, case4, case5, case6, case7, case8, case10, case11, case12, case_hidden_edits)
+CASES = (case1, case2, case3, case4, case4_collections, case5, case6, case7, case8, case10, case11, case12,
+         case_hidden_edits)
 
 
 def main():

@@ -48,7 +48,7 @@ def workflows(tmp_path_factory):
                    cwd=ROOT, check=True, capture_output=True, timeout=300)
     zips = sorted(dist.glob("*.zip"))
     assert len(zips) == 1, zips
-    env = {**os.environ, "BLENDER_USER_RESOURCES": str(work / "user")}
+    env = {**os.environ, "BLENDER_USER_RESOURCES": str(work / "user"), "PYTHONHASHSEED": "0"}
     return run(["--zip", str(zips[0]), "--seeds", ",".join(map(str, SEEDS)), "--steps", str(STEPS)], work, env)
 
 
@@ -75,6 +75,15 @@ def test_every_step_kind_ran(workflows):
     assert enabled <= ran, sorted(enabled - ran)
 
 
+def test_checks_had_teeth(workflows):
+    """The truth was drawn after many passes, with many objects hidden by the add-on at
+    those moments: the visibility check was not passed by having nothing to check."""
+    results, _ = workflows
+    stats = [s["stats"] for s in results["seeds"].values()]
+    assert sum(s["truth_checks"] for s in stats) >= 20 * len(SEEDS), stats
+    assert sum(s["hidden_at_checks"] for s in stats) >= 50 * len(SEEDS), stats
+
+
 def test_quiet_exit(workflows):
     """Nothing prints a traceback when the interpreter exits after culling (issue 9, case 11)."""
     _, p = workflows
@@ -85,7 +94,7 @@ def test_quiet_exit(workflows):
 def test_harness_without_addon(tmp_path):
     """The checker itself: the same kind of sequence with the add-on never installed
     raises no alarm (its model of Blender's visibility rules and its camera are right)."""
-    env = {**os.environ, "BLENDER_USER_RESOURCES": str(tmp_path / "user")}
+    env = {**os.environ, "BLENDER_USER_RESOURCES": str(tmp_path / "user"), "PYTHONHASHSEED": "0"}
     results, _ = run(["--validate", "--seed", str(VALIDATE_SEED), "--steps", str(STEPS)], tmp_path, env)
     got = results["seeds"][str(VALIDATE_SEED)]
     assert got["failure"] is None, explain(VALIDATE_SEED, got["failure"])

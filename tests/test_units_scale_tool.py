@@ -1,0 +1,36 @@
+"""tools/blender_scale.py: its grid and its engine mode on a small grid (the Blender
+mode needs minutes; the README's figures come from it)."""
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(ROOT, "tools"))
+
+from blender_scale import grid_arrays  # noqa: E402
+
+
+def test_grid_arrays():
+    v, f = grid_arrays(10_000)
+    n = 100
+    assert v.shape == (n * n, 3) and f.shape == (2 * (n - 1) ** 2, 3)
+    assert f.min() == 0 and f.max() == n * n - 1
+    assert len(np.unique(np.sort(f, axis=1), axis=0)) == len(f)          # no triangle twice
+    assert np.all(np.abs(v[:, 1:]) <= 20.0)
+
+
+def test_engine_mode_reports_phases_and_no_false_negatives(tmp_path):
+    out = tmp_path / "engine.json"
+    p = subprocess.run([sys.executable, os.path.join(ROOT, "tools", "blender_scale.py"), "engine",
+                        "--vertices", "4000", "--chunk-triangles", "64", "--turns", "2", "--json", str(out)],
+                       cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stdout + p.stderr
+    rep = json.loads(out.read_text())
+    phases = [r["phase"] for r in rep["rows"]]
+    assert phases[:4] == ["make_units (chunking)", "build_hierarchy", "GLRenderer (upload)", "first pass"]
+    assert rep["false_negatives"] == 0 and rep["units"] > 50                  # the grid was cut into chunks
+    assert all(r["seconds"] >= 0 for r in rep["rows"])
