@@ -460,7 +460,7 @@ class Auto(Strategy):
     PROBE_SLOWER = 2.0           # a frustum-only pass this much slower than the last test pass: probe at once
     FIRST_SLOWER = 1.0           # ... and the first frustum-only pass after a switch: was the switch right?
     PROBE_MARGIN = 0.9           # a probe switches back when it beats the frustum-only estimate by this much
-    LOSS_MARGIN = 1.15           # a test pass loses when it costs this much more than the estimate (noise)
+    LOSS_MARGIN = 1.05           # a test pass loses when it costs this much more than the estimate (noise)
     CLOSE = 0.5                  # test passes above this share of the estimate re-learn the costs every PROBE_EVERY
     LEARN = 0.3                  # weight of a new measurement in the running cost
 
