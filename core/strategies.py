@@ -475,6 +475,7 @@ class Auto(Strategy):
         self.since_learn = 0             # test passes since the last frustum-only one
         self.last_test_ms = None
         self.close = True                # the last test pass was near the frustum-only estimate
+        self.learn_count = 0             # frustum-only passes made to learn the costs
 
     def reset(self):
         self.occlusion.reset()
@@ -503,7 +504,10 @@ class Auto(Strategy):
         if self.costs is None:
             self._round_trip(frame)
         if self.use_tests:
-            if (not self.learned and self.since_learn >= 1) or (self.close and self.since_learn >= self.PROBE_EVERY):
+            # learn on the second pass, again on the fourth (the first frustum-only pass
+            # pays first-draw costs), then every PROBE_EVERY while the result is close
+            due = 1 if self.learn_count < 2 else (self.PROBE_EVERY if self.close else None)
+            if due is not None and self.since_learn >= due:
                 self._frustum_only(frame, learning=True)
             else:
                 self._tests(frame, chunk, probe=False)
@@ -542,8 +546,10 @@ class Auto(Strategy):
         drawn = frame.stats["triangles_drawn"]
         learn = self.LEARN if self.learned else 1.0
         if drawn:
+            self.learn_count += learning
+            # down at once, up slowly: load, and first draws, only ever add time
             tri_ms = 1e3 * (end - t) / drawn
-            c["tri_ms"] = tri_ms if c["tri_ms"] is None else c["tri_ms"] + learn * (tri_ms - c["tri_ms"])
+            c["tri_ms"] = tri_ms if c["tri_ms"] is None else min(tri_ms, c["tri_ms"] + learn * (tri_ms - c["tri_ms"]))
         elif c["tri_ms"] is None:
             return                                   # nothing drawn: learn on a later pass
         c["vfc_cpu_ms"] += learn * (1e3 * (t - frame.t0) - c["vfc_cpu_ms"])
