@@ -461,6 +461,7 @@ class Auto(Strategy):
     FIRST_SLOWER = 1.0           # ... and the first frustum-only pass after a switch: was the switch right?
     PROBE_MARGIN = 0.9           # a probe switches back when it beats the frustum-only estimate by this much
     LOSS_MARGIN = 1.05           # a test pass loses when it costs this much more than the estimate (noise)
+    SAVED_MIN = 0.05             # a test pass that hides less than this share of the frustum's triangles loses
     CLOSE = 0.5                  # test passes above this share of the estimate re-learn the costs every PROBE_EVERY
     LEARN = 0.3                  # weight of a new measurement in the running cost
 
@@ -528,6 +529,9 @@ class Auto(Strategy):
         c, s = self.costs, frame.stats
         frustum_only = (s["triangles_drawn"] + s["triangles_occluded"]) * c["tri_ms"] + c["vfc_cpu_ms"]
         paid = spent < frustum_only * (self.PROBE_MARGIN if probe else self.LOSS_MARGIN)
+        # whatever the clock says: tests that hide almost nothing cannot pay for themselves
+        saved = s["triangles_occluded"]
+        paid &= saved >= self.SAVED_MIN * (s["triangles_drawn"] + saved)
         self.close = spent > self.CLOSE * frustum_only
         self.losses = 0 if paid else self.losses + 1
         self.use_tests = paid if probe else self.losses < self.LOSSES
