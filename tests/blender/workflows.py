@@ -1051,6 +1051,14 @@ def do_analyze(w):
     frame = scene.frame_current
     path = os.path.join(w.work, f"wf_{w.seed}_analyze.json")
     collect = w.rng.random() < 0.5                  # "Collect Never Visible" ticked
+    # the truth of the scene as it is before the operator ("Collect Never Visible"
+    # relinks objects: the scene after it may differ)
+    truths = {}
+    for f in range(first, first + 3):
+        scene.frame_set(f)
+        seen, _ = truth_visible(w)
+        truths[f] = (seen or set(), {o.name for o in bpy.context.view_layer.objects if o.visible_get()})
+    scene.frame_set(frame)
     try:
         r = bpy.ops.occ.analyze(filepath=path, frame_start=first, frame_end=first + 2,
                                 link_never_visible=collect)
@@ -1065,11 +1073,9 @@ def do_analyze(w):
         report = json.load(f)
     seen_any = set()
     for entry in report["frames"]:
-        scene.frame_set(entry["frame"])
-        seen, _ = truth_visible(w)
-        seen_any |= seen or set()
-        in_layer = {o.name for o in bpy.context.view_layer.objects if o.visible_get()}   # what it can name
-        missing = sorted(((seen or set()) & in_layer) - set(entry["visible"]))
+        seen, in_layer = truths[entry["frame"]]       # in_layer: what the report can name
+        seen_any |= seen
+        missing = sorted((seen & in_layer) - set(entry["visible"]))
         if missing:
             objs = bpy.data.objects
             why = {n: (f"display {objs[n].display_type}, never cull {objs[n].occ_never_cull}, "
@@ -1078,7 +1084,6 @@ def do_analyze(w):
                        f"{[c.name for c in objs[n].users_collection]}") for n in missing}
             problems.append(f"analyze: frame {entry['frame']} leaves out visible {why}; exclude setting "
                             f"{scene.occ.exclude_collection and scene.occ.exclude_collection.name}")
-    scene.frame_set(frame)
     never = bpy.data.collections.get("Never Visible")
     if collect and never is not None:               # deleting its contents must never delete what is seen
         wrong = sorted(o.name for o in never.objects if o.name in seen_any)
