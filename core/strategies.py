@@ -460,7 +460,8 @@ class Auto(Strategy):
     PROBE_SLOWER = 2.0           # a frustum-only pass this much slower than the last test pass: probe at once
     FIRST_SLOWER = 1.0           # ... and the first frustum-only pass after a switch: was the switch right?
     PROBE_MARGIN = 0.9           # a probe switches back when it beats the frustum-only estimate by this much
-    LOSS_MARGIN = 1.15           # a test pass loses when it costs this much more than the estimate (noise)
+    LOSS_MARGIN = 1.05           # a test pass loses when it costs this much more than the estimate (noise)
+    SAVED_MIN = 0.05             # a test pass that hides less than this share of the frustum's triangles loses
     CLOSE = 0.5                  # test passes above this share of the estimate re-learn the costs every PROBE_EVERY
     LEARN = 0.3                  # weight of a new measurement in the running cost
 
@@ -475,6 +476,7 @@ class Auto(Strategy):
         self.since_learn = 0             # test passes since the last frustum-only one
         self.last_test_ms = None
         self.close = True                # the last test pass was near the frustum-only estimate
+        self.learn_count = 0             # frustum-only passes made to learn the costs
 
     def reset(self):
         self.occlusion.reset()
@@ -503,7 +505,10 @@ class Auto(Strategy):
         if self.costs is None:
             self._round_trip(frame)
         if self.use_tests:
-            if (not self.learned and self.since_learn >= 1) or (self.close and self.since_learn >= self.PROBE_EVERY):
+            # learn on the second pass, again on the fourth (the first frustum-only pass
+            # pays first-draw costs), then every PROBE_EVERY while the result is close
+            due = 1 if self.learn_count < 2 else (self.PROBE_EVERY if self.close else None)
+            if due is not None and self.since_learn >= due:
                 self._frustum_only(frame, learning=True)
             else:
                 self._tests(frame, chunk, probe=False)
@@ -524,6 +529,9 @@ class Auto(Strategy):
         c, s = self.costs, frame.stats
         frustum_only = (s["triangles_drawn"] + s["triangles_occluded"]) * c["tri_ms"] + c["vfc_cpu_ms"]
         paid = spent < frustum_only * (self.PROBE_MARGIN if probe else self.LOSS_MARGIN)
+        # whatever the clock says: tests that hide almost nothing cannot pay for themselves
+        saved = s["triangles_occluded"]
+        paid &= saved >= self.SAVED_MIN * (s["triangles_drawn"] + saved)
         self.close = spent > self.CLOSE * frustum_only
         self.losses = 0 if paid else self.losses + 1
         self.use_tests = paid if probe else self.losses < self.LOSSES
@@ -542,8 +550,10 @@ class Auto(Strategy):
         drawn = frame.stats["triangles_drawn"]
         learn = self.LEARN if self.learned else 1.0
         if drawn:
+            self.learn_count += learning
+            # down at once, up slowly: load, and first draws, only ever add time
             tri_ms = 1e3 * (end - t) / drawn
-            c["tri_ms"] = tri_ms if c["tri_ms"] is None else c["tri_ms"] + learn * (tri_ms - c["tri_ms"])
+            c["tri_ms"] = tri_ms if c["tri_ms"] is None else min(tri_ms, c["tri_ms"] + learn * (tri_ms - c["tri_ms"]))
         elif c["tri_ms"] is None:
             return                                   # nothing drawn: learn on a later pass
         c["vfc_cpu_ms"] += learn * (1e3 * (t - frame.t0) - c["vfc_cpu_ms"])

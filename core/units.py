@@ -47,6 +47,8 @@ def _outward(exact):
     """float32 copies of float64 coordinates rounded down and up: ``(lo, hi)``."""
     near = exact.astype(np.float32)
     wide = near.astype(np.float64)
+    if np.array_equal(wide, exact):              # float32 data (Blender's, glTF's): exact as it is
+        return near, near
     down = np.where(wide > exact, np.nextafter(near, np.float32(-np.inf)), near)
     up = np.where(wide < exact, np.nextafter(near, np.float32(np.inf)), near)
     return down, up

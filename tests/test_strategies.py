@@ -34,6 +34,7 @@ def test_auto_tests_occlusion_where_triangles_are_dear(ctx):
     scene, cams, _ = scenes.random_city(11, 300)
     with Culler(scene, (128, 96), strategy="auto", ctx=ctx) as c:
         c.strategy.costs = {"tri_ms": 1e3, "round_trip_ms": 0.0, "vfc_cpu_ms": 0.0}
+        c.strategy.learn_count = 2                                    # the costs are known: no learning pass
         for _ in range(2):
             for cam in cams:
                 truth = c.truth(cam)
@@ -49,6 +50,7 @@ def test_auto_falls_back_to_frustum_culling_where_tests_cannot_pay(ctx):
     cam = cams[0]
     with Culler(scene, (128, 96), strategy="auto", ctx=ctx) as c:
         c.strategy.costs = {"tri_ms": 0.0, "round_trip_ms": 1.0, "vfc_cpu_ms": 0.0}
+        c.strategy.learn_count = 2                                    # the costs are known: no learning pass
         c.strategy.LEARN = 0.0                                        # keep the costs given (no timing in tests)
         c.strategy.PROBE_SLOWER = c.strategy.FIRST_SLOWER = float("inf")
         modes = [c.cull(cam).stats["occlusion_pass"] for _ in range(Auto.LOSSES + Auto.PROBE_EVERY + 2)]

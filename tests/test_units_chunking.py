@@ -40,6 +40,15 @@ def test_triangle_bounds_contain_float64_triangles(offset):
     assert np.all(np.nextafter(hi, np.float32(-np.inf)) <= exact_hi.astype(np.float32))
 
 
+def test_triangle_bounds_of_float32_data_are_exact():
+    rng = np.random.default_rng(8)
+    verts, faces = random_mesh(rng, 400, 2000, offset=123.25)
+    verts = verts.astype(np.float32).astype(np.float64)     # as read from Blender or glTF
+    lo, hi = triangle_bounds(verts, faces)
+    tri = verts[faces]
+    assert np.array_equal(lo, tri.min(axis=1).T) and np.array_equal(hi, tri.max(axis=1).T)
+
+
 def test_triangle_bounds_beyond_float32_is_refused():
     verts = np.array([[0, 0, 0], [1e39, 0, 0], [0, 1, 0]], float)
     lo, hi = triangle_bounds(verts, np.array([[0, 1, 2]]))

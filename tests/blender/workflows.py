@@ -423,6 +423,16 @@ def object_intent(o, monitor=None):
             "never": bool(getattr(o, "occ_never_cull", False))}
 
 
+def has_base(o, vl):
+    """Whether ``o`` has a base in ``vl``: one of its collections is in the view layer
+    and not excluded itself (layer_collection_sync syncs the children of an excluded
+    collection too).  Computed, because ``vl.objects`` is synced only on evaluation."""
+    import bpy
+    scene = bpy.context.scene
+    included = {scene.collection.name} | {lc.collection.name for _, lc in layer_collections(vl) if not lc.exclude}
+    return any(c.name in included for c in o.users_collection)
+
+
 def forget_lost_bases(w):
     """Blender forgets an object's eye flag in a view layer where it loses its base
     (its collections excluded, or unlinked): the user's flag goes with it."""
@@ -431,7 +441,7 @@ def forget_lost_bases(w):
     for vl in bpy.context.scene.view_layers:
         for wid, m in w.model["objects"].items():
             o = objs.get(wid)
-            if o is not None and vl.objects.get(o.name) is None:
+            if o is not None and not has_base(o, vl):
                 m["eye"][vl.name] = False
 
 
@@ -1040,8 +1050,18 @@ def do_analyze(w):
     first = w.rng.randint(FRAMES[0], FRAMES[1] - 2)
     frame = scene.frame_current
     path = os.path.join(w.work, f"wf_{w.seed}_analyze.json")
+    collect = w.rng.random() < 0.5                  # "Collect Never Visible" ticked
+    # the truth of the scene as it is before the operator ("Collect Never Visible"
+    # relinks objects: the scene after it may differ)
+    truths = {}
+    for f in range(first, first + 3):
+        scene.frame_set(f)
+        seen, _ = truth_visible(w)
+        truths[f] = (seen or set(), {o.name for o in bpy.context.view_layer.objects if o.visible_get()})
+    scene.frame_set(frame)
     try:
-        r = bpy.ops.occ.analyze(filepath=path, frame_start=first, frame_end=first + 2)
+        r = bpy.ops.occ.analyze(filepath=path, frame_start=first, frame_end=first + 2,
+                                link_never_visible=collect)
     except RuntimeError as e:
         if "failed" in str(e):
             raise
@@ -1051,11 +1071,11 @@ def do_analyze(w):
         problems.append(f"analyze: the frame is {scene.frame_current}, was {frame}")
     with open(path, encoding="utf-8") as f:
         report = json.load(f)
+    seen_any = set()
     for entry in report["frames"]:
-        scene.frame_set(entry["frame"])
-        seen, _ = truth_visible(w)
-        in_layer = {o.name for o in bpy.context.view_layer.objects if o.visible_get()}   # what it can name
-        missing = sorted(((seen or set()) & in_layer) - set(entry["visible"]))
+        seen, in_layer = truths[entry["frame"]]       # in_layer: what the report can name
+        seen_any |= seen
+        missing = sorted((seen & in_layer) - set(entry["visible"]))
         if missing:
             objs = bpy.data.objects
             why = {n: (f"display {objs[n].display_type}, never cull {objs[n].occ_never_cull}, "
@@ -1064,9 +1084,13 @@ def do_analyze(w):
                        f"{[c.name for c in objs[n].users_collection]}") for n in missing}
             problems.append(f"analyze: frame {entry['frame']} leaves out visible {why}; exclude setting "
                             f"{scene.occ.exclude_collection and scene.occ.exclude_collection.name}")
-    scene.frame_set(frame)
+    never = bpy.data.collections.get("Never Visible")
+    if collect and never is not None:               # deleting its contents must never delete what is seen
+        wrong = sorted(o.name for o in never.objects if o.name in seen_any)
+        if wrong:
+            problems.append(f"analyze: 'Never Visible' holds objects seen in frames {first}..{first + 2}: {wrong}")
     w.pending += problems
-    return f"analyze {first}..{first + 2} -> {sorted(r)}"
+    return f"analyze {first}..{first + 2}{' collecting never visible' if collect else ''} -> {sorted(r)}"
 
 
 def has_nan(o):
