@@ -15,6 +15,10 @@ from .extract import bystanders, is_instancer
 from .session import SESSION, camera_for, scene_camera
 
 
+# "//" paths are blend-relative; Blender 4.5+ wants string properties to say they accept them
+BLEND_RELATIVE = {"PATH_SUPPORTS_BLEND_RELATIVE"} if bpy.app.version >= (4, 5, 0) else set()
+
+
 class OCC_OT_cull(bpy.types.Operator):
     """Hide the objects the active viewport (or the scene camera) cannot see"""
 
@@ -78,7 +82,8 @@ class OCC_OT_analyze(bpy.types.Operator):
     frame_start: IntProperty(name="Start", default=-1, description="-1: the scene's start")
     frame_end: IntProperty(name="End", default=-1, description="-1: the scene's end")
     frame_step: IntProperty(name="Step", default=1, min=1)
-    filepath: StringProperty(name="Report", subtype="FILE_PATH", default="//occlusion_report.json")
+    filepath: StringProperty(name="Report", subtype="FILE_PATH", default="//occlusion_report.json",
+                             options=BLEND_RELATIVE)
     link_never_visible: BoolProperty(name="Collect Never Visible", default=False,
                                      description="Link never-visible objects into a collection")
 
@@ -90,14 +95,13 @@ class OCC_OT_analyze(bpy.types.Operator):
             self.report({"ERROR"}, f"empty frame range {start}..{end}")
             return {"CANCELLED"}
         frames = list(range(start, end + 1, self.frame_step))
-        path = bpy.path.abspath(self.filepath)
-        if self.filepath.startswith("//") and not bpy.data.filepath:
-            path = os.path.join(bpy.app.tempdir or ".", os.path.basename(self.filepath[2:]))
+        path = report_path(self.filepath)
         previous = scene.frame_current
         wm = context.window_manager
         per_frame, seen = [], {}
         t = time.perf_counter()
         wm.progress_begin(0, len(frames))
+        step = max(1, len(frames) // 10)          # background mode: about ten progress lines
         try:
             for k, f in enumerate(frames):           # synchronous: timers never fire headless
                 scene.frame_set(f)
@@ -115,6 +119,9 @@ class OCC_OT_analyze(bpy.types.Operator):
                 for n in names:
                     seen[n] += 1
                 wm.progress_update(k + 1)
+                if bpy.app.background and ((k + 1) % step == 0 or k + 1 == len(frames)):
+                    print(f"occlusion analyze: {k + 1}/{len(frames)} frames "
+                          f"({time.perf_counter() - t:.1f} s)", flush=True)
         except Exception as e:  # every failure is a report, never a traceback
             return failed(self, e)
         finally:
@@ -128,6 +135,15 @@ class OCC_OT_analyze(bpy.types.Operator):
         self.report({"INFO"}, f"{len(frames)} frames in {time.perf_counter() - t:.1f} s; "
                               f"{len(never)} of {len(seen)} objects never visible; report {path}")
         return {"FINISHED"}
+
+
+def report_path(filepath):
+    """Absolute report path.  ``//`` is the blend file's folder; in a file never saved
+    it is the working directory (sub-folders kept), never Blender's temporary folder,
+    which is deleted at exit."""
+    if filepath.startswith("//") and not bpy.data.filepath:
+        return os.path.normpath(os.path.join(os.getcwd(), filepath[2:]))
+    return os.path.normpath(bpy.path.abspath(filepath))
 
 
 def warn(op):

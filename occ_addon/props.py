@@ -3,13 +3,15 @@
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty
 
-STRATEGY_ITEMS = [
-    ("om_coherent", "Coherent (default)", "Occupancy map, multiple queries, last frame's visible first"),
-    ("om_multi", "Multiple queries", "Staneker et al. 2004: occupancy-map-arranged multiple queries"),
-    ("om", "Occupancy map", "Staneker et al. 2003"),
-    ("stopwait", "Stop and wait", "One query per node, waiting for each"),
-    ("vfc", "Frustum only", "Hide only what is outside the view"),
-]
+from ..core.strategies import REGISTRY
+
+# The add-on's default is the best-culling conservative strategy, not the engine's
+# "auto": auto weighs the engine's own drawing against its tests and may hide nothing
+# occluded when the GPU draws fast, but here what is saved is Blender's drawing.
+ADDON_DEFAULT_STRATEGY = "om_coherent"
+STRATEGY_ITEMS = [(info.name, info.label + (" (default)" if info.name == ADDON_DEFAULT_STRATEGY else ""),
+                   info.description)
+                  for info in REGISTRY.values() if not info.needs_truth and info.name != "auto"]
 
 
 def _changed(_self, _context):
@@ -24,7 +26,7 @@ class OccSettings(bpy.types.PropertyGroup):
         name="Source", default="VIEWPORT",
         items=[("VIEWPORT", "Viewport", "Cull for the active 3D viewport's view"),
                ("CAMERA", "Scene Camera", "Cull for the scene camera at the render resolution")])
-    strategy: EnumProperty(name="Strategy", items=STRATEGY_ITEMS, default="om_coherent")
+    strategy: EnumProperty(name="Strategy", items=STRATEGY_ITEMS, default=ADDON_DEFAULT_STRATEGY)
     preset: EnumProperty(
         name="Accuracy", default="conservative",
         items=[("conservative", "Conservative", "Query at the display resolution: hides nothing visible"),

@@ -14,6 +14,7 @@ import numpy as np
 from bpy.app.handlers import persistent
 
 from ..core import Camera, Culler, OccError, Visibility
+from ..core.engine import MAX_RESOLUTION
 from ..core.settings import preset, query_resolution
 from ..core.units import ChunkCache
 from . import extract, visibility
@@ -76,7 +77,7 @@ class Session:
             cand = self.extractor.candidates(context)
         return cand
 
-    def engine(self, context, resolution, strategy, verify=False):
+    def engine(self, context, resolution, strategy, verify=False, display=None):
         """The engine for the current candidates: rebuilt when objects or geometry
         changed, otherwise only the moved objects' matrices are sent."""
         cand = self.candidates(context, verify)
@@ -84,12 +85,14 @@ class Session:
         if not len(cand):
             raise OccError("nothing to cull: the view layer has no visible mesh objects")
         uids = tuple(cand.uids.tolist())
-        rebuild = (self.culler is None or uids != self.uids or resolution != self.resolution
+        # the engine is bound to its query and display resolutions (GL targets)
+        size = (resolution, display)
+        rebuild = (self.culler is None or uids != self.uids or size != self.resolution
                    or self.extractor.needs_geometry(cand))
         if rebuild:
             scene, kept, bad = self.extractor.scene(context, cand)
             self.warnings += bad
-            if self.culler is not None and resolution == self.resolution:
+            if self.culler is not None and size == self.resolution:
                 # same context; meshes read unchanged from the cache keep their chunks
                 self.worker.run(self.culler.replace_scene, scene)
                 if strategy != self.culler.strategy_name:
@@ -97,8 +100,9 @@ class Session:
             else:
                 self.release()
                 self.culler = self.worker.run(Culler, scene, resolution, strategy=strategy,
-                                              chunk_triangles=CHUNK_TRIANGLES, chunk_cache=self.chunks)
-            self.uids, self.kept, self.resolution = uids, kept, resolution
+                                              chunk_triangles=CHUNK_TRIANGLES, chunk_cache=self.chunks,
+                                              display=display)
+            self.uids, self.kept, self.resolution = uids, kept, size
             self.kept_uids = cand.uids[kept]
             self.kept_collection = np.array([cand.kinds[i] == "collection" for i in kept], dtype=bool)
             self.bad_geometry = bad
@@ -119,9 +123,15 @@ class Session:
         settings = context.scene.occ
         options = preset(settings.preset)
         res = query_resolution(fit(display, settings.max_resolution), options)
+        # Below the display's own resolution (the fast preset, or a display larger than
+        # the max query size), occluders are drawn at the display's resolution and each
+        # query pixel keeps the farthest depth it stands for: a gap the display shows
+        # stays open in the query (conservative by construction; core.gl, display=).
+        shown = fit(display, MAX_RESOLUTION)
+        shown = shown if shown != res else None
         # a fresh pass (a click, analyze, a scene change) also checks what the add-on
         # hides against its data: edits to hidden objects are never reported
-        culler, objects = self.engine(context, res, settings.strategy, verify=fresh)
+        culler, objects = self.engine(context, res, settings.strategy, verify=fresh, display=shown)
         culler.options = options
         forget = getattr(culler.strategy, "forget", None)
         if fresh and forget is not None:

@@ -17,7 +17,7 @@ import math
 import os
 import sys
 import traceback
-from contextlib import redirect_stderr
+from contextlib import redirect_stderr, redirect_stdout
 
 import bpy
 import numpy as np
@@ -696,7 +696,7 @@ def case_hidden_edits():
         co = np.zeros(len(me.vertices) * 3, np.float32)
         me.vertices.foreach_get("co", co)
         co = co.reshape(-1, 3)
-        if what == "grow":
+        if what == "move":
             co[:, 0] -= 8.0                               # its mesh now stands in front of the wall
         else:
             co[0] = np.nan
@@ -709,8 +709,49 @@ def case_hidden_edits():
         promise(f"hidden_edit_{what}_truth")
 
 
+def case_display_resolution():
+    """The fast preset queries at half the display's resolution, yet hides nothing the
+    display shows: a slit of one display pixel, between two pixel centres of the
+    half-resolution query, still shows what stands behind it."""
+    scene = new_scene()
+    scene.render.resolution_x, scene.render.resolution_y = 64, 32
+    cam = scene.camera
+    cam.data.type = "ORTHO"
+    cam.data.ortho_scale = 64.0                  # one world unit per display pixel
+    cam.location = (-10.0, 0.0, 0.0)
+    wall = bpy.data.objects["wall"]
+    wall.location, wall.scale = (0.25, -16.0 + 0.2, 0.0), (0.5, 32.0, 40.0)   # y -32.0 .. 0.2
+    box("wall2", (0.0, 0.8, -20.0), (0.5, 32.0, 20.0))      # the slit: y 0.2 .. 0.8 around a display centre
+    box("target", (3.0, -2.0, -2.0), (4.0, 2.0, 2.0))
+    scene.occ.preset = "fast"
+    scene.occ.strategy = "stopwait"     # a query per node: with three objects the occupancy map would draw all
+    update()
+    r, err = cull()
+    check("display_fast_preset_slit_kept", r == {"FINISHED"} and drawn("target"), (r, err[-500:]))
+    promise("display_fast_preset_truth")
+    bpy.data.objects["wall2"].location.y -= 0.6             # the slit closed: now it is hidden
+    update()
+    cull()
+    check("display_fast_preset_closed_hidden", hidden_by_addon("target"), "")
+
+
+def case_report_path():
+    """analyze in a file never saved: '//' is the working directory (sub-folders kept),
+    never Blender's temporary folder; background mode prints progress lines."""
+    new_scene()
+    box("target", (3, -1, 0), (4, 1, 1))
+    update()
+    out = io.StringIO()
+    with redirect_stdout(out):
+        r = bpy.ops.occ.analyze(filepath="//occ_reports/unsaved.json", frame_start=1, frame_end=20)
+    path = os.path.join(os.getcwd(), "occ_reports", "unsaved.json")
+    check("analyze_unsaved_path_in_cwd", r == {"FINISHED"} and os.path.exists(path), (r, path))
+    lines = [ln for ln in out.getvalue().splitlines() if ln.startswith("occlusion analyze:")]
+    check("analyze_background_progress", 2 <= len(lines) <= 12 and "20/20" in lines[-1], lines)
+
+
 CASES = (case1, case2, case3, case4, case4_collections, case5, case6, case7, case8, case10, case11, case12,
-         case_hidden_edits)
+         case_hidden_edits, case_display_resolution, case_report_path)
 
 
 def main():

@@ -44,6 +44,8 @@ CHECKS = [
     "case11_nan_matrix_named", "case11_nan_vertices_named", "case11_camera_scale_zero_reported",
     "case12_moved_into_exclude_drawn", "case12_undo_restore_drawn",
     "hidden_edit_move_seen", "hidden_edit_move_truth", "hidden_edit_nan_seen", "hidden_edit_nan_truth",
+    "display_fast_preset_slit_kept", "display_fast_preset_truth", "display_fast_preset_closed_hidden",
+    "analyze_unsaved_path_in_cwd", "analyze_background_progress",
 ]
 
 
