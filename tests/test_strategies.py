@@ -133,11 +133,12 @@ def test_coherent_default_stays_within_its_read_budget(ctx, strategy):
     for seed in (3, 7, 11):
         scene, cams, _ = scenes.random_city(seed, 400)
         with Culler(scene, (160, 120), strategy=strategy, ctx=ctx) as c:
-            for cam in cams:
+            for i, cam in enumerate(cams):
                 truth = c.truth(cam)
-                for _ in range(2):
+                for k in range(2):
                     r = c.cull(cam)
                     assert r.stats["multiple_queries"] <= COHERENT_READS
                     assert not (truth & ~r.visible).any()
-                    if getattr(c.renderer, "path", None) == "4.3":      # the 4.1 path reads once per box
+                    # the 4.1 path reads once per box; auto's first pass also times a round trip
+                    if getattr(c.renderer, "path", None) == "4.3" and (i or k or strategy != "auto"):
                         assert r.stats["blocking_reads"] <= COHERENT_READS
