@@ -21,6 +21,10 @@ from .settings import PRESETS, CullOptions, query_resolution
 # knob -> list of (label, options changes, culler keyword changes)
 KNOBS = {
     "query_resolution": [(f"1/{d}", {"resolution_scale": 1.0 / d}, {}) for d in (1, 2, 3, 4)],
+    # occluder depth drawn at the display's resolution, each query pixel keeping the
+    # farthest depth it stands for: what the add-on's fast preset runs (exact by construction)
+    "query_resolution+display": [(f"1/{d}+display", {"resolution_scale": 1.0 / d, "pixel_guard": 1.0},
+                                  {"display_depth": True}) for d in (2, 3, 4)],
     "query_resolution+guard": [(f"1/{d}+1px", {"resolution_scale": 1.0 / d, "pixel_guard": 1.0}, {})
                                for d in (2, 3, 4)],
     "tiles": [(str(t), {"tiles": t}, {}) for t in (1024, 4096, 16384, 65536)],
@@ -44,6 +48,9 @@ def measure(scene, cameras, truth_pixels, display, options, culler_kw, strategy=
     """One setting over the path, ``repeats`` times: frame ms (median of the repeats' medians,
     spread = half their range) and misses at display resolution (from the first repeat)."""
     res = query_resolution(display, options)
+    culler_kw = dict(culler_kw)
+    if culler_kw.pop("display_depth", False) and tuple(res) != tuple(display):
+        culler_kw["display"] = tuple(display)
     medians, obj_missed, px_missed, kept, seen = [], 0, 0, 0, 0
     with Culler(scene, res, strategy=strategy, options=options, **culler_kw) as c:
         c.cull(cameras[0])                                    # warm-up
@@ -106,7 +113,9 @@ def run_tradeoff(scene, cameras, display, knobs=tuple(KNOBS), log=print, repeats
     report = {"display": list(display), "frames": len(cameras), "repeats": repeats, "knobs": {},
               "presets": {}}
     for name in PRESETS:
-        report["presets"][name] = measure(scene, cameras, truth, display, PRESETS[name], {}, repeats=repeats)
+        # presets as the add-on runs them: occluder depth at the display's resolution
+        report["presets"][name] = measure(scene, cameras, truth, display, PRESETS[name], {"display_depth": True},
+                                          repeats=repeats)
         log(f"  preset {name:<12} {_fmt(report['presets'][name])}")
         progress(f"preset={name}", report["presets"][name])
     for knob in knobs:
