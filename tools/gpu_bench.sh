@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# The benchmark on a lent NVIDIA machine (the device tool), in one call:
+#   carry: .gl (Debian's GL loader .debs), .whl (moderngl, glcontext, trimesh wheels for
+#   the machine's Python), .baseline (an older checkout to compare with, optional).
+# Every figure is a median over the sample path, baseline and current code on the same card
+# in the same call.  Writes $OUT/gpu.md (tables) and $OUT/raw.tgz (every bench --json and log).
+set -uo pipefail
+for f in .gl/*.deb; do dpkg -x "$f" /; done; ldconfig
+python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site .whl/*.whl || exit 1
+export PYTHONPATH=/tmp/site PYTHONUNBUFFERED=1
+[ -f /usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json ] && \
+    export __EGL_VENDOR_LIBRARY_FILENAMES=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json
+export OCC_CACHE_DIR=$PWD/.cache/scenes
+OUT=${OUT:-/tmp/out}; RAW=/tmp/gpu_raw; mkdir -p "$OUT" "$RAW"
+nvidia-smi -L
+python3 -c "import moderngl; c = moderngl.create_context(standalone=True, backend='egl', require=430); print(c.info['GL_RENDERER'], c.info['GL_VERSION'])" || exit 1
+SCENES=${SCENES:-city assembly vessels cathedral isosurface city-xl}
+FRAMES=${FRAMES:-}
+for s in $SCENES; do
+    args=(); [ -n "$FRAMES" ] && args=(--frames "$FRAMES")
+    echo "== $s (current)"
+    timeout 240 python3 -m core bench "$s" "${args[@]}" --json > "$RAW/$s.json" 2> "$RAW/$s.log" || tail -5 "$RAW/$s.log"
+    if [ -d .baseline ] && [ "$s" != city-xl ]; then
+        echo "== $s (baseline)"
+        (cd .baseline && OCC_CACHE_DIR=$OCC_CACHE_DIR timeout 240 python3 -m core bench "$s" --strategies vfc,om_coherent,oracle "${args[@]}" --json) \
+            > "$RAW/base-$s.json" 2> "$RAW/base-$s.log" || tail -5 "$RAW/base-$s.log"
+    fi
+done
+echo "== GL backend (python -m core.gl.bench --scene city)"
+timeout 120 python3 -m core.gl.bench --scene city > "$RAW/glbench.txt" 2>&1; tail -25 "$RAW/glbench.txt"
+python3 tools/gpu_table.py "$RAW" | tee "$OUT/gpu.md"
+tar -czf "$OUT/raw.tgz" -C "$RAW" .
