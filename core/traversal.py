@@ -302,12 +302,14 @@ class Frame:
         if asked.any():
             self.flush()                    # the occluders before the boxes tested against them
             t = time.perf_counter()
-            samples = self.r.query(grown[asked])
+            # Sample counts only where a threshold needs them: a flag per box is a plain
+            # store, a count an atomic add per fragment (8-15x slower on an NVIDIA H200)
+            samples = self.r.query(grown[asked], counts=self.threshold > 0)
             self.t_query += time.perf_counter() - t
             r = self.rects[nodes[asked]]
             self.stats["queries"] += len(r)
             self.stats["multiple_queries"] += 1
-            self.stats["samples_passed"] += int(samples.sum())
+            self.stats["samples_passed"] += int(samples.sum())     # threshold 0: boxes with any sample
             outline = self.outline_pixels(grown[asked])
             # nodes reached without rectangles (the two-pass strategy): their outlines
             area = np.where(self.has_geometry[nodes[asked]], (r[:, 2] - r[:, 0] + 1) * (r[:, 3] - r[:, 1] + 1),

@@ -19,14 +19,15 @@ FRAMES=${FRAMES:-}
 for s in $SCENES; do
     args=(); [ -n "$FRAMES" ] && args=(--frames "$FRAMES")
     echo "== $s (current)"
-    timeout 240 python3 -m core bench "$s" "${args[@]}" --json > "$RAW/$s.json" 2> "$RAW/$s.log" || tail -5 "$RAW/$s.log"
+    strat=(); [ -n "${STRATEGIES:-}" ] && strat=(--strategies "$STRATEGIES")
+    timeout "${SCENE_TIMEOUT:-240}" python3 -m core bench "$s" "${strat[@]}" "${args[@]}" --json > "$RAW/$s.json" 2> "$RAW/$s.log" || tail -5 "$RAW/$s.log"
     if [ -d .baseline ] && [ "$s" != city-xl ]; then
         echo "== $s (baseline)"
-        (cd .baseline && OCC_CACHE_DIR=$OCC_CACHE_DIR timeout 240 python3 -m core bench "$s" --strategies vfc,om_coherent,oracle "${args[@]}" --json) \
+        (cd .baseline && OCC_CACHE_DIR=$OCC_CACHE_DIR timeout "${SCENE_TIMEOUT:-240}" python3 -m core bench "$s" --strategies vfc,om_coherent,oracle "${args[@]}" --json) \
             > "$RAW/base-$s.json" 2> "$RAW/base-$s.log" || tail -5 "$RAW/base-$s.log"
     fi
 done
 echo "== GL backend (python -m core.gl.bench --scene city)"
-timeout 120 python3 -m core.gl.bench --scene city > "$RAW/glbench.txt" 2>&1; tail -25 "$RAW/glbench.txt"
+[ -z "${SKIP_GLBENCH:-}" ] && { timeout 120 python3 -m core.gl.bench --scene city > "$RAW/glbench.txt" 2>&1; tail -25 "$RAW/glbench.txt"; }
 python3 tools/gpu_table.py "$RAW" | tee "$OUT/gpu.md"
 tar -czf "$OUT/raw.tgz" -C "$RAW" .
