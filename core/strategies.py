@@ -115,23 +115,7 @@ class LeafStopWait(Strategy):
     """The leaves in the frustum front to back, one awaited query each (no
     hierarchy above them, no occupancy map)."""
 
-    def __call__(self, frame, chunk=16, truth=None):
-        leaves = frame.frustum_leaves()
-        frame.ensure_geometry(leaves)
-        for leaf in frame.sort_near(leaves):     # per leaf by design: a baseline
-            one = np.array([leaf])
-            if frame.crosses[leaf]:
-                frame.stats["near_visible"] += 1
-            elif not frame.query(one)[0]:
-                frame.occlude(one)
-                continue
-            frame.draw_leaves(one)
-
-
-class OmSingle(Strategy):
-    """Staneker et al. 2003 with single queries: leaves front to back; a leaf
-    whose rectangle still has an empty tile is drawn without a query, any other
-    gets its own query, awaited before the next leaf."""
+    use_map = False
 
     def __call__(self, frame, chunk=16, truth=None):
         leaves = frame.frustum_leaves()
@@ -140,12 +124,20 @@ class OmSingle(Strategy):
             one = np.array([leaf])
             if frame.crosses[leaf]:
                 frame.stats["near_visible"] += 1
-            elif frame.om.any_empty_tiles(frame.tiles[one])[0]:
+            elif self.use_map and frame.om.any_empty_tiles(frame.tiles[one])[0]:
                 frame.stats["queries_skipped"] += 1
             elif not frame.query(one)[0]:
                 frame.occlude(one)
                 continue
             frame.draw_leaves(one)
+
+
+class OmSingle(LeafStopWait):
+    """Staneker et al. 2003 with single queries: leaves front to back; a leaf
+    whose rectangle still has an empty tile is drawn without a query, any other
+    gets its own query, awaited before the next leaf."""
+
+    use_map = True
 
 
 def _stage1(frame, front, chunk):
