@@ -4,23 +4,15 @@ The scenario runs once, in a subprocess (bpy must not share a process with the
 moderngl tests), against the zip built by Blender's own extension CLI.
 """
 
-import importlib.util
-import json
 import os
-import subprocess
-import sys
 
 import pytest
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-SCENARIO = os.path.join(os.path.dirname(os.path.abspath(__file__)), "scenario.py")
-PYTHON = os.environ.get("OCC_BPY_PYTHON", sys.executable)
+from .harness import needs_bpy, run_script
 
-pytestmark = [
-    pytest.mark.blender,
-    pytest.mark.skipif(PYTHON == sys.executable and importlib.util.find_spec("bpy") is None,
-                       reason="bpy is not installed (make test installs bpy==5.0.1)"),
-]
+SCENARIO = os.path.join(os.path.dirname(os.path.abspath(__file__)), "scenario.py")
+
+pytestmark = needs_bpy
 
 CHECKS = ["installed", "operators_registered", "panel_registered", "cull_finished", "behind_hidden",
           "wall_and_front_shown", "user_hidden_untouched", "excluded_never_hidden",
@@ -40,18 +32,7 @@ CHECKS = ["installed", "operators_registered", "panel_registered", "cull_finishe
 
 @pytest.fixture(scope="session")
 def blender_results(tmp_path_factory):
-    work = tmp_path_factory.mktemp("blender")
-    dist = work / "dist"
-    subprocess.run([PYTHON, os.path.join(ROOT, "tools", "build_extension.py"), "--no-wheels",
-                    "--out", str(dist)], cwd=ROOT, check=True, capture_output=True, timeout=300)
-    zips = sorted(dist.glob("*.zip"))
-    assert len(zips) == 1, zips
-    env = {**os.environ, "BLENDER_USER_RESOURCES": str(work / "user")}
-    p = subprocess.run([PYTHON, SCENARIO, str(zips[0]), str(work)], cwd=str(work), env=env,
-                       capture_output=True, text=True, timeout=600)
-    line = next((ln for ln in p.stdout.splitlines() if ln.startswith("OCC_RESULTS ")), None)
-    assert line is not None, f"scenario printed no results (rc {p.returncode}):\n{p.stdout[-3000:]}\n{p.stderr[-3000:]}"
-    return json.loads(line[len("OCC_RESULTS "):])
+    return run_script(SCENARIO, tmp_path_factory.mktemp("blender"))[0]
 
 
 def test_scenario_did_not_crash(blender_results):

@@ -2,23 +2,15 @@
 ``cases.py``, which runs once in a subprocess against the zip built by Blender's
 own extension CLI (see test_blender.py)."""
 
-import importlib.util
-import json
 import os
-import subprocess
-import sys
 
 import pytest
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-CASES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "cases.py")
-PYTHON = os.environ.get("OCC_BPY_PYTHON", sys.executable)
+from .harness import ROOT, needs_bpy, run_script
 
-pytestmark = [
-    pytest.mark.blender,
-    pytest.mark.skipif(PYTHON == sys.executable and importlib.util.find_spec("bpy") is None,
-                       reason="bpy is not installed (make test installs bpy==5.0.1)"),
-]
+CASES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "cases.py")
+
+pytestmark = needs_bpy
 
 CHECKS = [
     *[f"case1_{w}_{c}" for w in ("eye", "collection_eye", "collection_monitor", "collection_exclude")
@@ -51,18 +43,7 @@ CHECKS = [
 
 @pytest.fixture(scope="session")
 def case_run(tmp_path_factory):
-    work = tmp_path_factory.mktemp("blender_cases")
-    dist = work / "dist"
-    subprocess.run([PYTHON, os.path.join(ROOT, "tools", "build_extension.py"), "--no-wheels",
-                    "--out", str(dist)], cwd=ROOT, check=True, capture_output=True, timeout=300)
-    zips = sorted(dist.glob("*.zip"))
-    assert len(zips) == 1, zips
-    env = {**os.environ, "BLENDER_USER_RESOURCES": str(work / "user")}
-    p = subprocess.run([PYTHON, CASES, str(zips[0]), str(work), ROOT], cwd=str(work), env=env,
-                       capture_output=True, text=True, timeout=600)
-    line = next((ln for ln in p.stdout.splitlines() if ln.startswith("OCC_RESULTS ")), None)
-    assert line is not None, f"cases printed no results (rc {p.returncode}):\n{p.stdout[-3000:]}\n{p.stderr[-3000:]}"
-    return json.loads(line[len("OCC_RESULTS "):]), p
+    return run_script(CASES, tmp_path_factory.mktemp("blender_cases"), ROOT)
 
 
 def test_no_case_crashed(case_run):
