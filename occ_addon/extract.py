@@ -54,7 +54,7 @@ from .visibility import ident
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
 SOLID_DISPLAY = {"SOLID", "TEXTURED"}            # wire and bounds display never occlude
-_EMPTY = (np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64))
+_EMPTY = (np.zeros((0, 3), dtype=np.float32), np.zeros((0, 3), dtype=np.int32))
 
 # Modifiers whose result depends only on the object's own data and settings
 # (their animation, if any, is the object's animation_data); anything else
@@ -64,21 +64,34 @@ STATIC_MODIFIERS = {"SUBSURF", "MULTIRES", "MIRROR", "BEVEL", "SOLIDIFY", "TRIAN
                     "SMOOTH", "LAPLACIANSMOOTH", "CORRECTIVE_SMOOTH", "ARRAY", "SCREW"}
 
 
+def positions(mesh):
+    """``(v, 3) float32`` vertex positions of a mesh, one bulk read: the ``position``
+    attribute (Blender 3.5+, a plain array copy) or, where there is none (3.4),
+    ``vertices.co``."""
+    v = np.empty((len(mesh.vertices), 3), dtype=np.float32)
+    attr = mesh.attributes.get("position")
+    if attr is not None and attr.data_type == "FLOAT_VECTOR" and attr.domain == "POINT":
+        attr.data.foreach_get("vector", v.reshape(-1))
+    else:
+        mesh.vertices.foreach_get("co", v.reshape(-1))
+    return v
+
+
 def mesh_arrays(obj_eval):
-    """Local vertices ``(v, 3) float64`` and triangles ``(f, 3) int64`` of an evaluated object."""
+    """Local vertices ``(v, 3) float32`` and triangles ``(f, 3) int32`` of an evaluated
+    object, as Blender holds them (no wider copy: the engine takes both dtypes)."""
     mesh = obj_eval.to_mesh()
     if mesh is None:                     # e.g. an empty text object
         obj_eval.to_mesh_clear()
         return _EMPTY
     try:
         mesh.calc_loop_triangles()
-        v = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
-        mesh.vertices.foreach_get("co", v)
-        f = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
-        mesh.loop_triangles.foreach_get("vertices", f)
+        v = positions(mesh)
+        f = np.empty((len(mesh.loop_triangles), 3), dtype=np.int32)
+        mesh.loop_triangles.foreach_get("vertices", f.reshape(-1))
     finally:
         obj_eval.to_mesh_clear()
-    return v.reshape(-1, 3).astype(np.float64), f.reshape(-1, 3).astype(np.int64)
+    return v, f
 
 
 def is_instancer(obj):
@@ -388,7 +401,7 @@ class Extractor:
                 key = ("object", uid)
                 if o.show_instancer_for_viewport:
                     ov, of = mesh_arrays(o.evaluated_get(depsgraph))
-                    v, f = np.concatenate([ov, v]), np.concatenate([of, f + len(ov)])
+                    v, f = np.concatenate([ov, v]), np.concatenate([of, f.astype(np.int64) + len(ov)])
             self.cache[uid] = (key, _finite_or_none(v), f)
             self.fps[uid] = fingerprint(o, "collection" if o.type == "EMPTY" else "instancer", {})
         uids, meshes, mesh_of, kept, bad = [], [], [], [], []
@@ -453,8 +466,7 @@ def _mesh_fingerprint(mesh, memo):
     key = ("fp", ident(mesh))
     hit = memo.get(key)
     if hit is None:
-        co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
-        mesh.vertices.foreach_get("co", co)
+        co = positions(mesh)
         hit = memo[key] = (len(mesh.vertices), len(mesh.polygons), zlib.crc32(co.tobytes()))
     return hit
 
@@ -523,7 +535,7 @@ def _instanced_geometry(depsgraph, instancers):
         base, vs, fs = 0, [], []
         for v, f in pieces:
             vs.append(v)
-            fs.append(f + base)
+            fs.append(f.astype(np.int64) + base)
             base += len(v)
         out[uid] = (np.concatenate(vs), np.concatenate(fs)) if pieces else _EMPTY
     return out

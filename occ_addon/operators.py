@@ -14,7 +14,6 @@ from . import live, overlay, visibility
 from .extract import bystanders, is_instancer
 from .session import SESSION, camera_for, scene_camera
 
-
 # "//" paths are blend-relative; Blender 4.5+ wants string properties to say they accept them
 BLEND_RELATIVE = {"PATH_SUPPORTS_BLEND_RELATIVE"} if bpy.app.version >= (4, 5, 0) else set()
 

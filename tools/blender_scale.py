@@ -336,8 +336,9 @@ def _false_negatives(bpy):
         objs = bpy.data.objects
         flags = np.zeros(len(objs), dtype=bool)
         objs.foreach_get("occ_culled", flags)               # one bulk read, not a name lookup per object
-        index = {name: i for i, name in enumerate(objs.keys())}
-        hidden = flags[[index[n] for n in sess.kept_names]]
+        ids = _addon("occ_addon.visibility").uids(objs)     # the engine's objects by session id
+        by_id = np.argsort(ids)
+        hidden = flags[by_id[np.searchsorted(ids, sess.kept_uids, sorter=by_id)]]
         return int((truth & hidden).sum()), int(hidden.sum())
     except Exception as e:  # the add-on's internals may change: say so, do not fail the timing
         print(f"false-negative check unavailable: {type(e).__name__}: {e}")
