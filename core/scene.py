@@ -39,7 +39,8 @@ def _mesh_arrays(vertices, faces, label):
     if f.dtype not in _FACE_DTYPES:
         f = f.astype(np.int64)
     f = np.ascontiguousarray(f)
-    if len(f) and (f.min() < 0 or f.max() >= len(v)):
+    # one pass: seen unsigned, a negative index is larger than any vertex count
+    if len(f) and int(f.view(np.dtype(f.dtype.str.replace("i", "u"))).max()) >= len(v):
         raise OccError(f"{label}: face indices out of range 0..{len(v) - 1}")
     return v, f
 
