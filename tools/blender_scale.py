@@ -143,7 +143,7 @@ def engine_main(args):
     rows = []
     t = time.perf_counter()
     v, f = grid_arrays(args.vertices)
-    v = v.astype(np.float32).astype(np.float64)      # float32 values, as the add-on reads them from Blender
+    v, f = v.astype(np.float32), f.astype(np.int32)  # as the add-on reads them from Blender (Scene keeps them)
     wall_v = np.array([[-5, -30, -30], [-5, 0, -30], [-5, 0, 30], [-5, -30, 30]], dtype=np.float64)
     wall_f = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.int64)
     eye = np.eye(4)
