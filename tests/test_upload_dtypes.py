@@ -61,3 +61,17 @@ def test_upload_blocks_match_whole_arrays(ctx, monkeypatch, block):
     got_i = np.frombuffer(r.ibo.read(), dtype=np.uint32)
     assert np.array_equal(got_v, want_v) and np.array_equal(got_i, want_i)
     r.release()
+
+
+@pytest.mark.parametrize("nv", [10, 5000])
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_scene_bounds_and_invalid_meshes(nv, bad):
+    """Mesh bounds per column (large meshes) or per axis (small): equal, and a NaN or
+    infinite vertex makes its mesh invalid either way."""
+    rng = np.random.default_rng(3)
+    v = rng.normal(size=(nv, 3)).astype(np.float32)
+    s = Scene.from_arrays(["a"], [(v, np.zeros((1, 3), np.int32))], [0], np.eye(4)[None])
+    assert np.array_equal(s.mesh_bounds[0], np.stack([v.min(0), v.max(0)]))
+    v[nv // 2, 1] = bad
+    s = Scene.from_arrays(["a"], [(v, np.zeros((1, 3), np.int32))], [0], np.eye(4)[None])
+    assert not s.mesh_valid[0] and s.invalid[0]
