@@ -54,7 +54,7 @@ from .visibility import ident
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
 SOLID_DISPLAY = {"SOLID", "TEXTURED"}            # wire and bounds display never occlude
-_EMPTY = (np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64))
+_EMPTY = (np.zeros((0, 3), dtype=np.float32), np.zeros((0, 3), dtype=np.int32))
 
 # Modifiers whose result depends only on the object's own data and settings
 # (their animation, if any, is the object's animation_data); anything else
@@ -64,21 +64,46 @@ STATIC_MODIFIERS = {"SUBSURF", "MULTIRES", "MIRROR", "BEVEL", "SOLIDIFY", "TRIAN
                     "SMOOTH", "LAPLACIANSMOOTH", "CORRECTIVE_SMOOTH", "ARRAY", "SCREW"}
 
 
-def mesh_arrays(obj_eval):
-    """Local vertices ``(v, 3) float64`` and triangles ``(f, 3) int64`` of an evaluated object."""
+def positions(mesh):
+    """``(v, 3) float32`` vertex positions of a mesh, one bulk read: the ``position``
+    attribute (Blender 3.5+, a plain array copy) or, where there is none (3.4),
+    ``vertices.co``."""
+    v = np.empty((len(mesh.vertices), 3), dtype=np.float32)
+    attr = mesh.attributes.get("position")
+    if attr is not None and attr.data_type == "FLOAT_VECTOR" and attr.domain == "POINT":
+        attr.data.foreach_get("vector", v.reshape(-1))
+    else:
+        mesh.vertices.foreach_get("co", v.reshape(-1))
+    return v
+
+
+def mesh_arrays(obj_eval, direct=False):
+    """Local vertices ``(v, 3) float32`` and triangles ``(f, 3) int32`` of an evaluated
+    object, as Blender holds them (no wider copy: the engine takes both dtypes).
+
+    direct: read the evaluated mesh itself rather than a ``to_mesh`` copy of it
+    (a copy of every vertex, edge and corner: ~600 MB at 10 M vertices); only
+    for a mesh object without modifiers outside edit mode, whose evaluated data is
+    a plain mesh (edit mode and GPU subdivision give wrappers that only
+    ``to_mesh`` turns into what Blender draws)."""
+    if direct:
+        return _read_mesh(obj_eval.data)
     mesh = obj_eval.to_mesh()
     if mesh is None:                     # e.g. an empty text object
         obj_eval.to_mesh_clear()
         return _EMPTY
     try:
-        mesh.calc_loop_triangles()
-        v = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
-        mesh.vertices.foreach_get("co", v)
-        f = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
-        mesh.loop_triangles.foreach_get("vertices", f)
+        return _read_mesh(mesh)
     finally:
         obj_eval.to_mesh_clear()
-    return v.reshape(-1, 3).astype(np.float64), f.reshape(-1, 3).astype(np.int64)
+
+
+def _read_mesh(mesh):
+    mesh.calc_loop_triangles()
+    v = positions(mesh)
+    f = np.empty((len(mesh.loop_triangles), 3), dtype=np.int32)
+    mesh.loop_triangles.foreach_get("vertices", f.reshape(-1))
+    return v, f
 
 
 def is_instancer(obj):
@@ -200,12 +225,17 @@ DRAWN_TYPES = GEOMETRY_TYPES | {"POINTCLOUD", "VOLUME", "GREASEPENCIL", "GPENCIL
 
 def bystanders(view_layer, held):
     """Objects Blender draws now that the engine does not hold (``held``: the
-    engine's objects): wire and bounds display, point clouds, volumes, grease
-    pencil, hair, vertex-instanced children, NaN values.  Never culled, so
-    counted visible by analyze."""
-    held = {ident(o) for o in held}
-    return [o for o in view_layer.objects
-            if (o.type in DRAWN_TYPES or is_instancer(o)) and ident(o) not in held and o.visible_get()]
+    engine's objects' session ids, ``(k,) int64``): wire and bounds display, point
+    clouds, volumes, grease pencil, hair, vertex-instanced children, NaN values.
+    Never culled, so counted visible by analyze.  The held ones are told apart in
+    bulk (one ``foreach_get``); only the others are looked at one by one."""
+    layer = view_layer.objects
+    rest = np.flatnonzero(~np.isin(visibility.uids(layer), held))
+    if not len(rest):
+        return []
+    items = layer.values()                        # one list; indexing the collection is O(i)
+    return [o for o in (items[i] for i in rest)
+            if (o.type in DRAWN_TYPES or is_instancer(o)) and o.visible_get()]
 
 
 class Candidates:
@@ -388,7 +418,7 @@ class Extractor:
                 key = ("object", uid)
                 if o.show_instancer_for_viewport:
                     ov, of = mesh_arrays(o.evaluated_get(depsgraph))
-                    v, f = np.concatenate([ov, v]), np.concatenate([of, f + len(ov)])
+                    v, f = np.concatenate([ov, v]), np.concatenate([of, f.astype(np.int64) + len(ov)])
             self.cache[uid] = (key, _finite_or_none(v), f)
             self.fps[uid] = fingerprint(o, "collection" if o.type == "EMPTY" else "instancer", {})
         uids, meshes, mesh_of, kept, bad = [], [], [], [], []
@@ -440,7 +470,8 @@ class Extractor:
         if hit is not None and hit[0] == key and uid not in self.dirty:
             return hit
         if key not in read:
-            v, f = mesh_arrays(obj.evaluated_get(depsgraph))
+            direct = obj.type == "MESH" and not obj.modifiers and obj.mode != "EDIT"
+            v, f = mesh_arrays(obj.evaluated_get(depsgraph), direct)
             read[key] = (_finite_or_none(v), f)
         v, f = read[key]
         self.cache[uid] = (key, v, f)
@@ -453,8 +484,7 @@ def _mesh_fingerprint(mesh, memo):
     key = ("fp", ident(mesh))
     hit = memo.get(key)
     if hit is None:
-        co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
-        mesh.vertices.foreach_get("co", co)
+        co = positions(mesh)
         hit = memo[key] = (len(mesh.vertices), len(mesh.polygons), zlib.crc32(co.tobytes()))
     return hit
 
@@ -523,7 +553,7 @@ def _instanced_geometry(depsgraph, instancers):
         base, vs, fs = 0, [], []
         for v, f in pieces:
             vs.append(v)
-            fs.append(f + base)
+            fs.append(f.astype(np.int64) + base)
             base += len(v)
         out[uid] = (np.concatenate(vs), np.concatenate(fs)) if pieces else _EMPTY
     return out

@@ -7,6 +7,7 @@ import time
 import traceback
 
 import bpy
+import numpy as np
 from bpy.props import BoolProperty, IntProperty, StringProperty
 
 from ..core import OccError, Visibility
@@ -98,6 +99,7 @@ class OCC_OT_analyze(bpy.types.Operator):
         previous = scene.frame_current
         wm = context.window_manager
         per_frame, seen = [], {}
+        held = held_names = collections = None
         t = time.perf_counter()
         wm.progress_begin(0, len(frames))
         step = max(1, len(frames) // 10)          # background mode: about ten progress lines
@@ -106,15 +108,22 @@ class OCC_OT_analyze(bpy.types.Operator):
                 scene.frame_set(f)
                 camera, display = scene_camera(context)
                 result, objects = SESSION.compute(context, camera, display)   # nothing is hidden
-                shown = [o for o, s in zip(objects, result.state, strict=True) if s == Visibility.VISIBLE]
-                extra = bystanders(context.view_layer, objects)   # drawn, never culled: visible
+                if SESSION.kept_uids is not held:   # the engine's objects changed: their names, once
+                    held = SESSION.kept_uids
+                    held_names = [o.name for o in objects]
+                    collections = [i for i, o in enumerate(objects) if is_instancer(o)]
+                    for n in held_names:
+                        seen.setdefault(n, 0)
+                vis = result.state == Visibility.VISIBLE          # one array compare, no per-object enum
+                shown = [held_names[i] for i in np.flatnonzero(vis)]
+                extra = bystanders(context.view_layer, held)       # drawn, never culled: visible
                 # an object is seen where a visible collection instance draws it, too
-                members = [m for o in shown if is_instancer(o) for m in o.instance_collection.all_objects]
-                objects = objects + extra + members
-                names = list(dict.fromkeys(o.name for o in shown + extra + members))
+                members = [m for i in collections if vis[i] for m in objects[i].instance_collection.all_objects]
+                others = [o.name for o in extra + members]
+                names = list(dict.fromkeys(shown + others))
                 per_frame.append({"frame": f, "visible": names})
-                for o in objects:
-                    seen.setdefault(o.name, 0)
+                for n in others:
+                    seen.setdefault(n, 0)
                 for n in names:
                     seen[n] += 1
                 wm.progress_update(k + 1)

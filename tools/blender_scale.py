@@ -143,7 +143,7 @@ def engine_main(args):
     rows = []
     t = time.perf_counter()
     v, f = grid_arrays(args.vertices)
-    v = v.astype(np.float32).astype(np.float64)      # float32 values, as the add-on reads them from Blender
+    v, f = v.astype(np.float32), f.astype(np.int32)  # as the add-on reads them from Blender (Scene keeps them)
     wall_v = np.array([[-5, -30, -30], [-5, 0, -30], [-5, 0, 30], [-5, -30, 30]], dtype=np.float64)
     wall_f = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.int64)
     eye = np.eye(4)
@@ -336,8 +336,9 @@ def _false_negatives(bpy):
         objs = bpy.data.objects
         flags = np.zeros(len(objs), dtype=bool)
         objs.foreach_get("occ_culled", flags)               # one bulk read, not a name lookup per object
-        index = {name: i for i, name in enumerate(objs.keys())}
-        hidden = flags[[index[n] for n in sess.kept_names]]
+        ids = _addon("occ_addon.visibility").uids(objs)     # the engine's objects by session id
+        by_id = np.argsort(ids)
+        hidden = flags[by_id[np.searchsorted(ids, sess.kept_uids, sorter=by_id)]]
         return int((truth & hidden).sum()), int(hidden.sum())
     except Exception as e:  # the add-on's internals may change: say so, do not fail the timing
         print(f"false-negative check unavailable: {type(e).__name__}: {e}")

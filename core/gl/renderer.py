@@ -127,6 +127,47 @@ class _Slot:
                      for kind, p in progs.items()}
 
 
+UPLOAD_BLOCK = 1 << 16      # rows per block of the geometry upload (~1.5 MB of float64 vertices)
+
+
+def _upload_blocks(meshes, centres, vstart, orders, block=UPLOAD_BLOCK):
+    """The vertex and index buffers' contents in order, as ``("v", (k, 3) float32)`` and
+    ``("i", (j,) uint32)`` blocks of about ``block`` rows: vertices recentred on their
+    mesh's centre in float64, then rounded to float32 (the precision rule: small
+    offsets from the centre, whatever the data's own dtype); faces in chunk order where
+    a mesh is chunked, as absolute indices.  Small meshes go in batches (a few numpy
+    calls per batch, not per mesh); a heavy mesh goes block by block."""
+    def batch_out(ms):
+        vs = [meshes[m][0] for m in ms]
+        vn = np.array([len(v) for v in vs], dtype=np.int64)
+        v = np.concatenate(vs) - np.repeat(centres[ms], vn, axis=0)
+        fs = [meshes[m][1] if orders[m] is None else meshes[m][1][orders[m]] for m in ms]
+        fn = np.array([len(f) for f in fs], dtype=np.int64)
+        f = np.concatenate(fs).astype(np.int64) + np.repeat(vstart[ms], fn)[:, None]
+        return ("v", v.astype(np.float32)), ("i", f.astype(np.uint32).ravel())
+
+    batch, rows = [], 0
+    for m, (v, f) in enumerate(meshes):
+        if len(v) <= block and len(f) <= block:
+            batch.append(m)
+            rows += max(len(v), len(f))
+            if rows >= block:
+                yield from batch_out(batch)
+                batch, rows = [], 0
+            continue
+        if batch:
+            yield from batch_out(batch)
+            batch, rows = [], 0
+        for b in range(0, len(v), block):
+            yield "v", (v[b:b + block] - centres[m]).astype(np.float32)
+        order = orders[m]
+        for b in range(0, len(f), block):
+            rows_f = f[b:b + block] if order is None else f[order[b:b + block]]
+            yield "i", (rows_f.astype(np.int64) + vstart[m]).astype(np.uint32).ravel()
+    if batch:
+        yield from batch_out(batch)
+
+
 class GLRenderer:
     """The scene on the GPU: depth drawing at the display resolution, queries and ID
     truth at ``width x height`` (the query resolution).  See the module doc."""
@@ -161,14 +202,15 @@ class GLRenderer:
         istart = np.cumsum(icount) - icount
         if vcount.sum() >= 2**32:
             raise OccError("scenes of more than 4 billion vertices are not supported")
-        verts = [(v - c).astype(np.float32) for (v, _), c in zip(scene.meshes, centres, strict=True)]
-        # faces in chunk order where a mesh is chunked, as absolute uint32 indices
-        idx = [((f if order is None else f[order]) + s).astype(np.uint32).ravel()
-               for (_, f), s, order in zip(scene.meshes, vstart, self.units.face_order, strict=True)]
-        vdata = np.concatenate(verts) if verts else np.zeros((0, 3), np.float32)
-        idata = np.concatenate(idx) if idx else np.zeros(0, np.uint32)
-        self.vbo = ctx.buffer(vdata.tobytes() or b"\0" * 12)
-        self.ibo = ctx.buffer(idata.tobytes() or b"\0" * 4)
+        # written block by block into buffers of their final size: no whole-scene or
+        # whole-mesh float64 / int64 copy (a few MB of temporaries at any size)
+        self.vbo = ctx.buffer(reserve=max(12 * int(vcount.sum()), 12))
+        self.ibo = ctx.buffer(reserve=max(4 * int(icount.sum()), 4))
+        at = {"v": 0, "i": 0}
+        for which, data in _upload_blocks(scene.meshes, centres, vstart, self.units.face_order):
+            buf = self.vbo if which == "v" else self.ibo
+            buf.write(data, offset=at[which])
+            at[which] += data.nbytes
         # per unit: the indirect command (count, instances, first index, base vertex, base instance)
         u = self.units
         self.commands = np.zeros((len(u), 5), dtype=np.uint32)
