@@ -447,6 +447,8 @@ class Auto(Strategy):
     Both modes are conservative, so the choice changes speed only.
     """
 
+    ROUND_TRIPS = 3          # blocking reads that time a batch's round trip (median of them)
+
     LOSSES = 3                   # passes in a row where the tests did not pay (timing noise is common)
     PROBE_EVERY = 16
     PROBE_SLOWER = 2.0           # a frustum-only pass this much slower than the last test pass: probe at once
@@ -486,7 +488,7 @@ class Auto(Strategy):
         centre = frame.camera.direction * (0.01 * frame.scene_size)
         box = (centre + np.array([[-1.0], [1.0]]) * (1e-3 * frame.scene_size))[None]
         trips = []
-        for _ in range(3):
+        for _ in range(self.ROUND_TRIPS):
             t = time.perf_counter()
             frame.r.query(box, counts=False)
             trips.append(1e3 * (time.perf_counter() - t))

@@ -129,7 +129,7 @@ def test_two_pass_uses_at_most_two_batches_once_coherent(ctx):
 def test_coherent_default_stays_within_its_read_budget(ctx, strategy):
     """om_coherent (and auto through it) make at most COHERENT_READS multiple
     queries a pass, fresh or not, and still keep every visible object."""
-    from core.strategies import COHERENT_READS
+    from core.strategies import COHERENT_READS, Auto
     for seed in (3, 7, 11):
         scene, cams, _ = scenes.random_city(seed, 400)
         with Culler(scene, (160, 120), strategy=strategy, ctx=ctx) as c:
@@ -139,6 +139,7 @@ def test_coherent_default_stays_within_its_read_budget(ctx, strategy):
                     r = c.cull(cam)
                     assert r.stats["multiple_queries"] <= COHERENT_READS
                     assert not (truth & ~r.visible).any()
-                    # the 4.1 path reads once per box; auto's first pass also times a round trip
-                    if getattr(c.renderer, "path", None) == "4.3" and (i or k or strategy != "auto"):
-                        assert r.stats["blocking_reads"] <= COHERENT_READS
+                    # the 4.1 path reads once per box; auto also times a round trip
+                    # on its first pass and whenever the clock makes it probe again
+                    if getattr(c.renderer, "path", None) == "4.3":
+                        assert r.stats["blocking_reads"] <= COHERENT_READS + (Auto.ROUND_TRIPS if strategy == "auto" else 0)
