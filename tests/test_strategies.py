@@ -133,13 +133,14 @@ def test_coherent_default_stays_within_its_read_budget(ctx, strategy):
     for seed in (3, 7, 11):
         scene, cams, _ = scenes.random_city(seed, 400)
         with Culler(scene, (160, 120), strategy=strategy, ctx=ctx) as c:
-            for i, cam in enumerate(cams):
+            for cam in cams:
                 truth = c.truth(cam)
-                for k in range(2):
+                for _ in range(2):
                     r = c.cull(cam)
                     assert r.stats["multiple_queries"] <= COHERENT_READS
                     assert not (truth & ~r.visible).any()
                     # the 4.1 path reads once per box; auto also times a round trip
                     # on its first pass and whenever the clock makes it probe again
                     if getattr(c.renderer, "path", None) == "4.3":
-                        assert r.stats["blocking_reads"] <= COHERENT_READS + (Auto.ROUND_TRIPS if strategy == "auto" else 0)
+                        timing = Auto.ROUND_TRIPS if strategy == "auto" else 0
+                        assert r.stats["blocking_reads"] <= COHERENT_READS + timing
