@@ -23,6 +23,7 @@ import re
 import shutil
 import subprocess
 import sys
+import tempfile
 import tomllib
 import zipfile
 
@@ -195,7 +196,15 @@ def main():
         sys.exit("error: no Blender found; pass --blender /path/to/blender")
     if args.builder == "bpy" and not cli:
         sys.exit("error: this Python has no bpy module")
-    ext = os.path.join(ROOT, "build", "ext")
+    # a staging folder of its own: builds running at once (tests, a user) never share one
+    stage = tempfile.mkdtemp(prefix="occ-extension-")
+    try:
+        return build(args, blender, cli, os.path.join(stage, "ext"))
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+
+
+def build(args, blender, cli, ext):
     copy_sources(ext)
     wheel_dir = os.path.join(ext, "wheels")
     if args.no_wheels:

@@ -100,10 +100,6 @@ KNOWN_UNFIXED = {
         "its collection was not shown keeps a stale original matrix_world, and the add-on, which "
         "reads originals, culls it at its old place (notes/workflow_findings.md W19, seed 309 "
         "step 133)"),
-    "strategy_om_stopwait": (
-        "the settings step never picks the 'om' and 'stopwait' strategies: both answer 'occluded' for "
-        "an object the object-ID truth sees (notes/workflow_findings.md W20, seed 405 step 170; the "
-        "engine's query, not the add-on; vfc, om_multi and the default om_coherent are exercised)"),
 }
 
 # Narrower switches for KNOWN_UNFIXED (a situation, not a whole step kind):
