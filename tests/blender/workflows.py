@@ -889,8 +889,6 @@ def do_step(w, kind):
     if kind == "settings":                          # the add-on's own choices: strategy, accuracy
         occ = scene.occ
         strategies = [i.identifier for i in occ.bl_rna.properties["strategy"].enum_items]
-        if "strategy_om_stopwait" in KNOWN_UNFIXED:
-            strategies = [s for s in strategies if s not in ("om", "stopwait")]
         occ.strategy = rng.choice(strategies)
         occ.preset = rng.choice([i.identifier for i in occ.bl_rna.properties["preset"].enum_items])
         return f"strategy {occ.strategy}, accuracy {occ.preset}"
