@@ -408,7 +408,7 @@ def child_main(args):
     print_table(label, rows)
     print("SCALE_RESULT " + json.dumps(result), flush=True)
     # disabled here, while its engine thread is alive (at interpreter exit the add-on's
-    # unregister finds that thread's pool shut down: bpy 5.0.1, reported in notes/scale.md)
+    # unregister finds that thread's pool shut down, seen in bpy 5.0.1)
     bpy.ops.preferences.addon_disable(module=f"bl_ext.user_default.{EXT_ID}")
     if prof and args.top:
         for name in sorted(os.listdir(prof)):

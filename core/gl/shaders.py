@@ -85,7 +85,7 @@ flat in int v_box;
 layout(std430, binding = 0) buffer Samples { uint samples[]; };
 void main() { atomicAdd(samples[v_box], 1u); }
 """
-# The flag variant (measured against the count in notes/gl.md; not used by default).
+# The flag variant (what the engine uses unless a visible threshold needs counts; the README's GL figures).
 BOX_FLAG_FRAGMENT_43 = """{v}
 layout(early_fragment_tests) in;
 flat in int v_box;

@@ -98,7 +98,7 @@ KNOWN_UNFIXED = {
         "evaluation of the newly active depsgraph writes evaluated matrices back to the originals; "
         "in background bpy the switched-to depsgraph is not the active one, an object moved while "
         "its collection was not shown keeps a stale original matrix_world, and the add-on, which "
-        "reads originals, culls it at its old place (notes/workflow_findings.md W19, seed 309 "
+        "reads originals, culls it at its old place (README: Limits; seed 309 "
         "step 133)"),
 }
 
