@@ -30,7 +30,9 @@ class OccSettings(bpy.types.PropertyGroup):
     preset: EnumProperty(
         name="Accuracy", default="conservative",
         items=[("conservative", "Conservative", "Query at the display resolution: hides nothing visible"),
-               ("fast", "Fast", "Query at half the display resolution (measured error in the README)")])
+               ("fast", "Fast", "Query at half the display resolution against the display's farthest "
+                                "depths: hides nothing visible; faster where queries, not drawing, "
+                                "dominate (README)")])
     max_resolution: IntProperty(
         name="Max Query Size", default=1920, min=16, max=8192,
         description="Longest side of the query buffer; larger displays are scaled down to it")
