@@ -44,6 +44,7 @@ class Session:
         self.applying = False      # the depsgraph updates now are our own hiding's
         self.warnings = []         # objects left out of the last pass, for the report
         self.bad_geometry = []     # of them, those left out for their vertices (known since the last build)
+        self.layer = None          # (scene, view layer) of the last pass
 
     def reset(self):
         """Forget everything (a file was loaded, an undo or redo, or the add-on goes away):
@@ -70,6 +71,16 @@ class Session:
         (hidden by the user too, not evaluated and able to change, or, with
         ``verify``, edited since they were read) are shown first and evaluated,
         so the pass sees them as Blender draws them."""
+        layer = (context.scene.name, context.view_layer.name)
+        if layer != self.layer:
+            # Another view layer than the last pass's: an object moved while it was not in
+            # the evaluated layer keeps a stale original matrix_world until this layer's
+            # evaluation writes it back, and the candidates read originals in bulk.
+            # Once per switch: tag every transform and evaluate.
+            self.layer = layer
+            for ob in context.scene.objects:
+                ob.update_tag(refresh={"OBJECT"})
+            context.view_layer.update()
         cand = self.extractor.candidates(context, verify)
         if len(cand.give_back):
             visibility.release(np.isin(visibility.uids(), cand.give_back))

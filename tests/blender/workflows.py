@@ -93,13 +93,6 @@ KNOWN_UNFIXED = {
         "hide flags (memfile undo restores Blender data as it was), and with the add-on disabled no "
         "code runs to show them again; enabling the add-on restores them (checked: every enable is "
         "followed by the state check).  Not fixable from the add-on while its hiding is Blender data."),
-    "stale_matrix_layer_switch": (
-        "after a view-layer switch the harness tags every object's transform once, as the GUI's "
-        "evaluation of the newly active depsgraph writes evaluated matrices back to the originals; "
-        "in background bpy the switched-to depsgraph is not the active one, an object moved while "
-        "its collection was not shown keeps a stale original matrix_world, and the add-on, which "
-        "reads originals, culls it at its old place (README: Limits; seed 309 "
-        "step 133)"),
 }
 
 # Narrower switches for KNOWN_UNFIXED (a situation, not a whole step kind):
@@ -795,13 +788,9 @@ def link_like(src, obj):
 
 
 def switch_view_layer(target):
-    """The window shows another view layer (see KNOWN_UNFIXED["stale_matrix_layer_switch"])."""
+    """The window shows another view layer (the add-on re-evaluates transforms once after a switch)."""
     import bpy
     bpy.context.window.view_layer = target
-    if "stale_matrix_layer_switch" in KNOWN_UNFIXED:
-        bpy.context.evaluated_depsgraph_get()
-        for ob in bpy.context.scene.objects:
-            ob.update_tag(refresh={"OBJECT"})
 
 
 def do_step(w, kind):
