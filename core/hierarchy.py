@@ -13,7 +13,9 @@ Layout (breadth-first, root = node 0, the children of a node are contiguous):
 Builder: the scene tree gives the skeleton (glTF nodes, Blender collections);
 chains of single-child groups collapse, and a group wider than ``max_children``
 is split by a binned surface-area heuristic over its items' boxes until every
-inner node has at most ``max_children`` children.  Other builders
+inner node has at most ``max_children`` children; every wide group of one
+tree depth, and every part of one split level, is split at once
+(:func:`_split_segments`, the vectorised :func:`_sah_split`).  Other builders
 (:mod:`core.subdivision`) can replace the skeleton above objects, and heavy
 objects can carry a subtree of chunks below them (:func:`graft_tree`).
 """
@@ -84,6 +86,8 @@ def _sah_split(boxes):
     """Best binned-SAH partition of items with boxes ``(k, 2, 3)``, k >= 2.
 
     Returns a ``(k,) bool`` mask of the left side, never all-True or all-False.
+    The rule for one group; the builder runs :func:`_split_segments`, which must
+    choose the same (tests/test_hierarchy_build.py compares them).
     """
     k = len(boxes)
     centre = 0.5 * (boxes[:, MIN] + boxes[:, MAX])
@@ -123,6 +127,12 @@ def _scan(ufunc, a):
     return out
 
 
+def _area(lo, hi):
+    """:func:`core.bounds.surface_area` of boxes given as corner arrays ``(..., 3)`` (the same sums)."""
+    d = np.maximum(hi - lo, 0.0)
+    return 2.0 * (d[..., 0] * d[..., 1] + d[..., 1] * d[..., 2] + d[..., 2] * d[..., 0])
+
+
 def _split_segments(box, start, length):
     """The :func:`_sah_split` of many segments at once (the same choice, bins and ties).
 
@@ -151,16 +161,16 @@ def _split_segments(box, start, length):
     order = np.argsort(key, kind="stable")                      # per-bin unions by sort and reduceat
     ks = key[order]
     run = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1]])
-    bmin[ks[run]] = np.minimum.reduceat(b[order // 3, MIN], run, axis=0)
-    bmax[ks[run]] = np.maximum.reduceat(b[order // 3, MAX], run, axis=0)
+    item = order // 3
+    bmin[ks[run]] = np.minimum.reduceat(np.take(b[:, MIN], item, axis=0), run, axis=0)
+    bmax[ks[run]] = np.maximum.reduceat(np.take(b[:, MAX], item, axis=0), run, axis=0)
     bmin, bmax = bmin.reshape(b_, p, 3, 3), bmax.reshape(b_, p, 3, 3)
     # prefix (left of split s = bins < s) and suffix unions, splits s = 1..B-1, per (segment, axis)
     lmin, lmax = _scan(np.minimum, bmin[:-1]), _scan(np.maximum, bmax[:-1])
     rmin, rmax = _scan(np.minimum, bmin[:0:-1])[::-1], _scan(np.maximum, bmax[:0:-1])[::-1]
     lcount = np.cumsum(count[:-1], axis=0)
     rcount = length[:, None] - lcount
-    la = surface_area(np.stack([lmin, lmax], axis=-2).reshape(-1, 2, 3)).reshape(lcount.shape)
-    ra = surface_area(np.stack([rmin, rmax], axis=-2).reshape(-1, 2, 3)).reshape(lcount.shape)
+    la, ra = _area(lmin, lmax), _area(rmin, rmax)
     cost = np.where((lcount > 0) & (rcount > 0) & ok, la * lcount + ra * rcount, np.inf)
     cost = cost.transpose(1, 2, 0)                              # (segment, axis, split)
     cost = cost.reshape(p, -1)
