@@ -13,13 +13,16 @@ Layout (breadth-first, root = node 0, the children of a node are contiguous):
 Builder: the scene tree gives the skeleton (glTF nodes, Blender collections);
 chains of single-child groups collapse, and a group wider than ``max_children``
 is split by a binned surface-area heuristic over its items' boxes until every
-inner node has at most ``max_children`` children.  Other builders
+inner node has at most ``max_children`` children; every wide group of one
+tree depth, and every part of one split level, is split at once
+(:func:`_split_segments`, the vectorised :func:`_sah_split`).  Other builders
 (:mod:`core.subdivision`) can replace the skeleton above objects, and heavy
 objects can carry a subtree of chunks below them (:func:`graft_tree`).
 """
 
 from dataclasses import dataclass
 from functools import cached_property
+from itertools import chain
 
 import numpy as np
 
@@ -83,6 +86,8 @@ def _sah_split(boxes):
     """Best binned-SAH partition of items with boxes ``(k, 2, 3)``, k >= 2.
 
     Returns a ``(k,) bool`` mask of the left side, never all-True or all-False.
+    The rule for one group; the builder runs :func:`_split_segments`, which must
+    choose the same (tests/test_hierarchy_build.py compares them).
     """
     k = len(boxes)
     centre = 0.5 * (boxes[:, MIN] + boxes[:, MAX])
@@ -114,6 +119,69 @@ def _sah_split(boxes):
     return best
 
 
+def _scan(ufunc, a):
+    """``ufunc.accumulate(a, axis=0)`` for a short first axis (whole slabs: much faster)."""
+    out = a.copy()
+    for i in range(1, len(out)):
+        ufunc(out[i - 1], out[i], out=out[i])
+    return out
+
+
+def _area(lo, hi):
+    """:func:`core.bounds.surface_area` of boxes given as corner arrays ``(..., 3)`` (the same sums)."""
+    d = np.maximum(hi - lo, 0.0)
+    return 2.0 * (d[..., 0] * d[..., 1] + d[..., 1] * d[..., 2] + d[..., 2] * d[..., 0])
+
+
+def _split_segments(box, start, length):
+    """The :func:`_sah_split` of many segments at once (the same choice, bins and ties).
+
+    box: ``(k, 2, 3)`` item boxes; segment i is ``box[start[i]:start[i] + length[i]]``,
+    lengths >= 2, segments disjoint.  Returns ``(rows, left)``: the rows of the
+    segments in order and the ``bool`` mask of each row's left side.
+    """
+    p, b_ = len(start), SAH_BINS
+    seg = np.repeat(np.arange(p), length)
+    offs = np.cumsum(length) - length
+    rows = np.repeat(start - offs, length) + np.arange(int(length.sum()))
+    b = box[rows]
+    centre = 0.5 * (b[:, MIN] + b[:, MAX])
+    lo = np.minimum.reduceat(centre, offs, axis=0)
+    extent = np.maximum.reduceat(centre, offs, axis=0) - lo
+    ok = extent > 0.0                                           # (p, 3) axes with a spread
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (centre - lo[seg]) / extent[seg] * b_
+    bins = np.minimum(np.where(ok[seg], t, 0.0).astype(np.int64), b_ - 1)      # (r, 3)
+    # bins outermost, so the prefix and suffix scans below run over contiguous blocks
+    key = (bins * p + seg[:, None]) * 3 + np.arange(3)
+    key = key.ravel()
+    count = np.bincount(key, minlength=b_ * p * 3).reshape(b_, p, 3)
+    bmin = np.full((b_ * p * 3, 3), np.inf)
+    bmax = np.full((b_ * p * 3, 3), -np.inf)
+    order = np.argsort(key, kind="stable")                      # per-bin unions by sort and reduceat
+    ks = key[order]
+    run = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1]])
+    item = order // 3
+    bmin[ks[run]] = np.minimum.reduceat(np.take(b[:, MIN], item, axis=0), run, axis=0)
+    bmax[ks[run]] = np.maximum.reduceat(np.take(b[:, MAX], item, axis=0), run, axis=0)
+    bmin, bmax = bmin.reshape(b_, p, 3, 3), bmax.reshape(b_, p, 3, 3)
+    # prefix (left of split s = bins < s) and suffix unions, splits s = 1..B-1, per (segment, axis)
+    lmin, lmax = _scan(np.minimum, bmin[:-1]), _scan(np.maximum, bmax[:-1])
+    rmin, rmax = _scan(np.minimum, bmin[:0:-1])[::-1], _scan(np.maximum, bmax[:0:-1])[::-1]
+    lcount = np.cumsum(count[:-1], axis=0)
+    rcount = length[:, None] - lcount
+    la, ra = _area(lmin, lmax), _area(rmin, rmax)
+    cost = np.where((lcount > 0) & (rcount > 0) & ok, la * lcount + ra * rcount, np.inf)
+    cost = cost.transpose(1, 2, 0)                              # (segment, axis, split)
+    cost = cost.reshape(p, -1)
+    best = np.argmin(cost, axis=1)           # first minimum: lowest axis, then lowest split, as _sah_split
+    found = cost[np.arange(p), best] < np.inf
+    axis, s = best // (b_ - 1), best % (b_ - 1)
+    left = bins[np.arange(len(rows)), axis[seg]] <= s[seg]
+    half = np.arange(len(rows)) - offs[seg] < (length // 2)[seg]   # all centres coincide
+    return rows, np.where(found[seg], left, half)
+
+
 class _Builder:
     """Collects nodes as (box, children or unit) before flattening breadth-first."""
 
@@ -130,65 +198,155 @@ class _Builder:
 
     def group(self, items):
         """A node over ``items`` (node ids); None when empty; the item itself when single."""
-        items = list(items)
-        if not items:
-            return None
-        if len(items) == 1:
-            return items[0]
-        if len(items) > self.max_children:
-            # SAH-split the largest part until there are max_children parts, then
-            # group each part: a k-ary node, about log_k(n) levels deep.
-            parts = [np.array(items)]
-            while len(parts) < self.max_children:
-                big = max(range(len(parts)), key=lambda j: len(parts[j]))
-                if len(parts[big]) < 2:
+        return self.groups([items])[0]
+
+    def groups(self, lists):
+        """:meth:`group` of each list of node ids; the wide ones split all together."""
+        out, wide = [], []
+        for items in lists:
+            items = list(items)
+            if len(items) > self.max_children:
+                wide.append((len(out), items))
+                out.append(None)
+            elif len(items) > 1:
+                box = np.array([self.boxes[i] for i in items])
+                self.boxes.append(np.stack([box[:, MIN].min(axis=0), box[:, MAX].max(axis=0)]))
+                self.kids.append(tuple(items))
+                self.units.append(-1)
+                out.append(len(self.boxes) - 1)
+            else:
+                out.append(items[0] if items else None)
+        if wide:
+            for (j, _), node in zip(wide, self._split_groups([w for _, w in wide]), strict=True):
+                out[j] = node
+        return out
+
+    def _split_groups(self, lists):
+        """Nodes over lists of more than max_children items: all groups of a level split at once.
+
+        Builds what the recursive rule builds (tests/test_hierarchy_build.py checks it
+        against that rule): SAH-split the largest part of a group (the first one on a tie)
+        until there are max_children parts; parts of one item are that item, parts of at
+        most max_children items a node over them, larger parts groups of the next level.
+        """
+        m = self.max_children
+        glen = np.array([len(items) for items in lists], dtype=np.int64)
+        gstart = np.cumsum(glen) - glen
+        perm = np.fromiter(chain.from_iterable(lists), np.int64, int(glen.sum()))
+        box = np.array([self.boxes[i] for i in perm], dtype=np.float64).reshape(-1, 2, 3)
+        gnode = len(self.boxes) + np.arange(len(lists))
+        self.boxes.extend(segment_union(box, gstart, glen))
+        self.kids.extend([()] * len(lists))                    # set below, as every group's
+        self.units.extend([-1] * len(lists))
+        roots = gnode.tolist()
+        while len(gstart):
+            g = len(gstart)
+            pg, ps, pl, pk = np.arange(g), gstart.copy(), glen.copy(), np.zeros(g, np.int64)
+            nparts, active, nextkey = np.ones(g, np.int64), np.ones(g, bool), 1
+            while True:
+                cand = np.flatnonzero((active & (nparts < m))[pg])
+                if not len(cand):
                     break
-                arr = parts.pop(big)
-                left = _sah_split(np.array([self.boxes[i] for i in arr]))
-                parts += [arr[left], arr[~left]]
-            items = [self.group(p.tolist()) for p in parts]
-        box = np.array([self.boxes[i] for i in items])
-        self.boxes.append(np.stack([box[:, MIN].min(axis=0), box[:, MAX].max(axis=0)]))
-        self.kids.append(tuple(items))
-        self.units.append(-1)
-        return len(self.boxes) - 1
+                c = cand[np.lexsort((pk[cand], -pl[cand], pg[cand]))]
+                big = c[np.r_[True, pg[c][1:] != pg[c][:-1]]]   # largest part per group, first on a tie
+                small = pl[big] < 2
+                active[pg[big[small]]] = False
+                big = big[~small]
+                if not len(big):
+                    break
+                rows, left = _split_segments(box, ps[big], pl[big])
+                seg = np.repeat(np.arange(len(big)), pl[big])
+                order = np.lexsort((~left, seg))               # stable: left side first, in order
+                perm[rows], box[rows] = perm[rows[order]], box[rows[order]]
+                nl = np.bincount(seg, weights=left, minlength=len(big)).astype(np.int64)
+                pg = np.concatenate([pg, pg[big]])
+                ps = np.concatenate([ps, ps[big] + nl])
+                pl = np.concatenate([pl, pl[big] - nl])
+                pk = np.concatenate([pk, np.full(len(big), nextkey + 1)])
+                pl[big], pk[big] = nl, nextkey
+                nparts[pg[big]] += 1
+                nextkey += 2
+            o = np.lexsort((pk, pg))                            # each group's parts, in list order
+            pg, ps, pl = pg[o], ps[o], pl[o]
+            multi = np.flatnonzero(pl > 1)
+            ubox = segment_union(box, ps[multi], pl[multi])
+            child = perm[ps].copy()                            # a part of one item is the item
+            child[multi] = len(self.boxes) + np.arange(len(multi))
+            few = pl[multi] <= m                               # nodes over their items; the rest: next level
+            rows = np.repeat(ps[multi] - np.cumsum(pl[multi]) + pl[multi], pl[multi]) + np.arange(pl[multi].sum())
+            items = np.split(perm[rows], np.cumsum(pl[multi])[:-1])
+            self.boxes.extend(ubox)
+            self.kids.extend(tuple(it.tolist()) if f else () for it, f in zip(items, few.tolist(), strict=True))
+            self.units.extend([-1] * len(multi))
+            kids = np.split(child, np.cumsum(np.bincount(pg, minlength=g))[:-1])
+            for node, k in zip(gnode.tolist(), kids, strict=True):
+                self.kids[node] = tuple(k.tolist())
+            deeper = pl > m
+            gstart, glen, gnode = ps[deeper], pl[deeper], child[deeper]
+        return roots
 
     def flatten(self, root):
-        order, first, count, parent, depth = [root], [], [], [-1], [0]
-        i = 0
-        while i < len(order):      # breadth-first: children of a node land contiguously
-            node = order[i]
-            kids = self.kids[node]
-            first.append(len(order) if kids else -1)
-            count.append(len(kids))
-            for c in kids:
-                order.append(c)
-                parent.append(i)
-                depth.append(depth[i] + 1)
-            i += 1
-        order = np.array(order)
+        """The breadth-first :class:`Hierarchy` below ``root``, one level at a time."""
+        count = np.fromiter(map(len, self.kids), np.int64, len(self.kids))
+        kids = np.fromiter(chain.from_iterable(self.kids), np.int64, int(count.sum()))
+        start = np.cumsum(count) - count
+        order, first, parent, depth = [], [], [], []
+        front, pos, n, d = np.array([root], np.int64), np.zeros(1, np.int64), 1, 0
+        while len(front):           # breadth-first: children of a node land contiguously
+            c = count[front]
+            total = int(c.sum())
+            at = np.cumsum(c) - c
+            order.append(front)
+            first.append(np.where(c > 0, n + at, -1))
+            parent.append(pos if d else np.full(1, -1, np.int64))
+            depth.append(np.full(len(front), d, np.int64))
+            sub = np.repeat(start[front] - at, c) + np.arange(total)
+            pos = np.repeat(np.arange(n - len(front), n), c)     # each child's parent position
+            front, n, d = kids[sub], n + total, d + 1
+        order = np.concatenate(order)
         return Hierarchy(
             bounds=np.array(self.boxes, dtype=np.float64).reshape(-1, 2, 3)[order],
-            first_child=np.array(first, dtype=np.int64),
-            child_count=np.array(count, dtype=np.int64),
+            first_child=np.concatenate(first),
+            child_count=count[order],
             leaf_unit=np.array(self.units, dtype=np.int64)[order],
-            parent=np.array(parent, dtype=np.int64),
-            depth=np.array(depth, dtype=np.int64),
+            parent=np.concatenate(parent),
+            depth=np.concatenate(depth),
         )
 
 
-def _bottom_up(parent):
-    """Tree nodes ordered deepest first (children before parents), vectorised depths."""
+def _depth(parent):
+    """Depth of each tree node (roots 0), vectorised; OccError on a cycle."""
     t = len(parent)
     depth = np.zeros(t, dtype=np.int64)
     cur = np.asarray(parent, dtype=np.int64).copy()
     for _ in range(t + 1):
         alive = cur >= 0
         if not alive.any():
-            return np.argsort(-depth, kind="stable")
+            return depth
         depth[alive] += 1
         cur[alive] = parent[cur[alive]]
     raise OccError("the scene tree has a cycle")
+
+
+def _fold(builder, parent, own):
+    """Group a tree bottom-up: each node's own items (node ids) then its children's groups.
+
+    All nodes of one depth are grouped in one :meth:`_Builder.groups` call.  Returns
+    the groups of the roots (None for an empty one), in tree order.
+    """
+    parent = np.asarray(parent, dtype=np.int64)
+    depth = _depth(parent)
+    items = [list(o) for o in own]
+    roots = []
+    for d in range(int(depth.max(initial=-1)), -1, -1):
+        nodes = np.flatnonzero(depth == d).tolist()
+        for node, sub in zip(nodes, builder.groups([items[i] for i in nodes]), strict=True):
+            if parent[node] >= 0:
+                if sub is not None:
+                    items[parent[node]].append(sub)
+            else:
+                roots.append(sub)
+    return roots
 
 
 def graft_tree(builder, tree, item_node):
@@ -197,18 +355,10 @@ def graft_tree(builder, tree, item_node):
     item_node(item) gives the builder node of one item (a unit leaf or an
     object's subtree); a tree node's items and children become one group.
     """
-    items = [[] for _ in range(len(tree.first_child))]
-    root = None
-    for node in _bottom_up(tree.parent):
-        start, count = tree.item_start[node], tree.item_count[node]
-        own = [item_node(int(i)) for i in tree.order[start:start + count]]
-        sub = builder.group(own + items[node])
-        if tree.parent[node] >= 0:
-            if sub is not None:
-                items[tree.parent[node]].append(sub)
-        else:
-            root = sub
-    return root
+    own = [[item_node(int(i)) for i in tree.order[start:start + count]]
+           for start, count in zip(tree.item_start.tolist(), tree.item_count.tolist(), strict=True)]
+    roots = _fold(builder, tree.parent, own)
+    return roots[-1] if roots else None
 
 
 def build_hierarchy(unit_bounds, object_units, tree_parent, tree_object, max_children=8,
@@ -232,6 +382,8 @@ def build_hierarchy(unit_bounds, object_units, tree_parent, tree_object, max_chi
     def object_node(obj):
         units = object_units[obj]
         tree = unit_trees[obj] if unit_trees is not None else None
+        if tree is None and len(units) == 1:
+            return b.leaf(units[0])
         if tree is None:
             return b.group([b.leaf(u) for u in units])
         return graft_tree(b, tree, lambda i: b.leaf(units[i]))
@@ -241,13 +393,8 @@ def build_hierarchy(unit_bounds, object_units, tree_parent, tree_object, max_chi
     else:
         tree_parent = np.asarray(tree_parent, dtype=np.int64)
         tree_object = np.asarray(tree_object, dtype=np.int64)
-        items = [[] for _ in range(len(tree_parent))]
-        roots = []
-        for node in _bottom_up(tree_parent):       # build time, once per tree node
-            own = [object_node(tree_object[node])] if tree_object[node] >= 0 else []
-            sub = b.group(own + items[node])
-            if sub is not None:
-                (items[tree_parent[node]] if tree_parent[node] >= 0 else roots).append(sub)
+        own = [[object_node(o)] if o >= 0 else [] for o in tree_object.tolist()]
+        roots = [r for r in _fold(b, tree_parent, own) if r is not None]
         carried = np.zeros(n, dtype=bool)
         carried[tree_object[tree_object >= 0]] = True
         roots.extend(object_node(o) for o in np.flatnonzero(~carried))
