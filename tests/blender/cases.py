@@ -429,12 +429,13 @@ def case4_collections():
     check("case4_analyze_member_seen_in_instance", seen.get("member", {}).get("frames_visible") == 1, seen)
 
 
-def case5():
-    """Caches follow objects, not names: swapped names, delete and rename."""
+def wall_and_pebble(pebble_name):
+    """A wall named "Wall" hiding "behind", a pebble named ``pebble_name`` off to the
+    side, "target" in plain view; culled once.  Returns (wall, pebble)."""
     scene = new_scene()
     bpy.data.objects.remove(bpy.data.objects["wall"])
     wall = bpy.data.objects.new("Wall", cube_mesh("wall_mesh", (0, -6, -2), (0.5, 6, 6)))
-    pebble = bpy.data.objects.new("Pebble", cube_mesh("pebble_mesh", (0, 0, 0), (0.2, 0.2, 0.2)))
+    pebble = bpy.data.objects.new(pebble_name, cube_mesh("pebble_mesh", (0, 0, 0), (0.2, 0.2, 0.2)))
     for o in (wall, pebble):
         scene.collection.objects.link(o)
     pebble.location = (-6.0, 2.5, 0.0)
@@ -442,6 +443,12 @@ def case5():
     box("behind", (3, -1, 0), (4, 1, 1))
     update()
     cull()
+    return wall, pebble
+
+
+def case5():
+    """Caches follow objects, not names: swapped names, delete and rename."""
+    wall, pebble = wall_and_pebble("Pebble")
     wall.name, pebble.name = "tmp", "Wall"
     wall.name = "Pebble"
     update()
@@ -450,17 +457,7 @@ def case5():
           (drawn("target"), hidden_by_addon("behind")))
     promise("case5_swap_truth")
     # delete "Wall", rename "Wall.001" (a pebble) to "Wall"
-    scene = new_scene()
-    bpy.data.objects.remove(bpy.data.objects["wall"])
-    wall = bpy.data.objects.new("Wall", cube_mesh("wall_mesh", (0, -6, -2), (0.5, 6, 6)))
-    pebble = bpy.data.objects.new("Wall.001", cube_mesh("pebble_mesh", (0, 0, 0), (0.2, 0.2, 0.2)))
-    for o in (wall, pebble):
-        scene.collection.objects.link(o)
-    pebble.location = (-6.0, 2.5, 0.0)
-    box("target", (-3, -0.5, 0), (-2.5, 0.5, 0.5))
-    box("behind", (3, -1, 0), (4, 1, 1))
-    update()
-    cull()
+    wall, pebble = wall_and_pebble("Wall.001")
     bpy.data.objects.remove(wall)
     pebble.name = "Wall"
     update()
