@@ -43,6 +43,7 @@ objects or some geometry changed; the depsgraph and frame-change handlers mark
 what changed).
 """
 
+import time
 import zlib
 
 import bpy
@@ -51,9 +52,11 @@ import numpy as np
 from ..core import OccError, Scene
 from . import visibility
 from .visibility import ident
+from .worker import drive
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
 SOLID_DISPLAY = {"SOLID", "TEXTURED"}            # wire and bounds display never occlude
+STEP_S = 0.1                                     # geometry reading yields about this often (modal steps)
 _EMPTY = (np.zeros((0, 3), dtype=np.float32), np.zeros((0, 3), dtype=np.int32))
 
 # Modifiers whose result depends only on the object's own data and settings
@@ -306,8 +309,10 @@ class Extractor:
 
     def __init__(self):
         self.cache = {}          # object uid -> (mesh key, vertices, faces); vertices None: not finite
-        self.dirty = set()       # object uids whose geometry changed
-        self.touched = set()     # object uids whose geometry or transform changed (instanced collections)
+        # uid -> the mark's number: a read consumes only marks made before it began
+        self.dirty = {}          # object uids whose geometry changed
+        self.touched = {}        # object uids whose geometry or transform changed (instanced collections)
+        self.marks = 0
         # What an object is, from its settings (edits report it: :meth:`saw` forgets it):
         self.info = {}           # uid -> (kind, has a parent)
         self.dynamic = {}        # uid -> is_dynamic
@@ -361,9 +366,10 @@ class Extractor:
 
     def mark(self, geometry=(), transform=()):
         """Record depsgraph updates: uids whose geometry changed, and uids that moved."""
-        self.dirty.update(geometry)
-        self.touched.update(geometry)
-        self.touched.update(transform)
+        self.marks += 1
+        self.dirty.update(dict.fromkeys(geometry, self.marks))
+        self.touched.update(dict.fromkeys(geometry, self.marks))
+        self.touched.update(dict.fromkeys(transform, self.marks))
 
     def candidates(self, context, verify=False):
         """The pass's candidates; ``verify``: check every object the add-on hides
@@ -385,7 +391,7 @@ class Extractor:
 
     def needs_geometry(self, cand):
         """Whether :meth:`scene` must read geometry again for these candidates."""
-        if self.dirty.intersection(cand.uids.tolist()):
+        if not self.dirty.keys().isdisjoint(cand.uids.tolist()):
             return True
         if self.touched:
             for o, k, c in zip(cand.objects, cand.kinds, cand.culled, strict=True):
@@ -393,15 +399,24 @@ class Extractor:
                     return True
         return False
 
-    def forget_changes(self):
-        """The current scene is up to date: changes seen so far are consumed."""
-        self.dirty.clear()
-        self.touched.clear()
+    def forget_changes(self, seen):
+        """Changes marked up to mark number ``seen`` (taken before a read began) are
+        consumed; any reported during the read (between steps) stay for the next one."""
+        self.dirty = {u: m for u, m in self.dirty.items() if m > seen}
+        self.touched = {u: m for u, m in self.touched.items() if m > seen}
 
     def scene(self, context, cand):
         """``(core.Scene, kept, bad)``: the engine's scene of the candidates with finite
         triangles, ``kept`` their indices into ``cand``, ``bad`` the names left out
         for NaN or infinite vertices."""
+        return drive(self.scene_steps(context, cand))
+
+    def scene_steps(self, context, cand):
+        """:meth:`scene` as a generator that yields ``(label, fraction)`` about every
+        :data:`STEP_S` seconds while it reads geometry (a modal operator redraws and
+        looks for Esc in between) and returns what :meth:`scene` returns.  Stopped
+        early, what it read stays cached and nothing else changes."""
+        seen = self.marks
         depsgraph = context.evaluated_depsgraph_get()
         fresh = {ident(o): o for o, k, c in zip(cand.objects, cand.kinds, cand.culled, strict=True)
                  if not c and ((k == "collection" and self._instance_stale(o))
@@ -423,7 +438,12 @@ class Extractor:
             self.fps[uid] = fingerprint(o, "collection" if o.type == "EMPTY" else "instancer", {})
         uids, meshes, mesh_of, kept, bad = [], [], [], [], []
         mesh_index, read = {}, {}
+        n = len(cand.objects)
+        due = time.perf_counter() + STEP_S
         for i, obj in enumerate(cand.objects):         # once per object, bulk inside
+            if time.perf_counter() >= due:
+                yield "reading geometry", i / n
+                due = time.perf_counter() + STEP_S
             entry = self._geometry(obj, cand.kinds[i], cand.culled[i], depsgraph, read)
             if entry is None:
                 continue
@@ -439,7 +459,7 @@ class Extractor:
             uids.append(ident(obj))
             mesh_of.append(mesh_index[key])
             kept.append(i)
-        self.forget_changes()
+        self.forget_changes(seen)
         if not uids:
             raise OccError("nothing to cull: the view layer has no visible mesh objects"
                            + (f" (left out for NaN or infinite values: {', '.join(bad)})" if bad else ""))
@@ -455,7 +475,7 @@ class Extractor:
         if hit is None:
             return True
         members = _members(obj.instance_collection)
-        return hit[0][2] != members or bool(self.touched.intersection(members))
+        return hit[0][2] != members or not self.touched.keys().isdisjoint(members)
 
     def _geometry(self, obj, k, culled, depsgraph, read):
         """``(key, v, f)`` from the cache when still valid, else from the depsgraph

@@ -67,6 +67,8 @@ def _tick():
         return POLL_S
     except ReferenceError:                            # data replaced under us: next tick reads it again
         return POLL_S
+    if SESSION.busy:                                  # a modal cull or analysis holds the session
+        return POLL_S
     key = np.concatenate([camera.view.ravel(), camera.projection.ravel(), display])
     now = time.perf_counter()
     if _state["last_view"] is None or not np.array_equal(key, _state["last_view"]):

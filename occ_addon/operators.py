@@ -14,22 +14,131 @@ from ..core import OccError, Visibility
 from . import live, overlay, visibility
 from .extract import bystanders, is_instancer
 from .session import SESSION, camera_for, scene_camera
+from .worker import Job, drive
 
 # "//" paths are blend-relative; Blender 4.5+ wants string properties to say they accept them
 BLEND_RELATIVE = {"PATH_SUPPORTS_BLEND_RELATIVE"} if bpy.app.version >= (4, 5, 0) else set()
 
 
-class OCC_OT_cull(bpy.types.Operator):
+# Events a modal operator lets through while it works: navigating the view changes no data.
+NAVIGATION = {"MIDDLEMOUSE", "WHEELUPMOUSE", "WHEELDOWNMOUSE", "TRACKPADPAN", "TRACKPADZOOM",
+              "NDOF_MOTION", "MOUSEMOVE", "INBETWEEN_MOUSEMOVE"}
+
+
+class Stepped:
+    """Long work (a first build, an analysis) in a window runs in timer steps of the
+    same generators the synchronous path drives (:func:`.worker.drive`): the
+    interface redraws between steps, progress shows in the status bar and on the
+    cursor, the view can still be navigated, and Esc cancels, leaving the scene as
+    it was.  Every other event is held back while it runs, so the scene cannot be
+    edited under it.  Scripts (``execute``) and background mode run the steps at
+    once, printing a progress line a second in background mode."""
+
+    SLICE_S = 0.05       # work per timer tick
+    TICK_S = 0.01
+
+    def start_steps(self, context, steps, what):
+        wm = context.window_manager
+        self._steps, self._job, self._what = steps, None, what
+        self._timer = wm.event_timer_add(self.TICK_S, window=context.window)
+        wm.modal_handler_add(self)
+        wm.progress_begin(0, 100)
+        SESSION.busy = what
+        self._show(context, ("starting", 0.0))
+        return {"RUNNING_MODAL"}
+
+    def run_steps(self, steps, what):
+        """The steps at once (a script, or background mode)."""
+        t0 = last = time.perf_counter()
+
+        def line(item):
+            nonlocal last
+            now = time.perf_counter()
+            if bpy.app.background and now - last >= 1.0 and item[1] is not None:
+                last = now
+                print(f"occlusion {what}: {item[0]} {100 * item[1]:.0f}% ({now - t0:.1f} s)", flush=True)
+        return drive(steps, line)
+
+    def modal(self, context, event):
+        if event.type == "ESC" and event.value == "PRESS":
+            self._end(context)
+            self._steps.close()                       # the steps undo what they began
+            self.report({"WARNING"}, f"{self._what} cancelled; nothing was changed")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"} if event.type in NAVIGATION else {"RUNNING_MODAL"}
+        end = time.perf_counter() + self.SLICE_S
+        try:
+            while time.perf_counter() < end:
+                if self._job is not None:
+                    if not self._job.done():
+                        break
+                    self._job = None
+                item = next(self._steps)
+                if isinstance(item, Job):
+                    self._job = item
+                    self._show(context, ("building the engine", None))
+                else:
+                    self._show(context, item)
+        except StopIteration as stop:
+            self._end(context)
+            return self.finish(context, stop.value)
+        except Exception as e:  # every failure is a report, never a traceback
+            self._end(context)
+            return failed(self, e)
+        return {"RUNNING_MODAL"}
+
+    def _show(self, context, item):
+        label, fraction = item
+        if fraction is not None:
+            context.window_manager.progress_update(int(100 * fraction))
+        pct = "" if fraction is None else f" {100 * fraction:.0f}%"
+        if context.workspace is not None:
+            context.workspace.status_text_set(f"Occlusion culling: {self._what}: {label}{pct} (Esc to cancel)")
+
+    def _end(self, context):
+        wm = context.window_manager
+        wm.event_timer_remove(self._timer)
+        wm.progress_end()
+        if context.workspace is not None:
+            context.workspace.status_text_set(None)
+        SESSION.busy = None
+
+    def windowed(self, context):
+        """Whether this call can run modal (a window; not background mode)."""
+        return not bpy.app.background and context.window is not None
+
+
+class OCC_OT_cull(Stepped, bpy.types.Operator):
     """Hide the objects the active viewport (or the scene camera) cannot see"""
 
     bl_idname = "occ.cull"
     bl_label = "Cull"
     bl_options = {"REGISTER"}
 
+    def invoke(self, context, event):
+        if not self.windowed(context):
+            return self.execute(context)
+        try:
+            _, display = camera_for(context)
+            steps = SESSION.prepare_steps(context, display)
+        except Exception as e:  # every failure is a report, never a traceback
+            return failed(self, e)
+        return self.start_steps(context, steps, "cull")
+
     def execute(self, context):
         try:
+            _, display = camera_for(context)
+            self.run_steps(SESSION.prepare_steps(context, display), "cull")
+        except Exception as e:  # every failure is a report, never a traceback
+            return failed(self, e)
+        return self.finish(context, None)
+
+    def finish(self, context, _):
+        """The pass itself, once the engine is built (it rebuilds what changed meanwhile)."""
+        try:
             camera, display = camera_for(context)
-            result, objects = SESSION.cull(context, camera, display, fresh=True)
+            SESSION.cull(context, camera, display, fresh=True)
             overlay.install()
         except Exception as e:  # every failure is a report, never a traceback
             return failed(self, e)
@@ -55,11 +164,25 @@ class OCC_OT_restore(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class OCC_OT_live(bpy.types.Operator):
+class OCC_OT_live(Stepped, bpy.types.Operator):
     """Re-cull whenever the view changes (toggle)"""
 
     bl_idname = "occ.live"
     bl_label = "Live"
+
+    def invoke(self, context, event):
+        if bpy.app.background or context.scene.occ.live or not self.windowed(context):
+            return self.execute(context)
+        try:                                         # the first build in steps, then live
+            _, display = camera_for(context)
+            steps = SESSION.prepare_steps(context, display)
+        except Exception as e:  # every failure is a report, never a traceback
+            return failed(self, e)
+        return self.start_steps(context, steps, "live start")
+
+    def finish(self, context, _):
+        live.start(context)
+        return {"FINISHED"}
 
     def execute(self, context):
         if bpy.app.background:
@@ -73,7 +196,7 @@ class OCC_OT_live(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class OCC_OT_analyze(bpy.types.Operator):
+class OCC_OT_analyze(Stepped, bpy.types.Operator):
     """Cull from the scene camera over a frame range and write what it sees (JSON and CSV)"""
 
     bl_idname = "occ.analyze"
@@ -87,62 +210,88 @@ class OCC_OT_analyze(bpy.types.Operator):
     link_never_visible: BoolProperty(name="Collect Never Visible", default=False,
                                      description="Link never-visible objects into a collection")
 
-    def execute(self, context):
+    def _plan(self, context):
+        """``(frames, report path)``, or an OccError the user can act on."""
         scene = context.scene
         start = scene.frame_start if self.frame_start < 0 else self.frame_start
         end = scene.frame_end if self.frame_end < 0 else self.frame_end
         if end < start:
-            self.report({"ERROR"}, f"empty frame range {start}..{end}")
-            return {"CANCELLED"}
-        frames = list(range(start, end + 1, self.frame_step))
-        path = report_path(self.filepath)
-        previous = scene.frame_current
-        wm = context.window_manager
-        per_frame, seen = [], {}
-        held = held_names = collections = None
-        t = time.perf_counter()
-        wm.progress_begin(0, len(frames))
-        step = max(1, len(frames) // 10)          # background mode: about ten progress lines
+            raise OccError(f"empty frame range {start}..{end}")
+        return list(range(start, end + 1, self.frame_step)), report_path(self.filepath)
+
+    def invoke(self, context, event):
+        if not self.windowed(context):
+            return self.execute(context)
         try:
-            for k, f in enumerate(frames):           # synchronous: timers never fire headless
-                scene.frame_set(f)
-                camera, display = scene_camera(context)
-                result, objects = SESSION.compute(context, camera, display)   # nothing is hidden
-                if SESSION.kept_uids is not held:   # the engine's objects changed: their names, once
-                    held = SESSION.kept_uids
-                    held_names = [o.name for o in objects]
-                    collections = [i for i, o in enumerate(objects) if is_instancer(o)]
-                    for n in held_names:
-                        seen.setdefault(n, 0)
-                vis = result.state == Visibility.VISIBLE          # one array compare, no per-object enum
-                shown = [held_names[i] for i in np.flatnonzero(vis)]
-                extra = bystanders(context.view_layer, held)       # drawn, never culled: visible
-                # an object is seen where a visible collection instance draws it, too
-                members = [m for i in collections if vis[i] for m in objects[i].instance_collection.all_objects]
-                others = [o.name for o in extra + members]
-                names = list(dict.fromkeys(shown + others))
-                per_frame.append({"frame": f, "visible": names})
-                for n in others:
-                    seen.setdefault(n, 0)
-                for n in names:
-                    seen[n] += 1
-                wm.progress_update(k + 1)
-                if bpy.app.background and ((k + 1) % step == 0 or k + 1 == len(frames)):
-                    print(f"occlusion analyze: {k + 1}/{len(frames)} frames "
-                          f"({time.perf_counter() - t:.1f} s)", flush=True)
+            frames, path = self._plan(context)
         except Exception as e:  # every failure is a report, never a traceback
             return failed(self, e)
-        finally:
-            wm.progress_end()
-            scene.frame_set(previous)
-        write_report(path, frames, per_frame, seen)
+        return self.start_steps(context, analysis(context, frames, path), "analyze")
+
+    def execute(self, context):
+        try:
+            frames, path = self._plan(context)
+            value = self.run_steps(analysis(context, frames, path), "analyze")
+        except Exception as e:  # every failure is a report, never a traceback
+            return failed(self, e)
+        return self.finish(context, value)
+
+    def finish(self, context, value):
+        frames, path, per_frame, seen, t = value
+        try:
+            write_report(path, frames, per_frame, seen)
+        except OSError as e:
+            return failed(self, OccError(f"cannot write the report {path}: {e.strerror or e}"))
         never = sorted(n for n, c in seen.items() if c == 0)
         if self.link_never_visible:
-            link_collection(scene, "Never Visible", never)
+            link_collection(context.scene, "Never Visible", never)
         warn(self)
         self.report({"INFO"}, f"{len(frames)} frames in {time.perf_counter() - t:.1f} s; "
                               f"{len(never)} of {len(seen)} objects never visible; report {path}")
         return {"FINISHED"}
+
+
+def analysis(context, frames, path):
+    """Analyze in steps (a generator, see :func:`.worker.drive`): one a frame, and a
+    first build's own; returns what :meth:`OCC_OT_analyze.finish` writes.  Stopped
+    early (Esc), the scene goes back to its frame and nothing is written."""
+    scene = context.scene
+    previous = scene.frame_current
+    per_frame, seen = [], {}
+    held = held_names = collections = None
+    t = time.perf_counter()
+    step = max(1, len(frames) // 10)          # background mode: about ten progress lines
+    try:
+        for k, f in enumerate(frames):
+            scene.frame_set(f)
+            camera, display = scene_camera(context)
+            # nothing is hidden
+            result, objects = yield from SESSION.compute_steps(context, camera, display)
+            if SESSION.kept_uids is not held:   # the engine's objects changed: their names, once
+                held = SESSION.kept_uids
+                held_names = [o.name for o in objects]
+                collections = [i for i, o in enumerate(objects) if is_instancer(o)]
+                for n in held_names:
+                    seen.setdefault(n, 0)
+            vis = result.state == Visibility.VISIBLE          # one array compare, no per-object enum
+            shown = [held_names[i] for i in np.flatnonzero(vis)]
+            extra = bystanders(context.view_layer, held)       # drawn, never culled: visible
+            # an object is seen where a visible collection instance draws it, too
+            members = [m for i in collections if vis[i] for m in objects[i].instance_collection.all_objects]
+            others = [o.name for o in extra + members]
+            names = list(dict.fromkeys(shown + others))
+            per_frame.append({"frame": f, "visible": names})
+            for n in others:
+                seen.setdefault(n, 0)
+            for n in names:
+                seen[n] += 1
+            if bpy.app.background and ((k + 1) % step == 0 or k + 1 == len(frames)):
+                print(f"occlusion analyze: {k + 1}/{len(frames)} frames "
+                      f"({time.perf_counter() - t:.1f} s)", flush=True)
+            yield f"frame {k + 1}/{len(frames)}", (k + 1) / len(frames)
+    finally:
+        scene.frame_set(previous)
+    return frames, path, per_frame, seen, t
 
 
 def report_path(filepath):

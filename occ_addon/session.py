@@ -20,7 +20,7 @@ from ..core.units import ChunkCache
 from . import extract, visibility
 from .extract import Extractor
 from .visibility import ident
-from .worker import EngineThread
+from .worker import EngineThread, drive
 
 # Meshes of 4 x this many triangles or more are cut into chunks of about this
 # many (never a user's mesh: index ranges inside the engine's copy): a heavy
@@ -45,6 +45,7 @@ class Session:
         self.warnings = []         # objects left out of the last pass, for the report
         self.bad_geometry = []     # of them, those left out for their vertices (known since the last build)
         self.layer = None          # (scene, view layer) of the last pass
+        self.busy = None           # the label of a modal operator's work in steps (live passes wait)
 
     def reset(self):
         """Forget everything (a file was loaded, an undo or redo, or the add-on goes away):
@@ -91,6 +92,14 @@ class Session:
     def engine(self, context, resolution, strategy, verify=False, display=None):
         """The engine for the current candidates: rebuilt when objects or geometry
         changed, otherwise only the moved objects' matrices are sent."""
+        return drive(self.engine_steps(context, resolution, strategy, verify, display))
+
+    def engine_steps(self, context, resolution, strategy, verify=False, display=None):
+        """:meth:`engine` in steps (a generator, see :func:`.worker.drive`): it yields
+        progress while it reads geometry and the build's :class:`.worker.Job` while
+        the engine thread builds.  Stopped early (Esc), the session keeps no half
+        state: the engine is dropped (closed on its thread once built) and the next
+        pass builds again; nothing in the scene was touched."""
         cand = self.candidates(context, verify)
         self.warnings = list(cand.bad)
         if not len(cand):
@@ -101,18 +110,24 @@ class Session:
         rebuild = (self.culler is None or uids != self.uids or size != self.resolution
                    or self.extractor.needs_geometry(cand))
         if rebuild:
-            scene, kept, bad = self.extractor.scene(context, cand)
+            scene, kept, bad = yield from self.extractor.scene_steps(context, cand)
             self.warnings += bad
-            if self.culler is not None and size == self.resolution:
+            old, self.culler, self.uids = self.culler, None, None      # no half state if stopped
+            if old is not None and size == self.resolution:
                 # same context; meshes read unchanged from the cache keep their chunks
-                self.worker.run(self.culler.replace_scene, scene)
-                if strategy != self.culler.strategy_name:
-                    self.worker.run(self.culler.set_strategy, strategy)
+                job = self.worker.submit(_replaced, old, scene, strategy)
             else:
-                self.release()
-                self.culler = self.worker.run(Culler, scene, resolution, strategy=strategy,
-                                              chunk_triangles=CHUNK_TRIANGLES, chunk_cache=self.chunks,
-                                              display=display)
+                if old is not None:
+                    self.worker.submit(old.close)
+                job = self.worker.submit(Culler, scene, resolution, strategy=strategy,
+                                         chunk_triangles=CHUNK_TRIANGLES, chunk_cache=self.chunks,
+                                         display=display)
+            try:
+                yield job
+            except GeneratorExit:                     # stopped: close what the build makes
+                self.worker.submit(_close_built, job)
+                raise
+            self.culler = job.result()
             self.uids, self.kept, self.resolution = uids, kept, size
             self.kept_uids = cand.uids[kept]
             self.kept_collection = np.array([cand.kinds[i] == "collection" for i in kept], dtype=bool)
@@ -127,10 +142,8 @@ class Session:
                 self.worker.run(self.culler.set_matrices, moved, m[moved])
         return self.culler, [cand.objects[i] for i in self.kept]
 
-    def compute(self, context, camera, display, fresh=True):
-        """Visibility from ``camera`` at ``display`` resolution, without hiding anything.
-        ``fresh``: the strategy forgets earlier passes (a Cull click, a camera cut,
-        analyze); only a live pass right after a small view change keeps its memory."""
+    def _sizes(self, context, display):
+        """``(options, query resolution, display resolution or None)`` of a pass."""
         settings = context.scene.occ
         options = preset(settings.preset)
         res = query_resolution(fit(display, settings.max_resolution), options)
@@ -139,10 +152,28 @@ class Session:
         # query pixel keeps the farthest depth it stands for: a gap the display shows
         # stays open in the query (conservative by construction; core.gl, display=).
         shown = fit(display, MAX_RESOLUTION)
-        shown = shown if shown != res else None
+        return options, res, (shown if shown != res else None)
+
+    def prepare_steps(self, context, display, fresh=True):
+        """The slow part of a first pass (reading geometry, building the engine) in
+        steps, hiding nothing: a modal operator runs it, then :meth:`cull` (which then
+        finds the engine built, or rebuilds what changed in between)."""
+        _, res, shown = self._sizes(context, display)
+        yield from self.engine_steps(context, res, context.scene.occ.strategy, verify=fresh, display=shown)
+
+    def compute(self, context, camera, display, fresh=True):
+        """Visibility from ``camera`` at ``display`` resolution, without hiding anything.
+        ``fresh``: the strategy forgets earlier passes (a Cull click, a camera cut,
+        analyze); only a live pass right after a small view change keeps its memory."""
+        return drive(self.compute_steps(context, camera, display, fresh))
+
+    def compute_steps(self, context, camera, display, fresh=True):
+        """:meth:`compute` in steps (see :meth:`engine_steps`)."""
+        options, res, shown = self._sizes(context, display)
         # a fresh pass (a click, analyze, a scene change) also checks what the add-on
         # hides against its data: edits to hidden objects are never reported
-        culler, objects = self.engine(context, res, settings.strategy, verify=fresh, display=shown)
+        culler, objects = yield from self.engine_steps(context, res, context.scene.occ.strategy,
+                                                       verify=fresh, display=shown)
         culler.options = options
         forget = getattr(culler.strategy, "forget", None)
         if fresh and forget is not None:
@@ -214,6 +245,24 @@ class Session:
         for k in np.flatnonzero(culled & ~out):        # O(hidden), cached: what Blender has no bulk form of
             out[k] = extractor.is_dynamic(objects[k], int(self.kept_uids[k]))
         return out
+
+
+def _replaced(culler, scene, strategy):
+    """On the engine thread: ``culler`` rebuilt for ``scene`` (same GL context; meshes
+    read unchanged keep their chunks), with ``strategy``."""
+    culler.replace_scene(scene)
+    if strategy != culler.strategy_name:
+        culler.set_strategy(strategy)
+    return culler
+
+
+def _close_built(job):
+    """On the engine thread, after the build ``job`` (jobs run in order): close what it built."""
+    try:
+        built = job.result()
+    except Exception:  # noqa: BLE001 -- a build that failed built nothing to close
+        return
+    built.close()
 
 
 SESSION = Session()

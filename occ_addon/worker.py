@@ -4,9 +4,10 @@ The engine makes its own (EGL or platform) context current and leaves it
 current; on the main thread that would displace Blender's context behind its
 back, depending on how the platform's GL dispatch treats two APIs on one
 thread.  On a thread of its own the engine's context is the only one there,
-and Blender's main thread is never touched.  Calls are synchronous: the main
-thread waits for each (operators must finish before Blender redraws), and bpy
-is never used on the worker.
+and Blender's main thread is never touched.  :meth:`EngineThread.run` waits
+for its call; :meth:`EngineThread.submit` returns a :class:`Job` at once, so a
+modal operator can keep the interface alive while a long build runs (it polls
+:meth:`Job.done` from its timer).  bpy is never used on the worker.
 
 The thread is a daemon with its own queue (not a ``concurrent.futures`` pool,
 which refuses work once the interpreter starts to exit): Blender unregisters
@@ -20,8 +21,57 @@ import sys
 import threading
 
 
+class Job:
+    """One call handed to the engine thread: :meth:`done` polls, :meth:`result` waits."""
+
+    def __init__(self):
+        self._box = []
+        self._done = threading.Event()
+
+    @classmethod
+    def finished(cls, value):
+        job = cls()
+        job._set(True, value)
+        return job
+
+    def _set(self, ok, value):
+        self._box.append((ok, value))
+        self._done.set()
+
+    def done(self):
+        return self._done.is_set()
+
+    def wait(self):
+        self._done.wait()
+
+    def result(self):
+        """The call's value (waiting for it), or its exception raised here."""
+        self._done.wait()
+        ok, value = self._box[0]
+        if not ok:
+            raise value
+        return value
+
+
+def drive(steps, progress=None):
+    """Run a generator of steps to its end on this thread and return its value: each
+    :class:`Job` it yields is waited for, anything else (``(label, fraction)``) goes
+    to ``progress`` if given.  A modal operator drives the same generators from its
+    timer instead."""
+    try:
+        while True:
+            item = next(steps)
+            if isinstance(item, Job):
+                item.wait()
+            elif progress is not None:
+                progress(item)
+    except StopIteration as stop:
+        return stop.value
+
+
 class EngineThread:
-    """``run(fn, *args)`` on the engine thread, returning its result or raising its exception."""
+    """``run(fn, *args)`` on the engine thread, returning its result or raising its
+    exception; ``submit(fn, *args)`` hands it over and returns a :class:`Job`."""
 
     def __init__(self):
         self._thread = None
@@ -32,31 +82,32 @@ class EngineThread:
             job = jobs.get()
             if job is None:
                 return
-            fn, args, kwargs, box, done = job
+            fn, args, kwargs, out = job
             try:
-                box.append((True, fn(*args, **kwargs)))
+                value = fn(*args, **kwargs)
             except BaseException as e:  # handed back to the caller, raised there
-                box.append((False, e))
-            done.set()
+                out._set(False, e)
+            else:
+                out._set(True, value)
 
     def alive(self):
         return self._thread is not None and self._thread.is_alive()
 
-    def run(self, fn, *args, **kwargs):
+    def submit(self, fn, *args, **kwargs):
+        """Queue ``fn(*args, **kwargs)`` (jobs run one at a time, in order); a :class:`Job`."""
         if not self.alive():                  # started by the first pass, never at registration
             if sys.is_finalizing():
-                return None
+                return Job.finished(None)
             self._jobs = queue.SimpleQueue()
             self._thread = threading.Thread(target=self._loop, args=(self._jobs,), name="occ-engine",
                                             daemon=True)
             self._thread.start()
-        box, done = [], threading.Event()
-        self._jobs.put((fn, args, kwargs, box, done))
-        done.wait()
-        ok, value = box[0]
-        if not ok:
-            raise value
-        return value
+        out = Job()
+        self._jobs.put((fn, args, kwargs, out))
+        return out
+
+    def run(self, fn, *args, **kwargs):
+        return self.submit(fn, *args, **kwargs).result()
 
     def shutdown(self):
         if self.alive():

@@ -135,7 +135,54 @@ def run():
     objs.foreach_set("hide_viewport", shown)
     objs[0].hide_viewport = bool(shown[0])
     results["speedup"] = results["redraw_ms_without"] / max(results["redraw_ms_with"], 1e-9)
+    yield from modal_operators(win, area, region, sess, frames)
     del addon
+
+
+def modal_operators(win, area, region, sess, frames):
+    """The panel's buttons run the operators modal (INVOKE_DEFAULT): a first build in
+    timer steps, then the pass; analyze frame by frame, stopped by Esc."""
+    ctx = {"window": win, "area": area, "region": region}
+    sess.reset()                                      # the next cull builds from scratch
+    with bpy.context.temp_override(**ctx):
+        results["modal_cull_started"] = list(bpy.ops.occ.cull("INVOKE_DEFAULT"))
+    t, ticks = time.perf_counter(), 0
+    while sess.busy and time.perf_counter() - t < 120:
+        ticks += 1
+        yield
+    s = bpy.context.scene.occ
+    results["modal_cull"] = {"finished": sess.busy is None and sess.culler is not None, "ticks": ticks,
+                             "occluded": s.last_occluded, "outside": s.last_outside}
+    with bpy.context.temp_override(**ctx):
+        bpy.ops.occ.cull()                            # the same view at once: the same answer
+    results["sync_cull"] = {"occluded": s.last_occluded, "outside": s.last_outside}
+    # analyze from a scene camera, stopped by Esc after a few frames
+    scene = bpy.context.scene
+    cam = bpy.data.objects.new("occ_cam", bpy.data.cameras.new("occ_cam"))
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    f = frames[len(frames) // 2]
+    cam.matrix_world = mathutils.Matrix(np.linalg.inv(
+        sys.modules[f"{ADDON}.core"].Camera.look_at(f["eye"], f["target"], f["up"]).view).tolist())
+    scene.frame_start, scene.frame_end, scene.frame_current = 1, 100000, 3
+    stopped = os.path.join(OUT, "stopped.json")
+    with bpy.context.temp_override(**ctx):
+        results["modal_analyze_started"] = list(bpy.ops.occ.analyze("INVOKE_DEFAULT", filepath=stopped))
+    yield
+    x, y = region.x + region.width // 2, region.y + region.height // 2
+    win.event_simulate("ESC", "PRESS", x=x, y=y)
+    win.event_simulate("ESC", "RELEASE", x=x, y=y)
+    yield
+    results["modal_analyze_esc"] = {"busy": sess.busy, "frame": scene.frame_current,
+                                    "written": os.path.exists(stopped)}
+    done = os.path.join(OUT, "analyzed.json")
+    with bpy.context.temp_override(**ctx):
+        bpy.ops.occ.analyze("INVOKE_DEFAULT", filepath=done, frame_start=1, frame_end=12)
+    t = time.perf_counter()
+    while sess.busy and time.perf_counter() - t < 120:
+        yield
+    results["modal_analyze_done"] = {"busy": sess.busy, "frame": scene.frame_current,
+                                     "written": os.path.exists(done)}
 
 
 _steps = []

@@ -747,8 +747,106 @@ def case_report_path():
     check("analyze_background_progress", 2 <= len(lines) <= 12 and "20/20" in lines[-1], lines)
 
 
+def hide_flags():
+    objs = bpy.data.objects
+    out = np.zeros(len(objs), dtype=bool)
+    objs.foreach_get("hide_viewport", out)
+    return out
+
+
+def case_steps():
+    """The modal operators' steps (what a window drives from its timer; background
+    mode has none, so they are driven here): stopped during the build or the
+    geometry reading (Esc), nothing in the scene changed and the next Cull is
+    right; an edit that lands between steps is seen by the pass that follows."""
+    session, extract, ops = addon("session"), addon("extract"), addon("operators")
+    worker = addon("worker")
+    SESSION = session.SESSION
+    new_scene()
+    box("target", (3, -1, 0), (4, 1, 1))
+    update()
+    cull()                                         # the wall hides the target
+    before = hide_flags()
+    display = (320, 180)
+    # a moved wall is a rebuild only with new geometry: edit the wall's mesh
+    me = bpy.data.objects["wall"].data
+    me.vertices[0].co.x -= 0.01
+    me.update()
+    update()
+    steps = SESSION.prepare_steps(bpy.context, display)
+    kinds = []
+    for item in steps:
+        kinds.append(type(item).__name__)
+        if isinstance(item, worker.Job):
+            break
+    steps.close()                                  # Esc while the engine builds
+    update()
+    check("steps_cancel_build_nothing_changed",
+          "Job" in kinds and np.array_equal(before, hide_flags()) and SESSION.culler is None,
+          (kinds, SESSION.culler))
+    r, err = cull()
+    check("steps_cancel_build_then_cull", r == {"FINISHED"} and hidden_by_addon("target"), (r, err[-500:]))
+    promise("steps_cancel_build_truth")
+
+    # the wall is read, then shrunk between steps, before the build: the pass must not
+    # hide the target behind the wall as it was read
+    new_scene()
+    for i in range(6):
+        box(f"pebble{i}", (-3.0, -5.0 + i, 0.0), (-2.9, -4.9 + i, 0.1))
+    box("target", (3, -1, 0), (4, 1, 1))
+    update()
+    extract.STEP_S = 0.0                           # a step before every object's geometry
+    try:
+        steps = SESSION.prepare_steps(bpy.context, display)
+        wall = bpy.data.objects["wall"]
+        reads, edited = 0, False
+        uid = addon("visibility").ident(wall)
+        for item in steps:
+            if isinstance(item, worker.Job):
+                item.wait()
+                continue
+            reads += 1
+            if edited or uid not in SESSION.extractor.cache:
+                continue
+            # the wall is read, other objects are not yet: now the edit lands
+            edited = True
+            co = np.zeros(len(wall.data.vertices) * 3, np.float32)
+            wall.data.vertices.foreach_get("co", co)
+            co = co.reshape(-1, 3)
+            co[:, 2] = np.minimum(co[:, 2], -0.49)        # the wall drops below the target
+            wall.data.vertices.foreach_set("co", co.ravel())
+            wall.data.update()
+            update()
+        # a stopped reading, too: nothing hidden, and the next pass reads what it must
+        steps = SESSION.prepare_steps(bpy.context, display)
+        first = next(steps, None)
+        steps.close()
+    finally:
+        extract.STEP_S = 0.1
+    r, err = cull()
+    check("steps_edit_between_steps_seen", edited and reads >= 8 and first is not None and r == {"FINISHED"}
+          and not hidden_by_addon("target"), (reads, first, r, hidden_by_addon("target"), err[-500:]))
+    promise("steps_edit_between_steps_truth")
+
+    # analyze stopped after three frames: the frame is back, no report written
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end, scene.frame_current = 1, 30, 7
+    path = os.path.join(WORK, "stopped_analysis.json")
+    steps = ops.analysis(bpy.context, list(range(1, 31)), path)
+    frames_done = 0
+    for item in steps:
+        if not isinstance(item, worker.Job):
+            frames_done += 1
+            if frames_done == 3:
+                break
+    steps.close()
+    check("steps_analyze_cancel_restores_frame",
+          scene.frame_current == 7 and not os.path.exists(path), (scene.frame_current, os.path.exists(path)))
+
+
 CASES = (case1, case2, case3, case4, case4_collections, case5, case6, case7, case8, case10, case11, case12,
-         case_hidden_edits, case_display_resolution, case_report_path)
+         case_hidden_edits, case_display_resolution, case_report_path,
+         case_steps)
 
 
 def main():

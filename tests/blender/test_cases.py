@@ -38,6 +38,8 @@ CHECKS = [
     "hidden_edit_move_seen", "hidden_edit_move_truth", "hidden_edit_nan_seen", "hidden_edit_nan_truth",
     "display_fast_preset_slit_kept", "display_fast_preset_truth", "display_fast_preset_closed_hidden",
     "analyze_unsaved_path_in_cwd", "analyze_background_progress",
+    "steps_cancel_build_nothing_changed", "steps_cancel_build_then_cull", "steps_cancel_build_truth",
+    "steps_edit_between_steps_seen", "steps_edit_between_steps_truth", "steps_analyze_cancel_restores_frame",
 ]
 
 

@@ -89,3 +89,18 @@ def test_redraws_timed_and_screenshots_written(gui_run):
         assert results[key] > 0, key
     before, culled = (out / "before.png").read_bytes(), (out / "culled.png").read_bytes()
     assert before[:8] == culled[:8] == b"\x89PNG\r\n\x1a\n" and before != culled
+
+
+def test_modal_cull_builds_in_steps_and_matches_the_pass_at_once(gui_run):
+    results, _, _ = gui_run
+    assert results["modal_cull_started"] == ["RUNNING_MODAL"]
+    modal, sync = results["modal_cull"], results["sync_cull"]
+    assert modal["finished"] and modal["ticks"] >= 1, modal
+    assert (modal["occluded"], modal["outside"]) == (sync["occluded"], sync["outside"]), (modal, sync)
+
+
+def test_modal_analyze_esc_leaves_the_scene_as_it_was(gui_run):
+    results, _, _ = gui_run
+    assert results["modal_analyze_started"] == ["RUNNING_MODAL"]
+    assert results["modal_analyze_esc"] == {"busy": None, "frame": 3, "written": False}
+    assert results["modal_analyze_done"] == {"busy": None, "frame": 3, "written": True}
