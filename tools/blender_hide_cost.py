@@ -1,0 +1,94 @@
+"""What hiding costs Blender itself, without the add-on: plain bpy, N objects.
+
+    .venv/bin/python tools/blender_hide_cost.py [--objects 50000] [--repeat 3]
+
+Builds N one-triangle objects sharing one mesh, then times the depsgraph
+update (``view_layer.update()``) that follows each kind of visibility change
+Blender offers to Python, median of ``--repeat``:
+
+- nothing changed (the update's floor);
+- ``hide_viewport`` (the monitor icon, what the add-on writes) of ONE object;
+- ``hide_viewport`` of a third of the objects (one ``foreach_set`` and one
+  ordinary assignment, as the add-on writes it), then all shown again;
+- ``hide_set`` (the eye: the user's own per-view-layer hide) of one object,
+  and of 1,000 objects one call each (every call re-syncs the view layer).
+
+Any of these is a cost a culling pass pays on top of its own work whenever
+what it hides changes; the README's "Blender at scale" section quotes it.
+"""
+
+import argparse
+import statistics
+import time
+
+import bpy
+import numpy as np
+
+
+def build(n):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    me = bpy.data.meshes.new("tri")
+    me.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [(0, 1, 2)])
+    link = bpy.context.scene.collection.objects.link
+    for i in range(n):
+        ob = bpy.data.objects.new(f"o{i}", me)
+        ob.location = (i % 250, i // 250, 0)
+        link(ob)
+    bpy.context.view_layer.update()
+
+
+def timed_update():
+    t = time.perf_counter()
+    bpy.context.view_layer.update()
+    return time.perf_counter() - t
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--objects", type=int, default=50_000)
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args()
+    n = args.objects
+    t = time.perf_counter()
+    build(n)
+    print(f"{n:,} objects built in {time.perf_counter() - t:.1f} s (bpy {bpy.app.version_string})")
+    objs = bpy.data.objects
+    third = np.zeros(n, dtype=bool)
+    third[::3] = True
+    rows = {k: [] for k in ("nothing changed", "hide_viewport, one object",
+                            f"hide_viewport, {third.sum():,} objects", f"show those {third.sum():,} again",
+                            "hide_set, one object", "hide_set, 1,000 objects (calls + update)")}
+    keys = list(rows)
+    items = objs.values()
+    for _ in range(args.repeat):
+        rows[keys[0]].append(timed_update())
+        ob = items[n // 2]
+        ob.hide_viewport = not ob.hide_viewport
+        rows[keys[1]].append(timed_update())
+        ob.hide_viewport = False
+        bpy.context.view_layer.update()
+        objs.foreach_set("hide_viewport", third)
+        items[0].hide_viewport = True                 # the ordinary assignment: bases re-synced
+        rows[keys[2]].append(timed_update())
+        objs.foreach_set("hide_viewport", np.zeros(n, dtype=bool))
+        items[0].hide_viewport = False
+        rows[keys[3]].append(timed_update())
+        ob.hide_set(True)
+        rows[keys[4]].append(timed_update())
+        ob.hide_set(False)
+        bpy.context.view_layer.update()
+        t = time.perf_counter()
+        for o in items[:1000]:
+            o.hide_set(True)
+        bpy.context.view_layer.update()
+        rows[keys[5]].append(time.perf_counter() - t)
+        for o in items[:1000]:
+            o.hide_set(False)
+        bpy.context.view_layer.update()
+    print(f"{'change, then view_layer.update()':44s} {'median s':>9s} {'max s':>7s}")
+    for k, v in rows.items():
+        print(f"{k:44s} {statistics.median(v):9.3f} {max(v):7.3f}")
+
+
+if __name__ == "__main__":
+    main()
