@@ -20,6 +20,20 @@ from .worker import Job, drive
 BLEND_RELATIVE = {"PATH_SUPPORTS_BLEND_RELATIVE"} if bpy.app.version >= (4, 5, 0) else set()
 
 
+def progress_lines(what):
+    """A progress callback for :func:`.worker.drive`: a line about every second, in
+    background mode only."""
+    t0 = last = time.perf_counter()
+
+    def line(item):
+        nonlocal last
+        now = time.perf_counter()
+        if bpy.app.background and now - last >= 1.0 and item[1] is not None:
+            last = now
+            print(f"occlusion {what}: {item[0]} {100 * item[1]:.0f}% ({now - t0:.1f} s)", flush=True)
+    return line
+
+
 # Events a modal operator lets through while it works: navigating the view changes no data.
 NAVIGATION = {"MIDDLEMOUSE", "WHEELUPMOUSE", "WHEELDOWNMOUSE", "TRACKPADPAN", "TRACKPADZOOM",
               "NDOF_MOTION", "MOUSEMOVE", "INBETWEEN_MOUSEMOVE"}
@@ -49,15 +63,7 @@ class Stepped:
 
     def run_steps(self, steps, what):
         """The steps at once (a script, or background mode)."""
-        t0 = last = time.perf_counter()
-
-        def line(item):
-            nonlocal last
-            now = time.perf_counter()
-            if bpy.app.background and now - last >= 1.0 and item[1] is not None:
-                last = now
-                print(f"occlusion {what}: {item[0]} {100 * item[1]:.0f}% ({now - t0:.1f} s)", flush=True)
-        return drive(steps, line)
+        return drive(steps, progress_lines(what))
 
     def modal(self, context, event):
         if event.type == "ESC" and event.value == "PRESS":
@@ -127,18 +133,14 @@ class OCC_OT_cull(Stepped, bpy.types.Operator):
         return self.start_steps(context, steps, "cull")
 
     def execute(self, context):
-        try:
-            _, display = camera_for(context)
-            self.run_steps(SESSION.prepare_steps(context, display), "cull")
-        except Exception as e:  # every failure is a report, never a traceback
-            return failed(self, e)
-        return self.finish(context, None)
+        return self.finish(context, None, progress_lines("cull"))
 
-    def finish(self, context, _):
-        """The pass itself, once the engine is built (it rebuilds what changed meanwhile)."""
+    def finish(self, context, _, progress=None):
+        """The pass (after a modal build, it finds the engine built, or rebuilds what
+        changed meanwhile)."""
         try:
             camera, display = camera_for(context)
-            SESSION.cull(context, camera, display, fresh=True)
+            SESSION.cull(context, camera, display, fresh=True, progress=progress)
             overlay.install()
         except Exception as e:  # every failure is a report, never a traceback
             return failed(self, e)

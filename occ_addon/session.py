@@ -161,11 +161,12 @@ class Session:
         _, res, shown = self._sizes(context, display)
         yield from self.engine_steps(context, res, context.scene.occ.strategy, verify=fresh, display=shown)
 
-    def compute(self, context, camera, display, fresh=True):
+    def compute(self, context, camera, display, fresh=True, progress=None):
         """Visibility from ``camera`` at ``display`` resolution, without hiding anything.
         ``fresh``: the strategy forgets earlier passes (a Cull click, a camera cut,
-        analyze); only a live pass right after a small view change keeps its memory."""
-        return drive(self.compute_steps(context, camera, display, fresh))
+        analyze); only a live pass right after a small view change keeps its memory.
+        ``progress``: called with the steps' ``(label, fraction)``."""
+        return drive(self.compute_steps(context, camera, display, fresh), progress)
 
     def compute_steps(self, context, camera, display, fresh=True):
         """:meth:`compute` in steps (see :meth:`engine_steps`)."""
@@ -180,13 +181,13 @@ class Session:
             forget()
         return self.worker.run(culler.cull, camera), objects
 
-    def cull(self, context, camera, display, fresh=False):
+    def cull(self, context, camera, display, fresh=False, progress=None):
         """One pass: cull from ``camera`` at ``display`` resolution and apply it."""
         settings = context.scene.occ
         t = time.perf_counter()
         visibility.reconcile()                 # what the user showed is the user's
         context.view_layer.update()            # edits still pending reach the handler now, not below
-        result, objects = self.compute(context, camera, display, fresh)
+        result, objects = self.compute(context, camera, display, fresh, progress)
         state = result.state
         culled = state != Visibility.VISIBLE
         protected = self.protected(context, objects, culled)
