@@ -298,7 +298,8 @@ def build_tree(boxes, builder="pHBVO", leaf_size=64, max_children=2, pull_up=Tru
     return tree
 
 
-PARTITION_BLOCK = 1 << 20  # items per step of a labelled partition's order: int64 temporaries of 8 MB
+PARTITION_BLOCK = 1 << 18  # items per step of a partition's order and labels: temporaries of 2 MB
+COMPRESS_ITEMS = 1 << 16   # up to here a two-way partition compresses (faster on few items than an order)
 
 
 class _Partitioner:
@@ -320,7 +321,7 @@ class _Partitioner:
 
     def __call__(self, s, e, labels):
         """Order ``[s, e)`` by ``labels`` (bool or uint8, stable); returns the part counts."""
-        if labels.dtype == bool:
+        if labels.dtype == bool and e - s <= COMPRESS_ITEMS:
             right = labels
             nl = len(right) - int(np.count_nonzero(right))
             left = ~right
@@ -330,13 +331,13 @@ class _Partitioner:
                 np.compress(right, seg, out=tmp[nl:])
                 seg[...] = tmp
             return np.array([nl, e - s - nl])
-        order, counts = _stable_order(labels)
+        order, counts = _stable_order(labels.view(np.uint8))
         for r in self.rows:
             seg, tmp = r[s:e], self._tmp(r, e - s)
             for b in range(0, e - s, PARTITION_BLOCK):
                 np.take(seg, order[b:b + PARTITION_BLOCK], out=tmp[b:b + PARTITION_BLOCK])
             seg[...] = tmp
-        return counts
+        return np.pad(counts, (0, 2 - len(counts))) if labels.dtype == bool else counts
 
 
 def _stable_order(labels):

@@ -82,11 +82,13 @@ def test_triangle_bounds_match_the_float64_triangles(dtype, monkeypatch):
 def test_chunking_is_the_one_of_the_whole_array_implementation(seed, builder, monkeypatch):
     """Blocked partitions and bounds cut a mesh into the very chunks (face order,
     ranges, boxes) that the whole-array argsort partition and float64 bounds give;
-    PLAN_ITEMS lowered so that pHBVO's planned levels (uint8 partitions) run."""
+    PLAN_ITEMS lowered so that pHBVO's planned levels (uint8 partitions) run, and
+    COMPRESS_ITEMS so that two-way splits take both of their paths."""
     v, f = grid_mesh(60, dtype=[np.float32, np.float64][seed % 2], seed=seed)
     scene = Scene.from_arrays(["a", "b"], [(v, f)], [0, 0], [np.eye(4)] * 2)
     monkeypatch.setattr(sd, "PLAN_ITEMS", 1500)
     monkeypatch.setattr(sd, "PARTITION_BLOCK", 333)
+    monkeypatch.setattr(sd, "COMPRESS_ITEMS", [100, 10**9][seed // 2])   # two-way splits by order, or compressed
     monkeypatch.setattr(units, "BLOCK", 500)
     new = chunks(scene, builder, 32)
     monkeypatch.setattr(sd._Partitioner, "__call__", reference_partition)
