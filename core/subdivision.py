@@ -323,9 +323,14 @@ class _Partitioner:
         """The first ``n`` entries of the scratch row for ``row``'s dtype (a view)."""
         return self.scratch[row.dtype.itemsize][:n * row.dtype.itemsize].view(row.dtype)
 
-    def __call__(self, s, e, labels):
-        """Order ``[s, e)`` by ``labels`` (bool or uint8, stable); returns the part counts."""
-        if labels.dtype == bool and e - s <= COMPRESS_ITEMS:
+    def __call__(self, s, e, labels, parts=None):
+        """Order ``[s, e)`` by ``labels`` (stable); returns the part counts.
+
+        labels: ``(e - s,)`` bool or uint8, or a function ``(a, b) -> (b - a,) uint8``
+        of the labels of items ``s + a`` to ``s + b``, called block by block (the
+        labels of the whole range are never held), with ``parts`` their count.
+        """
+        if not callable(labels) and labels.dtype == bool and e - s <= COMPRESS_ITEMS:
             right = labels
             nl = len(right) - int(np.count_nonzero(right))
             left = ~right
@@ -335,10 +340,18 @@ class _Partitioner:
                 np.compress(right, seg, out=tmp[nl:])
                 seg[...] = tmp
             return np.array([nl, e - s - nl])
+        if callable(labels):
+            label_of, k = labels, parts
+        else:
+            flat = labels.view(np.uint8)
+            k = int(flat.max()) + 1 if e > s else 1
+
+            def label_of(a, b):
+                return flat[a:b]
         # A counting sort by blocks: each block sorted on its own (a uint16 order, a
         # quarter of an int64 argsort's), then each block's run of each label
         # copied to that label's next free places.
-        local, counts = _block_orders(labels.view(np.uint8))
+        local, counts = _block_orders(label_of, e - s, k)
         total = counts.sum(axis=0)
         to = (np.cumsum(counts, axis=0) - counts + (np.cumsum(total) - total)).tolist()
         at = (np.cumsum(counts, axis=1) - counts).tolist()
@@ -351,18 +364,17 @@ class _Partitioner:
                     if c:
                         tmp[d:d + c] = block[a:a + c]
             seg[...] = tmp
-        return np.pad(total, (0, 2 - len(total))) if labels.dtype == bool else total
+        return total if callable(labels) or labels.dtype != bool else np.pad(total, (0, 2 - len(total)))
 
 
-def _block_orders(labels):
-    """Per block of ``PARTITION_BLOCK`` of uint8 ``labels`` ``(m,)``: its stable sort
-    as offsets in the block, ``(m,) uint16``, and its count of each label, ``(blocks, k)``."""
-    m = len(labels)
-    k = int(labels.max()) + 1 if m else 1
+def _block_orders(label_of, m, k):
+    """Per block of ``PARTITION_BLOCK`` of ``m`` items whose uint8 labels (< k) are
+    ``label_of(a, b)``: the block's stable sort as offsets in it, ``(m,) uint16``,
+    and its count of each label, ``(blocks, k)``."""
     local = np.empty(m, dtype=np.uint16)
     counts = np.empty((-(-m // PARTITION_BLOCK), k), dtype=np.int64)
     for i, b in enumerate(range(0, m, PARTITION_BLOCK)):
-        lb = labels[b:b + PARTITION_BLOCK]
+        lb = label_of(b, min(b + PARTITION_BLOCK, m))
         local[b:b + PARTITION_BLOCK] = np.argsort(lb, kind="stable")      # radix sort of a block
         counts[i] = np.bincount(lb, minlength=k)
     return local, counts
@@ -423,7 +435,8 @@ def _build(items, split, leaf_size, max_children, pull_up):
             # (inner nodes of a plan pull up nothing: their parts do).
             whole = _sah_plan(*_sample(lo[:, r:e], hi[:, r:e], PLAN_SAMPLE), e - r, PLAN_DEPTH)
             if whole is not None:
-                counts = partition(r, e, _classify(lo[:, r:e], hi[:, r:e], whole))
+                counts = partition(r, e, lambda a, b, lo=lo[:, r:e], hi=hi[:, r:e], plan=whole:
+                                   _classify(lo[:, a:b], hi[:, a:b], plan), _leaves(whole))
                 bounds = r + np.concatenate([[0], np.cumsum(np.pad(counts, (0, _leaves(whole) - len(counts))))])
                 placed = _placed(whole, bounds)
                 if placed[0] not in (r, e):

@@ -38,8 +38,10 @@ def reference_triangle_bounds(vertices, faces):
     return np.ascontiguousarray(lo32.T), np.ascontiguousarray(hi32.T)
 
 
-def reference_partition(self, s, e, labels):
+def reference_partition(self, s, e, labels, parts=None):
     """The partition as it was: a whole-range stable argsort, one take per row."""
+    if callable(labels):
+        labels = labels(0, e - s)                                 # the labels of the range at once
     order = np.argsort(labels, kind="stable")
     for r in self.rows:
         seg = r[s:e]
@@ -72,6 +74,18 @@ def test_labelled_partition_is_the_stable_argsort(n, monkeypatch):
             if parts == 2:
                 counts = sd._Partitioner(rows)(4, 4 + n, labels.astype(bool))
                 assert np.array_equal(counts, np.bincount(labels, minlength=2))
+            # labels made block by block by a function (pHBVO's planned levels)
+            rows = [np.arange(n, dtype=np.int32)]
+            asked = []
+
+            def label_of(a, b, lab=labels, seen=asked):
+                seen.append(b - a)
+                return lab[a:b]
+
+            counts = sd._Partitioner(rows)(0, n, label_of, parts)
+            assert np.array_equal(rows[0], np.argsort(labels, kind="stable"))
+            assert np.array_equal(counts, np.bincount(labels, minlength=parts))
+            assert max(asked) <= 64 and sum(asked) == n                  # never the whole range at once
 
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
