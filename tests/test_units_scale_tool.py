@@ -52,3 +52,23 @@ def test_engine_mode_traces_numpy_peaks(tmp_path):
     assert chunking["numpy_after_MB"] < chunking["numpy_peak_MB"]
     assert rows["first cull (all of the above)"]["numpy_peak_MB"] == max(
         r["numpy_peak_MB"] for r in rep["rows"] if "numpy_peak_MB" in r)
+
+
+def test_blender_mode_steps_of_the_first_cull(tmp_path):
+    """Blender mode on a small grid (real bpy, the add-on installed from its zip):
+    --steps times the first cull's extraction and engine steps, each with its peak;
+    the first cull's peak is the highest of its steps' and nothing is hidden wrongly."""
+    out = tmp_path / "blender.json"
+    p = subprocess.run([sys.executable, os.path.join(ROOT, "tools", "blender_scale.py"), "--only", "grid",
+                        "--vertices", "20000", "--turns", "1", "--steps", "--json", str(out)],
+                       cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stdout + p.stderr
+    (rep,) = json.loads(out.read_text())
+    rows = {r["phase"].strip(): r for r in rep["rows"]}
+    steps = ["extract: scene arrays", "engine: make_units (chunking)", "engine: build_hierarchy",
+             "engine: GLRenderer (upload)", "engine: pass"]
+    assert all(s in rows for s in steps), list(rows)
+    first = rows["first cull (extract, build, pass, hide)"]
+    assert first["peak_above_MB"] >= max(rows[s]["peak_above_MB"] for s in steps)
+    assert sum(rows[s]["seconds"] for s in steps) <= first["seconds"]
+    assert "false negatives 0" in first["note"] and rep["false_negatives"] == 0

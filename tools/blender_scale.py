@@ -69,6 +69,7 @@ def reset_peak():
 
 ENGINE_PROFILE = {"profile": None}       # the engine thread's profile of the phase running now
 TRACED_BASE = {"bytes": 0}               # traced bytes when tracing started (engine mode --numpy)
+PEAK_SEEN = {"bytes": 0}                 # the highest VmHWM read before a step reset it (see Step)
 
 
 class Phase:
@@ -83,6 +84,7 @@ class Phase:
 
     def __enter__(self):
         reset_peak()
+        PEAK_SEEN["bytes"] = 0
         if tracemalloc.is_tracing():
             self.traced = tracemalloc.get_traced_memory()[0]
             tracemalloc.reset_peak()
@@ -104,6 +106,7 @@ class Phase:
                 engine.dump_stats(os.path.join(self.profile_dir, f"{self.name}.engine.prof"))
         ENGINE_PROFILE["profile"] = None
         rss, peak = memory()
+        peak = max(peak, PEAK_SEEN["bytes"])          # steps inside reset the peak: theirs count
         row = {"phase": self.name, "seconds": dt, "cpu_seconds": cpu,
                "peak_above_MB": (peak - self.base) / MB, "after_above_MB": (rss - self.base) / MB}
         if tracemalloc.is_tracing():
@@ -111,6 +114,53 @@ class Phase:
             row["numpy_peak_MB"] = (traced_peak - TRACED_BASE["bytes"]) / MB
             row["numpy_after_MB"] = (traced - TRACED_BASE["bytes"]) / MB
         self.table.append(row)
+
+
+class Step:
+    """Wraps a function of the add-on (any thread): each call's time and peak
+    resident set above ``base`` become a row of ``table`` named ``"  " + name``; the
+    peak before the call is kept in ``PEAK_SEEN`` for the enclosing :class:`Phase`."""
+
+    def __init__(self, table, name, base):
+        self.table, self.name, self.base = table, name, base
+
+    def wrap(self, fn):
+        def call(*a, **k):
+            PEAK_SEEN["bytes"] = max(PEAK_SEEN["bytes"], memory()[1])
+            reset_peak()
+            t = time.perf_counter()
+            try:
+                return fn(*a, **k)
+            finally:
+                rss, peak = memory()
+                PEAK_SEEN["bytes"] = max(PEAK_SEEN["bytes"], peak)
+                self.table.append({"phase": f"  {self.name}", "seconds": time.perf_counter() - t,
+                                   "peak_above_MB": (peak - self.base) / MB,
+                                   "after_above_MB": (rss - self.base) / MB})
+        return call
+
+
+def step_addon(table, base):
+    """The first cull's steps as rows: the add-on's extraction (candidates, scene
+    arrays) and the engine's build (chunking, hierarchy, GL upload) and pass.
+    Returns a function that puts the add-on's own functions back."""
+    import importlib
+    extract, engine, gl = (importlib.import_module(f"bl_ext.user_default.{EXT_ID}.{m}")   # core.gl: lazily
+                           for m in ("occ_addon.extract", "core.engine", "core.gl"))       # imported otherwise
+    steps = [(extract.Extractor, "candidates", "extract: candidates"),
+             (extract.Extractor, "scene", "extract: scene arrays"),
+             (engine, "make_units", "engine: make_units (chunking)"),
+             (engine, "build_hierarchy", "engine: build_hierarchy"),
+             (gl, "GLRenderer", "engine: GLRenderer (upload)"),
+             (engine.Culler, "cull", "engine: pass")]
+    originals = [(owner, attr, getattr(owner, attr)) for owner, attr, _ in steps]
+    for owner, attr, name in steps:
+        setattr(owner, attr, Step(table, name, base).wrap(getattr(owner, attr)))
+
+    def undo():
+        for owner, attr, fn in originals:
+            setattr(owner, attr, fn)
+    return undo
 
 
 def print_table(title, rows):
@@ -409,10 +459,16 @@ def child_main(args):
             r = bpy.ops.occ.analyze(frame_start=1, frame_end=args.frames, filepath=out)
         rows[-1]["note"] = f"{r}"
     else:
+        steps = []
+        undo = step_addon(steps, base) if args.steps else None
         with Phase(rows, "first cull (extract, build, pass, hide)", base, prof):
             r = bpy.ops.occ.cull()
+        cull_row = rows[-1]
+        if undo is not None:              # the later passes are not stepped
+            undo()
+            rows += steps
         fn, hidden = _false_negatives(bpy)
-        rows[-1]["note"] = f"{r}, {hidden} hidden, false negatives {fn}"
+        cull_row["note"] = f"{r}, {hidden} hidden, false negatives {fn}"
         result.update(false_negatives=fn, hidden=hidden)
         times, cpus = [], []
         peak_before = memory()[1]
@@ -458,6 +514,9 @@ def blender_main(argv):
     ap.add_argument("--only", default="shared,unique,grid,analyze", help="scenes to run, comma-separated")
     ap.add_argument("--profile", help="a folder for cProfile output of each phase")
     ap.add_argument("--top", type=int, default=0, help="print the top N profile entries of each phase")
+    ap.add_argument("--steps", action="store_true",
+                    help="also time the first cull's steps (extraction, chunking, hierarchy, upload, "
+                         "pass), each with its peak resident set above the scene's own")
     ap.add_argument("--json", help="write every scene's rows here")
     ap.add_argument("--child", help=argparse.SUPPRESS)
     ap.add_argument("--zip", help=argparse.SUPPRESS)
