@@ -4,7 +4,8 @@ Builders over item boxes -- triangles inside a heavy mesh, or objects above
 them -- each returning a :class:`Tree` of flat arrays (breadth-first, root =
 node 0, the children of a node contiguous):
 
-- ``order``       ``(k,) int64`` permutation of the items; each node owns a
+- ``order``       ``(k,) int64`` permutation of the items (int32 for :class:`ItemBoxes`
+                  below 2**31 items); each node owns a
                   contiguous range ``order[item_start : item_start + item_count]``;
 - ``bounds``      ``(N, 2, 3) float64``: union of the node's own items and children (tight);
 - ``first_child`` / ``child_count`` / ``parent`` / ``depth``: ``(N,) int64``;
@@ -25,9 +26,13 @@ stay at that node instead of inflating every box below (``pull_up``).  Binary
 trees collapse into ``max_children``-ary ones by opening the largest child.
 
 Memory: items are axis-major corner arrays reordered in place (a node is a
-range of them, split by stable partitions through one scratch row per dtype);
-a heavy mesh hands in float32 corners as :class:`ItemBoxes` and nothing of the
-size of its triangles is copied.  pHBVO decides ``PLAN_DEPTH`` levels at once
+range of them, split by stable partitions through one scratch row per item size;
+a labelled split sorts by blocks of ``PARTITION_BLOCK`` items, each with its own
+uint16 order, so no int64 order of a node's length is made); a heavy mesh hands
+in float32 corners as :class:`ItemBoxes` and nothing of the size of its
+triangles is copied: at 20 M triangles the build peaks at 1.46 x the corners'
+own size (the corners, the int32 item order, the scratch row, a split's labels
+and block orders).  pHBVO decides ``PLAN_DEPTH`` levels at once
 above ``PLAN_ITEMS`` items, so large nodes move their items once per three levels.
 """
 
@@ -184,19 +189,25 @@ def _leaves(plan):
     return 1 if plan is None else _leaves(plan[2]) + _leaves(plan[3])
 
 
-def _classify(lo, hi, plan, labels=None, first=0):
-    """Part of each item in a plan's parts (numbered depth first): ``(m,) uint8``."""
-    if labels is None:
-        labels = np.zeros(lo.shape[1], dtype=np.uint8)
+def _classify(lo, hi, plan):
+    """Part of each item in a plan's parts (numbered depth first): ``(m,) uint8``,
+    found in blocks of ``PARTITION_BLOCK`` items (temporaries of a few MB)."""
+    labels = np.zeros(lo.shape[1], dtype=np.uint8)
+    for b in range(0, len(labels), PARTITION_BLOCK):
+        _classify_block(lo[:, b:b + PARTITION_BLOCK], hi[:, b:b + PARTITION_BLOCK], plan,
+                        labels[b:b + PARTITION_BLOCK], 0)
+    return labels
+
+
+def _classify_block(lo, hi, plan, labels, first):
     if plan is not None:
         axis, position, left, right = plan
         go = labels == first                     # the items of this part of the plan so far
-        go &= _centre(lo, hi, axis) >= position  # one axis's centres at a time: memory over speed
+        go &= _centre(lo, hi, axis) >= position  # one axis's centres at a time
         np.add(labels, _leaves(left), out=labels, where=go)
         del go
-        _classify(lo, hi, left, labels, first)
-        _classify(lo, hi, right, labels, first + _leaves(left))
-    return labels
+        _classify_block(lo, hi, left, labels, first)
+        _classify_block(lo, hi, right, labels, first + _leaves(left))
 
 
 def _placed(plan, bounds, first=0):
@@ -254,7 +265,8 @@ def build_tree(boxes, builder="pHBVO", leaf_size=64, max_children=2, pull_up=Tru
     """A subdivision of items (k >= 1); see the module doc.
 
     boxes: ``(k, 2, 3)`` item boxes, or :class:`ItemBoxes` whose corner arrays
-    the build reorders in place into the tree's item order (no copy of them).
+    the build reorders in place into the tree's item order (no copy of them); the
+    tree's ``order`` is then int32 where ``k < 2**31`` (no int64 copy of it).
     """
     t0 = time.perf_counter()
     if isinstance(boxes, ItemBoxes):
@@ -284,47 +296,101 @@ def build_tree(boxes, builder="pHBVO", leaf_size=64, max_children=2, pull_up=Tru
         if sah_cost(balanced) < sah_cost(tree):
             tree = balanced
             items.lo[...], items.hi[...] = other.lo, other.hi
+    if not isinstance(boxes, ItemBoxes):
+        tree.order = tree.order.astype(np.int64)
     tree.build_seconds = time.perf_counter() - t0
     return tree
 
 
+PARTITION_BLOCK = 1 << 16  # items per block of a labelled partition: a block's own order fits uint16
+COMPRESS_ITEMS = 1 << 16   # up to here a two-way partition compresses (faster on few items than by blocks)
+
+
 class _Partitioner:
     """Stable in-place partitions of ranges of the item arrays (corners and order),
-    through one scratch row per dtype: a node's items move, nothing is copied whole."""
+    through one scratch row per item size (float32 corners and int32 indices share
+    it): a node's items move, nothing is copied whole."""
 
     def __init__(self, rows):
         self.rows = rows
         self.scratch = {}
         for r in rows:
-            if r.dtype not in self.scratch:
-                self.scratch[r.dtype] = np.empty(len(r), dtype=r.dtype)
+            size = r.dtype.itemsize
+            if size not in self.scratch:
+                self.scratch[size] = np.empty(len(r) * size, dtype=np.uint8)
 
-    def __call__(self, s, e, labels):
-        """Order ``[s, e)`` by ``labels`` (bool or uint8, stable); returns the part counts."""
-        if labels.dtype == bool:
+    def _tmp(self, row, n):
+        """The first ``n`` entries of the scratch row for ``row``'s dtype (a view)."""
+        return self.scratch[row.dtype.itemsize][:n * row.dtype.itemsize].view(row.dtype)
+
+    def __call__(self, s, e, labels, parts=None):
+        """Order ``[s, e)`` by ``labels`` (stable); returns the part counts.
+
+        labels: ``(e - s,)`` bool or uint8, or a function ``(a, b) -> (b - a,) uint8``
+        of the labels of items ``s + a`` to ``s + b``, called block by block (the
+        labels of the whole range are never held), with ``parts`` their count.
+        """
+        if not callable(labels) and labels.dtype == bool and e - s <= COMPRESS_ITEMS:
             right = labels
             nl = len(right) - int(np.count_nonzero(right))
             left = ~right
             for r in self.rows:
-                seg, tmp = r[s:e], self.scratch[r.dtype]
+                seg, tmp = r[s:e], self._tmp(r, e - s)
                 np.compress(left, seg, out=tmp[:nl])
-                np.compress(right, seg, out=tmp[nl:e - s])
-                seg[...] = tmp[:e - s]
+                np.compress(right, seg, out=tmp[nl:])
+                seg[...] = tmp
             return np.array([nl, e - s - nl])
-        order = np.argsort(labels, kind="stable")          # radix sort of uint8 labels
+        if callable(labels):
+            label_of, k = labels, parts
+        else:
+            flat = labels.view(np.uint8)
+            k = int(flat.max()) + 1 if e > s else 1
+
+            def label_of(a, b):
+                return flat[a:b]
+        # A counting sort by blocks: each block sorted on its own (a uint16 order, a
+        # quarter of an int64 argsort's), then each block's run of each label
+        # copied to that label's next free places.
+        local, counts = _block_orders(label_of, e - s, k)
+        total = counts.sum(axis=0)
+        to = (np.cumsum(counts, axis=0) - counts + (np.cumsum(total) - total)).tolist()
+        at = (np.cumsum(counts, axis=1) - counts).tolist()
+        runs = counts.tolist()
         for r in self.rows:
-            seg, tmp = r[s:e], self.scratch[r.dtype][:e - s]
-            np.take(seg, order, out=tmp)
+            seg, tmp = r[s:e], self._tmp(r, e - s)
+            for i, b in enumerate(range(0, e - s, PARTITION_BLOCK)):
+                block = seg[b:b + PARTITION_BLOCK][local[b:b + PARTITION_BLOCK]]
+                for d, a, c in zip(to[i], at[i], runs[i], strict=True):
+                    if c:
+                        tmp[d:d + c] = block[a:a + c]
             seg[...] = tmp
-        return np.bincount(labels)
+        return total if callable(labels) or labels.dtype != bool else np.pad(total, (0, 2 - len(total)))
 
 
-def _longest_side(lo, hi):
-    """Longest side of each item, ``(m,)``."""
-    size = hi[0] - lo[0]
-    for a in (1, 2):
-        np.maximum(size, hi[a] - lo[a], out=size)
-    return size
+def _block_orders(label_of, m, k):
+    """Per block of ``PARTITION_BLOCK`` of ``m`` items whose uint8 labels (< k) are
+    ``label_of(a, b)``: the block's stable sort as offsets in it, ``(m,) uint16``,
+    and its count of each label, ``(blocks, k)``."""
+    local = np.empty(m, dtype=np.uint16)
+    counts = np.empty((-(-m // PARTITION_BLOCK), k), dtype=np.int64)
+    for i, b in enumerate(range(0, m, PARTITION_BLOCK)):
+        lb = label_of(b, min(b + PARTITION_BLOCK, m))
+        local[b:b + PARTITION_BLOCK] = np.argsort(lb, kind="stable")      # radix sort of a block
+        counts[i] = np.bincount(lb, minlength=k)
+    return local, counts
+
+
+def _longer_than(lo, hi, limit):
+    """Whether each item's longest side exceeds ``limit``: ``(m,) bool``, found in
+    blocks of ``PARTITION_BLOCK`` items (temporaries of a few MB)."""
+    out = np.empty(lo.shape[1], dtype=bool)
+    for b in range(0, len(out), PARTITION_BLOCK):
+        lb, hb = lo[:, b:b + PARTITION_BLOCK], hi[:, b:b + PARTITION_BLOCK]
+        size = hb[0] - lb[0]
+        for a in (1, 2):
+            np.maximum(size, hb[a] - lb[a], out=size)
+        np.greater(size, limit, out=out[b:b + PARTITION_BLOCK])
+    return out
 
 
 def _build(items, split, leaf_size, max_children, pull_up):
@@ -356,19 +422,21 @@ def _build(items, split, leaf_size, max_children, pull_up):
             continue
         rest, r = nb, s
         if pull_up and e - s > leaf_size:
-            big = _longest_side(lo[:, s:e], hi[:, s:e]) > PULL_UP * (nb[MAX] - nb[MIN]).max()
+            big = _longer_than(lo[:, s:e], hi[:, s:e], PULL_UP * (nb[MAX] - nb[MIN]).max())
             nbig = int(np.count_nonzero(big))
             if 0 < nbig < e - s:
                 partition(s, e, ~big)              # the big items first: the node owns them
                 own[node] = (s, nbig)
                 r = s + nbig
                 rest = _box(lo[:, r:e], hi[:, r:e])
+            del big                                # a byte an item: gone before the split's temporaries
         if split is _split_sah and e - r > PLAN_ITEMS:
             # Several levels from one sample, the items moved once for all of them
             # (inner nodes of a plan pull up nothing: their parts do).
             whole = _sah_plan(*_sample(lo[:, r:e], hi[:, r:e], PLAN_SAMPLE), e - r, PLAN_DEPTH)
             if whole is not None:
-                counts = partition(r, e, _classify(lo[:, r:e], hi[:, r:e], whole))
+                counts = partition(r, e, lambda a, b, lo=lo[:, r:e], hi=hi[:, r:e], plan=whole:
+                                   _classify(lo[:, a:b], hi[:, a:b], plan), _leaves(whole))
                 bounds = r + np.concatenate([[0], np.cumsum(np.pad(counts, (0, _leaves(whole) - len(counts))))])
                 placed = _placed(whole, bounds)
                 if placed[0] not in (r, e):
@@ -386,8 +454,8 @@ def _build(items, split, leaf_size, max_children, pull_up):
             stack.append((int(starts[part]), int(starts[part] + counts[part]), node, None))
     if max_children > 2:
         _collapse(kids, own, box, max_children)
-    del partition                                  # its scratch rows go before the int64 order comes
-    return _flatten(own, kids, box, perm.astype(np.int64))
+    del partition                                  # its scratch rows go before the tree is flattened
+    return _flatten(own, kids, box, perm)
 
 
 def _collapse(kids, own, box, max_children):

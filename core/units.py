@@ -60,24 +60,29 @@ def triangle_bounds(vertices, faces):
     memory), built in blocks of ``BLOCK`` triangles with temporaries of a few MB.
 
     Conservative: every vertex coordinate is rounded outward to float32 (down for
-    ``lo``, up for ``hi``), so each box contains its float64 triangle.
+    ``lo``, up for ``hi``), so each box contains its float64 triangle.  float32
+    vertices (Blender's) are exact as they are and are gathered from directly, with
+    no copy of them; others go through two outward-rounded float32 copies ``(v, 3)``.
     """
     v = np.asarray(vertices)
-    f = np.ascontiguousarray(faces)
-    down = np.empty((3, len(v)), dtype=np.float32)   # axis-major: one flat gather per axis
-    up = np.empty((3, len(v)), dtype=np.float32)
-    with np.errstate(over="ignore", invalid="ignore"):     # beyond float32's range: inf, refused by the builder
-        for s in range(0, len(v), BLOCK):
-            down[:, s:s + BLOCK], up[:, s:s + BLOCK] = _outward(v[s:s + BLOCK].T)
+    f = np.asarray(faces)
+    if v.dtype == np.float32:
+        down = up = v
+    else:
+        down = np.empty((len(v), 3), dtype=np.float32)
+        up = np.empty((len(v), 3), dtype=np.float32)
+        with np.errstate(over="ignore", invalid="ignore"):     # beyond float32's range: inf, refused by the builder
+            for s in range(0, len(v), BLOCK):
+                down[s:s + BLOCK], up[s:s + BLOCK] = _outward(v[s:s + BLOCK])
     lo = np.empty((3, len(f)), dtype=np.float32)
     hi = np.empty((3, len(f)), dtype=np.float32)
     for s in range(0, len(f), BLOCK):
         corner = f[s:s + BLOCK].T.ravel()            # (3b,) vertex indices, corner-major
-        for k in range(3):
-            g = np.take(down[k], corner).reshape(3, -1)
-            np.minimum(np.minimum(g[0], g[1]), g[2], out=lo[k, s:s + BLOCK])
-            g = np.take(up[k], corner).reshape(3, -1)
-            np.maximum(np.maximum(g[0], g[1]), g[2], out=hi[k, s:s + BLOCK])
+        g = np.take(down, corner, axis=0).reshape(3, -1, 3)      # (corner, triangle, axis)
+        lo[:, s:s + BLOCK] = np.minimum(np.minimum(g[0], g[1]), g[2]).T
+        if up is not down:
+            g = np.take(up, corner, axis=0).reshape(3, -1, 3)
+        hi[:, s:s + BLOCK] = np.maximum(np.maximum(g[0], g[1]), g[2]).T
     return lo, hi
 
 
@@ -141,7 +146,7 @@ def _chunk_mesh(v, f, build_tree):
     hi[by_start] = np.maximum.reduceat(items.hi, first[by_start], axis=1).T
     # item i of the chunk tree (as the hierarchy sees it) is chunk i; the face order,
     # kept as long as the mesh is, in 4 bytes a triangle where they suffice
-    order = tree.order.astype(np.int32) if len(tree.order) < 2**31 else tree.order
+    order = tree.order.astype(np.int32, copy=False) if len(tree.order) < 2**31 else tree.order
     return order, first, count, np.stack([lo, hi], axis=1), _tree_over_chunks(tree, owners)
 
 

@@ -1,7 +1,7 @@
 """Scale scenes in real Blender (bpy from PyPI) and in the engine alone, timed phase by phase.
 
     .venv/bin/python tools/blender_scale.py [--quick] [--objects N] [--vertices V] [--only S,..]
-    .venv/bin/python tools/blender_scale.py engine [--vertices V] [--profile OUT]
+    .venv/bin/python tools/blender_scale.py engine [--vertices V] [--profile OUT] [--numpy]
 
 Blender mode builds the add-on's zip (``tools/build_extension.py --no-wheels``),
 installs it into an isolated ``BLENDER_USER_RESOURCES`` (as the Blender tests
@@ -22,7 +22,9 @@ writes a cProfile of each phase.
 Engine mode is the same grid without Blender: a ``core.Scene`` of one grid
 mesh, timed through ``make_units`` (chunking), the hierarchy, the GL upload
 and the first pass, with the peak memory of each phase above the scene's own
-arrays.
+arrays; ``--numpy`` adds each phase's peak of traced allocations (numpy's
+arrays, through ``tracemalloc``), which the allocator's caching of freed memory
+does not blur.
 """
 
 import argparse
@@ -34,6 +36,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import tracemalloc
 
 import numpy as np
 
@@ -65,18 +68,26 @@ def reset_peak():
 
 
 ENGINE_PROFILE = {"profile": None}       # the engine thread's profile of the phase running now
+TRACED_BASE = {"bytes": 0}               # traced bytes when tracing started (engine mode --numpy)
+PEAK_SEEN = {"bytes": 0}                 # the highest VmHWM read before a step reset it (see Step)
 
 
 class Phase:
-    """Times a block and records its peak resident set above ``base`` bytes; with a
-    profile folder, writes ``<name>.prof`` (this thread) and ``<name>.engine.prof``
-    (the add-on's engine thread, see :func:`profile_engine_thread`)."""
+    """Times a block and records its peak resident set above ``base`` bytes (and,
+    while ``tracemalloc`` traces, the peak of traced allocations -- numpy's
+    included -- above those held when it started, which no allocator's caching
+    blurs); with a profile folder, writes ``<name>.prof`` (this thread) and
+    ``<name>.engine.prof`` (the add-on's engine thread, see :func:`profile_engine_thread`)."""
 
     def __init__(self, table, name, base, profile_dir=None):
         self.table, self.name, self.base, self.profile_dir = table, name, base, profile_dir
 
     def __enter__(self):
         reset_peak()
+        PEAK_SEEN["bytes"] = 0
+        if tracemalloc.is_tracing():
+            self.traced = tracemalloc.get_traced_memory()[0]
+            tracemalloc.reset_peak()
         self.prof = cProfile.Profile() if self.profile_dir else None
         ENGINE_PROFILE["profile"] = cProfile.Profile() if self.profile_dir else None
         if self.prof:
@@ -95,17 +106,78 @@ class Phase:
                 engine.dump_stats(os.path.join(self.profile_dir, f"{self.name}.engine.prof"))
         ENGINE_PROFILE["profile"] = None
         rss, peak = memory()
-        self.table.append({"phase": self.name, "seconds": dt, "cpu_seconds": cpu,
-                           "peak_above_MB": (peak - self.base) / MB, "after_above_MB": (rss - self.base) / MB})
+        peak = max(peak, PEAK_SEEN["bytes"])          # steps inside reset the peak: theirs count
+        row = {"phase": self.name, "seconds": dt, "cpu_seconds": cpu,
+               "peak_above_MB": (peak - self.base) / MB, "after_above_MB": (rss - self.base) / MB}
+        if tracemalloc.is_tracing():
+            traced, traced_peak = tracemalloc.get_traced_memory()
+            row["numpy_peak_MB"] = (traced_peak - TRACED_BASE["bytes"]) / MB
+            row["numpy_after_MB"] = (traced - TRACED_BASE["bytes"]) / MB
+        self.table.append(row)
+
+
+class Step:
+    """Wraps a function of the add-on (any thread): each call's time and peak
+    resident set above ``base`` become a row of ``table`` named ``"  " + name``; the
+    peak before the call is kept in ``PEAK_SEEN`` for the enclosing :class:`Phase`."""
+
+    def __init__(self, table, name, base):
+        self.table, self.name, self.base = table, name, base
+
+    def wrap(self, fn):
+        def call(*a, **k):
+            PEAK_SEEN["bytes"] = max(PEAK_SEEN["bytes"], memory()[1])
+            reset_peak()
+            t = time.perf_counter()
+            try:
+                return fn(*a, **k)
+            finally:
+                rss, peak = memory()
+                PEAK_SEEN["bytes"] = max(PEAK_SEEN["bytes"], peak)
+                self.table.append({"phase": f"  {self.name}", "seconds": time.perf_counter() - t,
+                                   "peak_above_MB": (peak - self.base) / MB,
+                                   "after_above_MB": (rss - self.base) / MB})
+        return call
+
+
+def step_addon(table, base):
+    """The first cull's steps as rows: the add-on's extraction (candidates, scene
+    arrays) and the engine's build (chunking, hierarchy, GL upload) and pass.
+    Returns a function that puts the add-on's own functions back."""
+    import importlib
+    extract, engine, gl = (importlib.import_module(f"bl_ext.user_default.{EXT_ID}.{m}")   # core.gl: lazily
+                           for m in ("occ_addon.extract", "core.engine", "core.gl"))       # imported otherwise
+    steps = [(extract.Extractor, "candidates", "extract: candidates"),
+             (extract.Extractor, "scene", "extract: scene arrays"),
+             (engine, "make_units", "engine: make_units (chunking)"),
+             (engine, "build_hierarchy", "engine: build_hierarchy"),
+             (gl, "GLRenderer", "engine: GLRenderer (upload)"),
+             (engine.Culler, "cull", "engine: pass")]
+    originals = [(owner, attr, getattr(owner, attr)) for owner, attr, _ in steps]
+    for owner, attr, name in steps:
+        setattr(owner, attr, Step(table, name, base).wrap(getattr(owner, attr)))
+
+    def undo():
+        for owner, attr, fn in originals:
+            setattr(owner, attr, fn)
+    return undo
 
 
 def print_table(title, rows):
+    traced = any("numpy_peak_MB" in r for r in rows)
     print(f"\n{title}")
-    print(f"{'phase':<42}{'seconds':>9}{'CPU s':>8}{'peak above (MB)':>17}{'after (MB)':>12}")
+    print(f"{'phase':<42}{'seconds':>9}{'CPU s':>8}{'peak above (MB)':>17}{'after (MB)':>12}"
+          + (f"{'numpy peak':>12}{'numpy after':>13}" if traced else ""))
     for r in rows:
         extra = f"  {r['note']}" if r.get("note") else ""
         cpu = f"{r['cpu_seconds']:>8.2f}" if "cpu_seconds" in r else f"{'':>8}"
-        print(f"{r['phase']:<42}{r['seconds']:>9.3f}{cpu}{r['peak_above_MB']:>17.0f}{r['after_above_MB']:>12.0f}{extra}")
+        if traced:
+            cpu_extra = (f"{r['numpy_peak_MB']:>12.0f}{r['numpy_after_MB']:>13.0f}" if "numpy_peak_MB" in r
+                         else f"{'':>25}")
+        else:
+            cpu_extra = ""
+        print(f"{r['phase']:<42}{r['seconds']:>9.3f}{cpu}{r['peak_above_MB']:>17.0f}{r['after_above_MB']:>12.0f}"
+              f"{cpu_extra}{extra}")
 
 
 def print_profile(path, top=25):
@@ -168,6 +240,9 @@ def engine_main(args):
     cam = Camera.look_at([-30.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 1.0], fov_y_deg=60.0,
                          aspect=16 / 9, near=0.1, far=200.0)
     reset_peak()
+    if args.numpy:
+        tracemalloc.start()
+        TRACED_BASE["bytes"] = tracemalloc.get_traced_memory()[0]
     t0, cpu0 = time.perf_counter(), time.process_time()
     culler = core.Culler(scene, (640, 360), chunk_triangles=args.chunk_triangles)
     with Phase(rows, "first pass", base, prof):
@@ -175,6 +250,9 @@ def engine_main(args):
     total, cpu_total = time.perf_counter() - t0, time.process_time() - cpu0
     _, peak = memory()          # the peak since the Culler started (each phase reset it)
     peaks = max(r["peak_above_MB"] for r in rows)
+    numpy_peak = max((r["numpy_peak_MB"] for r in rows if "numpy_peak_MB" in r), default=None)
+    if tracemalloc.is_tracing():
+        tracemalloc.stop()                  # the turns below are timed untraced
     turn = []
     for k in range(args.turns):
         a = 0.01 * (k + 1)
@@ -187,7 +265,9 @@ def engine_main(args):
     missed = int((truth & ~res.visible).sum())
     rows.append({"phase": "first cull (all of the above)", "seconds": total, "cpu_seconds": cpu_total,
                  "peak_above_MB": peaks,
-                 "after_above_MB": (memory()[0] - base) / MB})
+                 "after_above_MB": (memory()[0] - base) / MB,
+                 **({"numpy_peak_MB": numpy_peak, "numpy_after_MB": rows[-1]["numpy_after_MB"]}
+                    if numpy_peak is not None else {})})
     rows.append({"phase": f"pass after 0.01 rad turn (median {args.turns})", "seconds": float(np.median(turn)),
                  "peak_above_MB": float("nan"), "after_above_MB": (memory()[0] - base) / MB})
     print_table(f"engine, one grid mesh of {len(v):,} vertices / {len(f):,} triangles "
@@ -379,10 +459,16 @@ def child_main(args):
             r = bpy.ops.occ.analyze(frame_start=1, frame_end=args.frames, filepath=out)
         rows[-1]["note"] = f"{r}"
     else:
+        steps = []
+        undo = step_addon(steps, base) if args.steps else None
         with Phase(rows, "first cull (extract, build, pass, hide)", base, prof):
             r = bpy.ops.occ.cull()
+        cull_row = rows[-1]
+        if undo is not None:              # the later passes are not stepped
+            undo()
+            rows += steps
         fn, hidden = _false_negatives(bpy)
-        rows[-1]["note"] = f"{r}, {hidden} hidden, false negatives {fn}"
+        cull_row["note"] = f"{r}, {hidden} hidden, false negatives {fn}"
         result.update(false_negatives=fn, hidden=hidden)
         times, cpus = [], []
         peak_before = memory()[1]
@@ -428,6 +514,9 @@ def blender_main(argv):
     ap.add_argument("--only", default="shared,unique,grid,analyze", help="scenes to run, comma-separated")
     ap.add_argument("--profile", help="a folder for cProfile output of each phase")
     ap.add_argument("--top", type=int, default=0, help="print the top N profile entries of each phase")
+    ap.add_argument("--steps", action="store_true",
+                    help="also time the first cull's steps (extraction, chunking, hierarchy, upload, "
+                         "pass), each with its peak resident set above the scene's own")
     ap.add_argument("--json", help="write every scene's rows here")
     ap.add_argument("--child", help=argparse.SUPPRESS)
     ap.add_argument("--zip", help=argparse.SUPPRESS)
@@ -473,6 +562,10 @@ def main(argv=None):
         ap.add_argument("--turns", type=int, default=5)
         ap.add_argument("--profile", help="a folder for cProfile output of each phase")
         ap.add_argument("--top", type=int, default=20)
+        ap.add_argument("--numpy", action="store_true",
+                        help="also trace allocations (tracemalloc: numpy's arrays) per phase, above those "
+                             "held before the engine; exact where resident sizes keep freed memory, "
+                             "but slower: compare times without it")
         ap.add_argument("--json")
         args = ap.parse_args(argv[1:])
         if args.profile:
