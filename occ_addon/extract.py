@@ -505,7 +505,7 @@ def _mesh_fingerprint(mesh, memo):
     hit = memo.get(key)
     if hit is None:
         co = positions(mesh)
-        hit = memo[key] = (len(mesh.vertices), len(mesh.polygons), zlib.crc32(co.tobytes()))
+        hit = memo[key] = (len(mesh.vertices), len(mesh.polygons), zlib.crc32(co))
     return hit
 
 

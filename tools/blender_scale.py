@@ -124,19 +124,35 @@ class Step:
     def __init__(self, table, name, base):
         self.table, self.name, self.base = table, name, base
 
+    def _begin(self):
+        PEAK_SEEN["bytes"] = max(PEAK_SEEN["bytes"], memory()[1])
+        reset_peak()
+        return time.perf_counter()
+
+    def _end(self, t):
+        rss, peak = memory()
+        PEAK_SEEN["bytes"] = max(PEAK_SEEN["bytes"], peak)
+        self.table.append({"phase": f"  {self.name}", "seconds": time.perf_counter() - t,
+                           "peak_above_MB": (peak - self.base) / MB,
+                           "after_above_MB": (rss - self.base) / MB})
+
     def wrap(self, fn):
         def call(*a, **k):
-            PEAK_SEEN["bytes"] = max(PEAK_SEEN["bytes"], memory()[1])
-            reset_peak()
-            t = time.perf_counter()
+            t = self._begin()
             try:
                 return fn(*a, **k)
             finally:
-                rss, peak = memory()
-                PEAK_SEEN["bytes"] = max(PEAK_SEEN["bytes"], peak)
-                self.table.append({"phase": f"  {self.name}", "seconds": time.perf_counter() - t,
-                                   "peak_above_MB": (peak - self.base) / MB,
-                                   "after_above_MB": (rss - self.base) / MB})
+                self._end(t)
+        return call
+
+    def wrap_steps(self, fn):
+        """The same for a generator of steps (the add-on's modal work): its whole run."""
+        def call(*a, **k):
+            t = self._begin()
+            try:
+                return (yield from fn(*a, **k))
+            finally:
+                self._end(t)
         return call
 
 
@@ -148,14 +164,15 @@ def step_addon(table, base):
     extract, engine, gl = (importlib.import_module(f"bl_ext.user_default.{EXT_ID}.{m}")   # core.gl: lazily
                            for m in ("occ_addon.extract", "core.engine", "core.gl"))       # imported otherwise
     steps = [(extract.Extractor, "candidates", "extract: candidates"),
-             (extract.Extractor, "scene", "extract: scene arrays"),
+             (extract.Extractor, "scene_steps", "extract: scene arrays"),
              (engine, "make_units", "engine: make_units (chunking)"),
              (engine, "build_hierarchy", "engine: build_hierarchy"),
              (gl, "GLRenderer", "engine: GLRenderer (upload)"),
              (engine.Culler, "cull", "engine: pass")]
     originals = [(owner, attr, getattr(owner, attr)) for owner, attr, _ in steps]
     for owner, attr, name in steps:
-        setattr(owner, attr, Step(table, name, base).wrap(getattr(owner, attr)))
+        step = Step(table, name, base)
+        setattr(owner, attr, (step.wrap_steps if attr.endswith("_steps") else step.wrap)(getattr(owner, attr)))
 
     def undo():
         for owner, attr, fn in originals:
