@@ -35,7 +35,11 @@ less before a query can only make it say "visible" more often.
                of the frustum tested in one batch, the nearer half of those that pass
                drawn and the rest tested once more (a handful of GL calls a pass);
                after a camera cut, an ``om_multi`` pass.
-- ``auto``     the default candidate: ``om_coherent`` where occlusion tests pay on this
+- ``gpu``      GPU-resident two passes: the units' boxes and matrices on the GPU, three
+               compute dispatches and four indirect draws whose commands the GPU writes,
+               one read-back a pass (:mod:`core.gl.gpucull`); ``om_coherent`` on the
+               4.1 path.
+- ``auto``     the default candidate: ``gpu`` where occlusion tests pay on this
                machine (costs measured), frustum culling alone where they cannot.
 - ``oracle``   draws exactly the ground-truth set, no queries: the physical limit.
 """
@@ -427,10 +431,125 @@ class TwoPass(Strategy):
         frame.draw_leaves(second[visible])
 
 
+class Gpu(Strategy):
+    """GPU-resident two passes (nvpro's temporal culling, zeux's niagara): the units'
+    boxes and matrices live on the GPU; a pass is three compute dispatches, two
+    multi-draw-indirect draws and two box-test draws whose commands the GPU writes,
+    and ONE read-back of every unit's state (:mod:`core.gl.gpucull`).  Pass 1 draws
+    last pass's visible units (and those at the near plane); every other unit of
+    the frustum is tested against that depth; those that pass are drawn in pass 2;
+    every drawn unit is tested again against the completed depth, which gives the
+    states and the next pass's memory.  No per-node Python work in steady state.
+
+    After a camera cut (:func:`camera_cut`), a ``reset()`` (objects moved) or on the
+    first pass, there is no memory: the pass is an ``om_coherent`` pass without
+    memory (the occupancy map finds the first occluders), whose visible units the
+    GPU then remembers.  Conservative: a unit is OCCLUDED only when its grown box
+    (the engine's guard) passed no sample against depth real geometry wrote.
+
+    Falls back to ``om_coherent`` where the GPU path cannot run: the OpenGL 4.1 path
+    (``OCC_GL=4.1``, macOS: no compute shaders, storage buffers or indirect draws),
+    a ``visible_threshold`` above 0 (sample counts, not flags), or a driver whose
+    compiler refuses the shaders (float64 in shaders is required); ``reason`` says
+    which.  A display resolution above the query resolution is honoured (the whole
+    depth is reduced before each test).
+    """
+
+    def __init__(self, max_tests=8):
+        self.fallback = OmMulti(max_tests, coherent=True, read_budget=COHERENT_READS)
+        self.fresh = OmMulti(max_tests, coherent=True, read_budget=COHERENT_READS)
+        self.gpu = None
+        self.reason = None
+        self.uploaded_for = None          # (hierarchy, its bounds array) the GPU's boxes come from
+        self.remembered = False
+        self.last_camera = None
+
+    def reset(self):
+        self.uploaded_for = None
+        self.remembered = False
+        self.last_camera = None
+        self.fallback.reset()
+
+    forget = reset
+
+    def _unusable(self, frame):
+        """Why this frame cannot run on the GPU path, or None."""
+        if getattr(frame.r, "path", None) != "4.3":
+            return "the OpenGL 4.1 path has no compute shaders, storage buffers or indirect draws"
+        if frame.threshold > 0:
+            return "a visible threshold above 0 needs sample counts"
+        return None
+
+    def _culler(self, frame):
+        """The GPU side for this frame's renderer (made once per renderer), or None."""
+        if self.gpu is not None and self.gpu.r is frame.r:
+            return self.gpu
+        from .gl.gpucull import for_renderer
+        gpu, self.reason = for_renderer(frame.r)
+        self.gpu, self.uploaded_for, self.remembered = gpu, None, False
+        return gpu
+
+    def __call__(self, frame, chunk=16, truth=None):
+        self.reason = self._unusable(frame) or self.reason
+        gpu = None if self.reason else self._culler(frame)
+        if gpu is None:
+            self.fallback(frame, chunk)
+            return
+        h = frame.h
+        if self.uploaded_for is None or self.uploaded_for[0] is not h or self.uploaded_for[1] is not h.bounds:
+            self._upload(frame, gpu)
+        if not self.remembered:
+            frame.stats["fresh"] = 1
+            self.fresh.reset()
+            self.fresh(frame, chunk)                 # no memory: the occupancy map's pass
+            gpu.remember(frame.state == Visibility.VISIBLE)
+            self.remembered = True
+            return
+        t = time.perf_counter()
+        pixels = max(frame.options.pixel_guard, tol.query_guard_px, frame.reduce_guard_px)
+        words = gpu.run(frame, pixels)
+        frame.t_query += time.perf_counter() - t
+        self._record(frame, words)
+
+    def _upload(self, frame, gpu):
+        h, r = frame.h, frame.r
+        n = len(r.units)
+        boxes = np.zeros((n, 2, 3))
+        valid = np.zeros(n, dtype=bool)
+        leaves = np.flatnonzero(h.is_leaf)
+        boxes[h.leaf_unit[leaves]] = h.bounds[leaves]
+        valid[h.leaf_unit[leaves]] = True
+        t = time.perf_counter()
+        gpu.upload(boxes, valid, r.world[r.units.object])
+        frame.t_draw += time.perf_counter() - t
+        self.uploaded_for = (h, h.bounds)
+
+    @staticmethod
+    def _record(frame, words):
+        """The states and counters of the pass from the units' words."""
+        from .gl import gpucull as G
+        state = (words & G.STATE).astype(np.uint8)
+        frame.state[:] = state
+        drawn = (words & (G.DRAWN1 | G.DRAWN2)) != 0
+        near = (words & G.NEAR) != 0
+        tri = frame.r.tri_counts
+        s = frame.stats
+        s["units_drawn"] = int(drawn.sum())
+        s["triangles_drawn"] = int(tri[drawn].sum())
+        # what the pass saved: occluded and never drawn (a unit drawn and then found hidden is not)
+        s["triangles_occluded"] = int(tri[(state == Visibility.OCCLUDED) & ~drawn].sum())
+        s["queries"] = int(np.count_nonzero(words & G.TESTED1) + np.count_nonzero(words & G.TESTED2))
+        s["multiple_queries"] = 2
+        s["queries_skipped"] = int(np.count_nonzero((words & G.DRAWN1) != 0) - near.sum())
+        s["near_visible"] = int(near.sum())
+        s["nodes_visited"] = len(words)
+
+
 class Auto(Strategy):
-    """The default: occlusion tests (``om_coherent``) where they pay on this machine,
-    frustum culling alone where they cannot (few or cheap triangles behind what is
-    seen, or a GPU that draws everything faster than the tests' round trips).
+    """The default: occlusion tests (``gpu``, which is ``om_coherent`` where the GPU
+    path cannot run) where they pay on this machine, frustum culling alone where they
+    cannot (few or cheap triangles behind what is seen, or a GPU that draws
+    everything faster than the tests' round trips).
 
     Costs are measured on real passes, not assumed: the first pass tests occlusion
     (and times a query batch's round trip); the second draws everything in the
@@ -460,7 +579,7 @@ class Auto(Strategy):
     LEARN = 0.3                  # weight of a new measurement in the running cost
 
     def __init__(self, max_tests=8, costs=None):
-        self.occlusion = OmMulti(max_tests, coherent=True, read_budget=COHERENT_READS)
+        self.occlusion = Gpu(max_tests)
         # tri_ms: ms per triangle a frustum-only pass draws; vfc_cpu_ms: such a pass's
         # time beyond its drawing; round_trip_ms: one query batch
         self.costs = dict(costs) if costs is not None else None
@@ -589,6 +708,9 @@ REGISTRY = {info.name: info for info in (
                  "Occupancy map, multiple queries, last pass's visible first", True),
     StrategyInfo("two_pass", lambda m: TwoPass(m), "Two passes",
                  "Last pass's visible first, every other leaf tested in one batch (GPU-driven)", True),
+    StrategyInfo("gpu", lambda m: Gpu(m), "GPU-driven",
+                 "Units' boxes on the GPU: last pass's visible drawn, everything else tested there, "
+                 "one read a pass", True),
     StrategyInfo("auto", lambda m: Auto(m), "Automatic",
                  "Occlusion tests where they pay on this machine, frustum culling where they cannot", True),
     StrategyInfo("oracle", lambda m: Oracle(), "Oracle",
