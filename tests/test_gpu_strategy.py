@@ -14,8 +14,8 @@ from core.camera import cameras_from_json
 from tests import scenes
 from tests.test_issue9_engine import invalid_scene, shifted, slabs_behind_a_wall_edge
 
-GPU_CALLS = 22          # GL calls of a steady GPU pass (clear, 1 params write, 5 bindings, 3 dispatches,
-                        # 4 barriers, 2 multi-draws, 2 box draws, 2 more barriers, 1 read, finish)
+GPU_CALLS = 24          # GL calls of a steady GPU pass (clear, 1 params write, 6 bindings, 4 dispatches,
+                        # 5 barriers, 1 texture bind, 2 multi-draws, 1 box draw, 1 read, finish)
 
 
 def gpu_pass(c, cam, truth=None):

@@ -45,6 +45,7 @@ PARAMS = 64                                # doubles after the header
 # word arrays of the words buffer, in units of U: state, flags of test 1 and 2, lists 1 and 2
 STATE_AT, FLAG1_AT, FLAG2_AT, LIST1_AT, LIST2_AT = range(5)
 ALL_BARRIERS = 0xFFFFFFFF
+DEPTH_UNIT = 7                             # texture unit of the depth the pyramid reads (the renderer uses 0)
 
 _COMMON = """{v}
 #define STATE 3u
@@ -65,6 +66,10 @@ layout(std430, binding = 2) readonly buffer Units { Unit units[]; };
 layout(std430, binding = 3) buffer Dyns { Dyn dyn[]; };
 layout(std430, binding = 4) buffer Words { uint w[]; };
 layout(std430, binding = 5) buffer Cmds { uint c[]; };
+// the max-depth pyramid of pass 1's depth: levels 1-3 (4, 16, 64 pixels a texel side), level 0
+// is the depth texture itself
+layout(std430, binding = 6) buffer Hiz { float z[]; };
+uniform sampler2D u_depth;
 // f: eye 0-2, clip 4-19 (column-major), planes 20-43, then the scalars below
 #define PLANE_REL f[44]
 #define NEAR_REL f[45]
@@ -81,12 +86,18 @@ layout(std430, binding = 5) buffer Cmds { uint c[]; };
 _COMPUTE_HEAD = _COMMON + """
 layout(local_size_x = %d) in;
 double maxabs(dvec3 a) { dvec3 b = abs(a); return max(b.x, max(b.y, b.z)); }
-""" % LOCAL
-
-PREPARE = _COMPUTE_HEAD + """
 dmat4 clip() { return dmat4(f[4], f[5], f[6], f[7], f[8], f[9], f[10], f[11],
                             f[12], f[13], f[14], f[15], f[16], f[17], f[18], f[19]); }
 dvec4 plane(int k) { return dvec4(f[20 + 4 * k], f[21 + 4 * k], f[22 + 4 * k], f[23 + 4 * k]); }
+// the unit's MVP: float64 camera-relative, then float32 (the renderer's precision rule)
+void set_mvp(uint u) {
+    dmat4 m = units[u].world;
+    m[3].xyz -= dvec3(f[0], f[1], f[2]);
+    dyn[u].mvp = mat4(clip() * m);
+}
+""" % LOCAL
+
+PREPARE = _COMPUTE_HEAD + """
 
 // Frame.guard, per axis: relative + pixel guard across the rays + depth steps along them
 dvec3 guard(dvec3 lo, dvec3 hi) {
@@ -139,9 +150,6 @@ void main() {
         double dp = dot(max(p.xyz, dvec3(0.0)), hi) + dot(min(p.xyz, dvec3(0.0)), lo) + p.w;
         if (dp < -PLANE_REL * (scale + abs(p.w))) { w[u] = 2u; return; }
     }
-    dmat4 m = un.world;
-    m[3].xyz -= eye;
-    dyn[u].mvp = mat4(clip() * m);
     dvec3 g = guard(lo, hi);
     dvec3 glo = lo - g, ghi = hi + g;
     // Conservative: a grown box that reaches the near plane is visible without a test
@@ -155,24 +163,116 @@ void main() {
     if (prev != 0u || near) {
         bits |= DRAWN1;
         c[5u * u + 1u] = 1u;
+        set_mvp(u);
     } else {
         bits |= TESTED1;
-        w[%(list1)d * n + atomicAdd(hdr[1], 1u)] = u;
     }
     w[u] = bits;
 }
-""" % {"flag1": FLAG1_AT, "flag2": FLAG2_AT, "list1": LIST1_AT}
+""" % {"flag1": FLAG1_AT, "flag2": FLAG2_AT}
+
+# One dispatch builds levels 1-3 (each texel the FARTHEST depth of the pixels it covers:
+# conservative) in work groups of 64 x 64 pixels.
+PYRAMID = _COMMON + """
+layout(local_size_x = 16, local_size_y = 16) in;
+shared float s1[16][16];
+shared float s2[4][4];
+void main() {
+    ivec2 size = textureSize(u_depth, 0);
+    ivec2 s1z = (size + 3) / 4, s2z = (s1z + 3) / 4, s3z = (s2z + 3) / 4;
+    ivec2 t = ivec2(gl_GlobalInvocationID.xy), l = ivec2(gl_LocalInvocationID.xy);
+    float m = 0.0;                       // pixels outside the image: none, the max of the others
+    for (int j = 0; j < 4; ++j)
+        for (int i = 0; i < 4; ++i) {
+            ivec2 p = 4 * t + ivec2(i, j);
+            if (p.x < size.x && p.y < size.y) m = max(m, texelFetch(u_depth, p, 0).r);
+        }
+    if (t.x < s1z.x && t.y < s1z.y) z[t.y * s1z.x + t.x] = m;
+    s1[l.y][l.x] = m;
+    barrier();
+    if (l.x < 4 && l.y < 4) {
+        float m2 = 0.0;
+        for (int j = 0; j < 4; ++j)
+            for (int i = 0; i < 4; ++i) m2 = max(m2, s1[4 * l.y + j][4 * l.x + i]);
+        ivec2 t2 = 4 * ivec2(gl_WorkGroupID.xy) + l;
+        if (t2.x < s2z.x && t2.y < s2z.y) z[s1z.x * s1z.y + t2.y * s2z.x + t2.x] = m2;
+        s2[l.y][l.x] = m2;
+    }
+    barrier();
+    if (l.x == 0 && l.y == 0) {
+        float m3 = 0.0;
+        for (int j = 0; j < 4; ++j)
+            for (int i = 0; i < 4; ++i) m3 = max(m3, s2[j][i]);
+        ivec2 t3 = ivec2(gl_WorkGroupID.xy);
+        if (t3.x < s3z.x && t3.y < s3z.y) z[s1z.x * s1z.y + s2z.x * s2z.y + t3.y * s3z.x + t3.x] = m3;
+    }
+}
+"""
 
 SECOND = _COMPUTE_HEAD + """
+// The farthest depth of pixels [lo, hi] (inclusive) at the coarsest level where the
+// rectangle spans at most 4 texels a side (or level 3).
+float farthest(ivec2 lo, ivec2 hi) {
+    ivec2 size = textureSize(u_depth, 0);
+    int level = 0;
+    while (level < 3 && any(greaterThan((hi >> (2 * level)) - (lo >> (2 * level)), ivec2(3)))) ++level;
+    float m = 0.0;
+    if (level == 0) {
+        for (int y = lo.y; y <= hi.y; ++y)
+            for (int x = lo.x; x <= hi.x; ++x) m = max(m, texelFetch(u_depth, ivec2(x, y), 0).r);
+        return m;
+    }
+    int at = 0;
+    ivec2 sz = size;
+    for (int k = 1; k <= level; ++k) {
+        sz = (sz + 3) / 4;
+        if (k < level) at += sz.x * sz.y;
+    }
+    ivec2 a = lo >> (2 * level), b = hi >> (2 * level);
+    for (int y = a.y; y <= b.y; ++y)
+        for (int x = a.x; x <= b.x; ++x) m = max(m, z[at + y * sz.x + x]);
+    return m;
+}
+
+// Whether the grown box of unit u may have a sample nearer than pass 1's depth:
+// conservative, its pixel rectangle rounded outward holds every pixel centre it
+// covers, and its nearest depth is compared with the farthest depth there (ties visible).
+bool passes(uint u) {
+    dvec3 lo = dvec3(dyn[u].glo.xyz), hi = dvec3(dyn[u].ghi.xyz);
+    dmat4 C = clip();
+    dvec4 base = C * dvec4(lo, 1.0);
+    dvec4 ex = C[0] * (hi.x - lo.x), ey = C[1] * (hi.y - lo.y), ez = C[2] * (hi.z - lo.z);
+    dvec3 a = dvec3(1e300), b = dvec3(-1e300);
+    for (int k = 0; k < 8; ++k) {
+        dvec4 p = base + ((k & 1) != 0 ? ex : dvec4(0.0)) + ((k & 2) != 0 ? ey : dvec4(0.0))
+                       + ((k & 4) != 0 ? ez : dvec4(0.0));
+        if (p.w <= 0.0) return true;
+        dvec3 ndc = p.xyz / p.w;
+        a = min(a, ndc);
+        b = max(b, ndc);
+    }
+    ivec2 size = textureSize(u_depth, 0);
+    dvec2 s = dvec2(size);
+    dvec2 pa = (a.xy * 0.5 + 0.5) * s - 0.5, pb = (b.xy * 0.5 + 0.5) * s - 0.5;
+    if (any(greaterThan(pa, s)) || any(lessThan(pb, dvec2(-1.0)))) return true;   // off screen: no sample; kept
+    pa = max(pa, dvec2(-1.0));                       // in range of int before the conversion
+    pb = min(pb, s);
+    ivec2 lo_px = clamp(ivec2(floor(pa)), ivec2(0), size - 1);
+    ivec2 hi_px = clamp(ivec2(ceil(pb)), ivec2(0), size - 1);
+    double nearest = a.z * 0.5 + 0.5;
+    return nearest <= double(farthest(lo_px, hi_px));
+}
+
 void main() {
     uint n = N_UNITS;
     uint u = gl_GlobalInvocationID.x;
     if (u >= n) return;
     uint bits = w[u];
     if ((bits & INF) == 0u) return;
-    if ((bits & DRAWN1) == 0u && w[%(flag1)d * n + u] != 0u) {
+    if ((bits & TESTED1) != 0u && passes(u)) {
         bits |= DRAWN2;
         c[5u * (n + u) + 1u] = 1u;
+        set_mvp(u);
     }
     if ((bits & (DRAWN1 | DRAWN2)) != 0u && (bits & NEAR) == 0u) {
         bits |= TESTED2;
@@ -180,7 +280,7 @@ void main() {
     }
     w[u] = bits;
 }
-""" % {"flag1": FLAG1_AT, "list2": LIST2_AT}
+""" % {"list2": LIST2_AT}
 
 FINAL = _COMPUTE_HEAD + """
 void main() {
@@ -248,10 +348,19 @@ class GpuCull:
                                fragment_shader=S.source(fragment, "4.3").replace("\n", "\n" + head, 1))
 
         self.prepare = ctx.compute_shader(S.source(PREPARE, "4.3"))
+        self.pyramid = ctx.compute_shader(S.source(PYRAMID, "4.3"))
         self.second = ctx.compute_shader(S.source(SECOND, "4.3"))
         self.final = ctx.compute_shader(S.source(FINAL, "4.3"))
-        self.box_progs = [program(BOX_VERTEX, BOX_FRAGMENT, LIST=LIST1_AT, FLAG=FLAG1_AT),
-                          program(BOX_VERTEX, BOX_FRAGMENT, LIST=LIST2_AT, FLAG=FLAG2_AT)]
+        for cs in (self.pyramid, self.second):
+            cs["u_depth"].value = DEPTH_UNIT
+        self.box_prog = program(BOX_VERTEX, BOX_FRAGMENT, LIST=LIST2_AT, FLAG=FLAG2_AT)
+        r.depth_tex.compare_func = ""                  # texelFetch reads depth values
+        size = np.array([r.width, r.height])
+        levels = [(size + 3) // 4]
+        for _ in range(2):
+            levels.append((levels[-1] + 3) // 4)
+        self.pyramid_groups = tuple(int(v) for v in levels[-1])        # 64 x 64 pixels a group
+        self.hiz = ctx.buffer(reserve=4 * int(sum(int(a * b) for a, b in levels)))
         self.params = ctx.buffer(reserve=HEADER + 8 * PARAMS)
         self.unit_buf = ctx.buffer(reserve=UNIT_BYTES * cap)
         self.dyn = ctx.buffer(reserve=DYN_BYTES * cap)
@@ -266,7 +375,7 @@ class GpuCull:
         self.cmds = ctx.buffer(cmds.tobytes())
         self.draw_vao = ctx.vertex_array(r.depth_prog, [(r.vbo, "3f", "in_pos"), (self.dyn, "16f 32x/i", "in_mvp")],
                                          index_buffer=r.ibo, index_element_size=4)
-        self.box_vaos = [ctx.vertex_array(p, []) for p in self.box_progs]
+        self.box_vao = ctx.vertex_array(self.box_prog, [])
         self.groups = max(1, -(-n // LOCAL))
         self.uploaded = False
 
@@ -324,18 +433,24 @@ class GpuCull:
         r, ctx, n = self.r, self.ctx, self.n
         r.activate()
         self.params.write(self.params_blob(frame, pixels))
-        for binding, buf in enumerate((self.params, self.unit_buf, self.dyn, self.words, self.cmds), start=1):
+        for binding, buf in enumerate((self.params, self.unit_buf, self.dyn, self.words, self.cmds, self.hiz),
+                                      start=1):
             buf.bind_to_storage_buffer(binding)
         self.prepare.run(self.groups)
         ctx.memory_barrier(ALL_BARRIERS)
-        r._count(9)
+        r._count(10)
         self._draw(0)
-        self._test(0)
+        if r.reduces:                          # the whole screen: what the GPU drew is not known here
+            r._dirty = np.array([0, 0, r.width - 1, r.height - 1])
+            r._reduce()
+        r.depth_tex.use(DEPTH_UNIT)
+        self.pyramid.run(*self.pyramid_groups)
+        ctx.memory_barrier(ALL_BARRIERS)
         self.second.run(self.groups)
         ctx.memory_barrier(ALL_BARRIERS)
-        r._count(2)
+        r._count(5)
         self._draw(n)
-        self._test(1)
+        self._test()
         self.final.run(self.groups)
         ctx.memory_barrier(ALL_BARRIERS)
         words = np.frombuffer(self.words.read(size=4 * n), dtype=np.uint32)
@@ -349,18 +464,18 @@ class GpuCull:
         self.draw_vao.render_indirect(self.cmds, count=self.n, first=first)
         r._count(1, draws=1)
 
-    def _test(self, k):
+    def _test(self):
         r = self.r
         if r.reduces:                          # the whole screen: what the GPU drew is not known here
             r._dirty = np.array([0, 0, r.width - 1, r.height - 1])
             r._reduce()
         r._use(r.query_fbo, "<=", True)
-        self.box_vaos[k].render_indirect(self.params, mode=self.ctx.TRIANGLES, count=1, first=k)
+        self.box_vao.render_indirect(self.params, mode=self.ctx.TRIANGLES, count=1, first=1)
         # the flags written by the boxes' fragments before the compute pass that reads them
         self.ctx.memory_barrier(ALL_BARRIERS)
         r._count(2, draws=1)
 
     def release(self):
-        for o in (*self.box_vaos, self.draw_vao, self.prepare, self.second, self.final, *self.box_progs,
-                  self.params, self.unit_buf, self.dyn, self.words, self.cmds):
+        for o in (self.box_vao, self.draw_vao, self.prepare, self.pyramid, self.second, self.final, self.box_prog,
+                  self.params, self.unit_buf, self.dyn, self.words, self.cmds, self.hiz):
             o.release()
