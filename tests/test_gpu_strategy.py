@@ -14,6 +14,7 @@ from core.camera import cameras_from_json
 from tests import scenes
 from tests.test_issue9_engine import invalid_scene, shifted, slabs_behind_a_wall_edge
 
+DEPTH_STEP = 1.0 / 16777215.0
 GPU_CALLS = 24          # GL calls of a steady GPU pass (clear, 1 params write, 6 bindings, 4 dispatches,
                         # 5 barriers, 1 texture bind, 2 multi-draws, 1 box draw, 1 read, finish)
 
@@ -57,6 +58,40 @@ def test_walk_and_cuts_never_hide_what_the_truth_shows(ctx, seed):
                 assert c.strategy.reason is None and r.stats["fresh"] == 0
                 assert r.stats["blocking_reads"] == 1 and r.stats["gl_calls"] == GPU_CALLS
                 assert r.stats["multiple_queries"] == 2 and r.stats["queries"] > 0
+
+
+@pytest.mark.parametrize("size", [(64, 48), (70, 45)])
+def test_depth_pyramid_holds_the_farthest_depth_of_its_pixels(ctx, size):
+    """Level 1 (4 x 4 pixels a texel) and level 2 (16 x 16) of the pyramid against numpy:
+    the farthest depth of the texel's pixels (within a 24-bit step of rounding) where they
+    are all inside the image, never nearer (beyond that step) at the edges."""
+    if ctx.version_code < 430:
+        pytest.skip("the pyramid is on the 4.3 path")
+    from core.gl.gpucull import GpuCull
+    scene, cams, _ = scenes.random_city(3, 200)
+    with Culler(scene, size, strategy="vfc", ctx=ctx) as c:
+        if not on_43(c):
+            pytest.skip("the pyramid is on the 4.3 path")
+        r = c.renderer
+        gpu = GpuCull(r)
+        r.begin_frame(cams[0])
+        r.draw(np.arange(len(c.units)))
+        gpu.bind()
+        gpu.build_pyramid()
+        depth = r.read_depth().astype(np.float64)
+        assert depth.min() < 1.0 and depth.max() == 1.0
+        h, w = depth.shape
+        for level, got in zip((4, 16), gpu.read_pyramid(), strict=True):
+            gh, gw = -(-h // level), -(-w // level)
+            padded = np.zeros((gh * level, gw * level))
+            padded[:h, :w] = depth
+            expect = padded.reshape(gh, level, gw, level).max(axis=(1, 3))
+            # a shader's read of the 24-bit depth rounds its own way: within a step of read_depth's
+            steps = (got - expect) / DEPTH_STEP
+            assert got.shape == expect.shape and steps.min() >= -1.001
+            inner = (slice(0, h // level), slice(0, w // level))
+            assert np.abs(steps[inner]).max() <= 1.001
+        gpu.release()
 
 
 def wall_scene(px=0.25):

@@ -66,7 +66,7 @@ layout(std430, binding = 2) readonly buffer Units { Unit units[]; };
 layout(std430, binding = 3) buffer Dyns { Dyn dyn[]; };
 layout(std430, binding = 4) buffer Words { uint w[]; };
 layout(std430, binding = 5) buffer Cmds { uint c[]; };
-// the max-depth pyramid of pass 1's depth: levels 1-3 (4, 16, 64 pixels a texel side), level 0
+// the max-depth pyramid of pass 1's depth: levels 1 and 2 (4 and 16 pixels a texel side), level 0
 // is the depth texture itself
 layout(std430, binding = 6) buffer Hiz { float z[]; };
 uniform sampler2D u_depth;
@@ -171,51 +171,43 @@ void main() {
 }
 """ % {"flag1": FLAG1_AT, "flag2": FLAG2_AT}
 
-# One dispatch builds levels 1-3 (each texel the FARTHEST depth of the pixels it covers:
-# conservative) in work groups of 64 x 64 pixels.
+# One dispatch builds levels 1 and 2 (each texel the FARTHEST depth of the pixels it
+# covers: conservative), one thread per level-2 texel (16 x 16 pixels), no barriers.
+# textureGather at a texel corner reads the 2 x 2 pixels around it; at the image's
+# right or top edge it wraps to pixels of the other side: a larger maximum, conservative.
 PYRAMID = _COMMON + """
-layout(local_size_x = 16, local_size_y = 16) in;
-shared float s1[16][16];
-shared float s2[4][4];
+layout(local_size_x = 8, local_size_y = 8) in;
 void main() {
     ivec2 size = textureSize(u_depth, 0);
-    ivec2 s1z = (size + 3) / 4, s2z = (s1z + 3) / 4, s3z = (s2z + 3) / 4;
-    ivec2 t = ivec2(gl_GlobalInvocationID.xy), l = ivec2(gl_LocalInvocationID.xy);
-    float m = 0.0;                       // pixels outside the image: none, the max of the others
+    ivec2 s1z = (size + 3) / 4, s2z = (s1z + 3) / 4;
+    ivec2 t = ivec2(gl_GlobalInvocationID.xy);
+    if (t.x >= s2z.x || t.y >= s2z.y) return;
+    vec2 texel = 1.0 / vec2(size);
+    float m2 = 0.0;
     for (int j = 0; j < 4; ++j)
         for (int i = 0; i < 4; ++i) {
-            ivec2 p = 4 * t + ivec2(i, j);
-            if (p.x < size.x && p.y < size.y) m = max(m, texelFetch(u_depth, p, 0).r);
+            ivec2 l1 = 4 * t + ivec2(i, j);
+            if (l1.x >= s1z.x || l1.y >= s1z.y) continue;
+            float m = 0.0;
+            for (int b = 1; b < 4; b += 2)
+                for (int a = 1; a < 4; a += 2) {
+                    vec4 g = textureGather(u_depth, vec2(4 * l1 + ivec2(a, b)) * texel);
+                    m = max(m, max(max(g.x, g.y), max(g.z, g.w)));
+                }
+            z[l1.y * s1z.x + l1.x] = m;
+            m2 = max(m2, m);
         }
-    if (t.x < s1z.x && t.y < s1z.y) z[t.y * s1z.x + t.x] = m;
-    s1[l.y][l.x] = m;
-    barrier();
-    if (l.x < 4 && l.y < 4) {
-        float m2 = 0.0;
-        for (int j = 0; j < 4; ++j)
-            for (int i = 0; i < 4; ++i) m2 = max(m2, s1[4 * l.y + j][4 * l.x + i]);
-        ivec2 t2 = 4 * ivec2(gl_WorkGroupID.xy) + l;
-        if (t2.x < s2z.x && t2.y < s2z.y) z[s1z.x * s1z.y + t2.y * s2z.x + t2.x] = m2;
-        s2[l.y][l.x] = m2;
-    }
-    barrier();
-    if (l.x == 0 && l.y == 0) {
-        float m3 = 0.0;
-        for (int j = 0; j < 4; ++j)
-            for (int i = 0; i < 4; ++i) m3 = max(m3, s2[j][i]);
-        ivec2 t3 = ivec2(gl_WorkGroupID.xy);
-        if (t3.x < s3z.x && t3.y < s3z.y) z[s1z.x * s1z.y + s2z.x * s2z.y + t3.y * s3z.x + t3.x] = m3;
-    }
+    z[s1z.x * s1z.y + t.y * s2z.x + t.x] = m2;
 }
 """
 
 SECOND = _COMPUTE_HEAD + """
 // The farthest depth of pixels [lo, hi] (inclusive) at the coarsest level where the
-// rectangle spans at most 4 texels a side (or level 3).
+// rectangle spans at most 4 texels a side (or level 2).
 float farthest(ivec2 lo, ivec2 hi) {
     ivec2 size = textureSize(u_depth, 0);
     int level = 0;
-    while (level < 3 && any(greaterThan((hi >> (2 * level)) - (lo >> (2 * level)), ivec2(3)))) ++level;
+    while (level < 2 && any(greaterThan((hi >> (2 * level)) - (lo >> (2 * level)), ivec2(3)))) ++level;
     float m = 0.0;
     if (level == 0) {
         for (int y = lo.y; y <= hi.y; ++y)
@@ -260,7 +252,9 @@ bool passes(uint u) {
     ivec2 lo_px = clamp(ivec2(floor(pa)), ivec2(0), size - 1);
     ivec2 hi_px = clamp(ivec2(ceil(pb)), ivec2(0), size - 1);
     double nearest = a.z * 0.5 + 0.5;
-    return nearest <= double(farthest(lo_px, hi_px));
+    // a shader's read of the 24-bit depth may round it a step nearer (the driver's choice,
+    // as in the renderer's reduction): one step added, conservative
+    return nearest <= double(farthest(lo_px, hi_px)) + 1.0 / 16777215.0;
 }
 
 void main() {
@@ -357,9 +351,9 @@ class GpuCull:
         r.depth_tex.compare_func = ""                  # texelFetch reads depth values
         size = np.array([r.width, r.height])
         levels = [(size + 3) // 4]
-        for _ in range(2):
-            levels.append((levels[-1] + 3) // 4)
-        self.pyramid_groups = tuple(int(v) for v in levels[-1])        # 64 x 64 pixels a group
+        levels.append((levels[-1] + 3) // 4)
+        self.levels = [(int(a), int(b)) for a, b in levels]
+        self.pyramid_groups = tuple(int(v) for v in (levels[-1] + 7) // 8)     # 128 x 128 pixels a group
         self.hiz = ctx.buffer(reserve=4 * int(sum(int(a * b) for a, b in levels)))
         self.params = ctx.buffer(reserve=HEADER + 8 * PARAMS)
         self.unit_buf = ctx.buffer(reserve=UNIT_BYTES * cap)
@@ -433,9 +427,7 @@ class GpuCull:
         r, ctx, n = self.r, self.ctx, self.n
         r.activate()
         self.params.write(self.params_blob(frame, pixels))
-        for binding, buf in enumerate((self.params, self.unit_buf, self.dyn, self.words, self.cmds, self.hiz),
-                                      start=1):
-            buf.bind_to_storage_buffer(binding)
+        self.bind()
         self.prepare.run(self.groups)
         ctx.memory_barrier(ALL_BARRIERS)
         r._count(10)
@@ -443,9 +435,7 @@ class GpuCull:
         if r.reduces:                          # the whole screen: what the GPU drew is not known here
             r._dirty = np.array([0, 0, r.width - 1, r.height - 1])
             r._reduce()
-        r.depth_tex.use(DEPTH_UNIT)
-        self.pyramid.run(*self.pyramid_groups)
-        ctx.memory_barrier(ALL_BARRIERS)
+        self.build_pyramid()
         self.second.run(self.groups)
         ctx.memory_barrier(ALL_BARRIERS)
         r._count(5)
@@ -457,6 +447,28 @@ class GpuCull:
         r._count(3, reads=1)
         r.counters["query_batches"] += 2
         return words
+
+    def bind(self):
+        """Bind the storage buffers (binding points 1-6; the renderer's queries use 0)."""
+        for binding, buf in enumerate((self.params, self.unit_buf, self.dyn, self.words, self.cmds, self.hiz),
+                                      start=1):
+            buf.bind_to_storage_buffer(binding)
+
+    def build_pyramid(self):
+        """Levels 1 and 2 of the max-depth pyramid from the query-resolution depth (bound)."""
+        self.r.depth_tex.use(DEPTH_UNIT)
+        self.pyramid.run(*self.pyramid_groups)
+        self.ctx.memory_barrier(ALL_BARRIERS)
+
+    def read_pyramid(self):
+        """Levels 1 and 2, ``[(h1, w1) float32, (h2, w2) float32]`` (row 0 at the bottom): the
+        farthest depth of the 4 x 4 and 16 x 16 pixels each texel covers (an analyzer)."""
+        data = np.frombuffer(self.hiz.read(), dtype=np.float32)
+        out, at = [], 0
+        for w, h in self.levels:
+            out.append(data[at:at + w * h].reshape(h, w))
+            at += w * h
+        return out
 
     def _draw(self, first):
         r = self.r
