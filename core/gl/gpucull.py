@@ -120,7 +120,7 @@ dvec3 guard(dvec3 lo, dvec3 hi) {
         double near_norm = sqrt(dot(near_abs, near_abs));
         vmin = near_abs / max(far_norm, TINY);
         vmax = min(far_abs / max(near_norm, TINY), dvec3(1.0));
-        tie = TIE * far_w * far_w * far_norm / max(near_w, TINY + 1e-12 * far_norm);
+        tie = TIE * far_w * far_w * far_norm / max(near_w, TINY + 1e-12lf * far_norm);
     } else {
         lateral = LATERAL;
         vmin = vmax = DIR;
@@ -234,7 +234,7 @@ bool passes(uint u) {
     dmat4 C = clip();
     dvec4 base = C * dvec4(lo, 1.0);
     dvec4 ex = C[0] * (hi.x - lo.x), ey = C[1] * (hi.y - lo.y), ez = C[2] * (hi.z - lo.z);
-    dvec3 a = dvec3(1e300), b = dvec3(-1e300);
+    dvec3 a = dvec3(1e300lf), b = dvec3(-1e300lf);     // lf: double literals
     for (int k = 0; k < 8; ++k) {
         dvec4 p = base + ((k & 1) != 0 ? ex : dvec4(0.0)) + ((k & 2) != 0 ? ey : dvec4(0.0))
                        + ((k & 4) != 0 ? ez : dvec4(0.0));
@@ -254,7 +254,7 @@ bool passes(uint u) {
     double nearest = a.z * 0.5 + 0.5;
     // a shader's read of the 24-bit depth may round it a step nearer (the driver's choice,
     // as in the renderer's reduction): one step added, conservative
-    return nearest <= double(farthest(lo_px, hi_px)) + 1.0 / 16777215.0;
+    return nearest <= double(farthest(lo_px, hi_px)) + 1.0lf / 16777215.0lf;
 }
 
 void main() {
