@@ -6,28 +6,35 @@ compute dispatches and indirect draws whose commands the GPU writes, and ONE
 read-back of a word per unit:
 
 1. ``prepare`` (compute, one thread per unit): frustum test of the camera-relative
-   box (float64, the CPU's rule and tolerance), the MVP of the unit (float64
-   camera-relative, then float32: the renderer's precision rule), the query box
-   grown by the engine's guard (:meth:`core.traversal.Frame.guard`: half a query
-   pixel + 2 depth steps, and more where the options ask), the near-plane rule.
-   Pass-1 commands: last pass's visible units and those whose grown box reaches
-   the near plane (visible by rule) get ``instanceCount = 1``; every other unit in
-   the frustum joins test list 1.
+   box (float64, the CPU's rule and tolerance), the query box grown by the engine's
+   guard (:meth:`core.traversal.Frame.guard`: half a query pixel + 2 depth steps,
+   more where the options ask), the near-plane rule.  Last pass's visible units and
+   those whose grown box reaches the near plane (visible by rule) get
+   ``instanceCount = 1`` in the pass-1 commands and their MVP (float64
+   camera-relative, then float32: the renderer's precision rule); every other unit
+   of the frustum is marked for test 1.
 2. pass 1: ONE ``glMultiDrawElementsIndirect`` over all units (0 instances for the
    others).
-3. test 1: list 1's boxes in ONE instanced draw (its instance count written by the
-   GPU), early depth test ``<=``, each passing fragment sets its unit's flag.
-4. ``second`` (compute): units of the frustum not drawn yet whose box passed get
-   ``instanceCount = 1`` in the pass-2 commands; every unit drawn (pass 1 or 2)
-   and not near joins test list 2.
-5. pass 2: ONE multi-draw; test 2: list 2 against the completed depth.
+3. ``pyramid`` (compute, one dispatch): levels 1 and 2 of a max-depth pyramid (4 x 4
+   and 16 x 16 pixels a texel) over pass 1's query-resolution depth (reduced first
+   where ``display=`` is larger).
+4. ``second`` (compute), test 1: each marked unit's grown box is projected (float64),
+   its pixel rectangle rounded outward, and its nearest depth compared with the
+   farthest depth of the rectangle at the finest level where it spans at most
+   ``HIZ_SPAN`` texels (ties, and one 24-bit step, count as visible); those that
+   pass get ``instanceCount = 1`` in the pass-2 commands and their MVP.  Every unit
+   drawn (pass 1 or 2) and not near joins the test-2 list.
+5. pass 2: ONE multi-draw; test 2: the list's boxes in ONE instanced draw (instance
+   count written by the GPU) against the completed depth, early depth test ``<=``
+   as the renderer's queries, each passing fragment setting its unit's flag.
 6. ``final`` (compute): the state of each unit (VIEW_CULLED outside the frustum;
    VISIBLE when near or when its box passed test 2; else OCCLUDED, since it
    failed a test against real geometry) and the memory for the next pass.
 
-Conservative by construction: a unit is OCCLUDED only when its grown box passed no
-sample against depth that real geometry wrote (test 1 for those never drawn, test
-2 for those drawn); the memory only chooses what is drawn first.
+Conservative by construction: a unit is OCCLUDED only when its grown box failed a
+test against depth that real geometry wrote (test 1 for those never drawn, test 2
+for those drawn); the memory only chooses what is drawn first.  A steady pass makes
+24 GL calls (27 with ``display=``) and one blocking read, whatever the scene's size.
 """
 
 import numpy as np
@@ -40,10 +47,10 @@ LOCAL = 64                                 # compute work-group size
 STATE, INF, NEAR, DRAWN1, DRAWN2, TESTED1, TESTED2, PREV = 3, 4, 8, 16, 32, 64, 128, 256
 UNIT_BYTES = 192                           # dmat4 world, dvec4 lo (w: valid), dvec4 hi
 DYN_BYTES = 96                             # mat4 mvp, vec4 grown lo, vec4 grown hi
-HEADER = 128                               # params: 2 box-draw commands, meta, float32 view-projection
+HEADER = 128                               # params: the box-draw command, the unit count, float32 view-projection
 PARAMS = 64                                # doubles after the header
-# word arrays of the words buffer, in units of U: state, flags of test 1 and 2, lists 1 and 2
-STATE_AT, FLAG1_AT, FLAG2_AT, LIST1_AT, LIST2_AT = range(5)
+# word arrays of the words buffer, in units of U: state, test 2's flags, test 2's list
+STATE_AT, FLAG_AT, LIST_AT = range(3)
 ALL_BARRIERS = 0xFFFFFFFF
 # The pyramid test reads the finest level where the box's rectangle spans at most this many
 # texels a side (level 2 whatever the span): 8 drew 206 units on city-xl where 4 drew 252.
@@ -62,8 +69,8 @@ _COMMON = """{v}
 struct Unit { dmat4 world; dvec4 lo; dvec4 hi; };
 struct Dyn { mat4 mvp; vec4 glo; vec4 ghi; };
 layout(std430, binding = 1) buffer Params { uint hdr[16]; mat4 vp; double f[]; };
-// hdr: box-draw command of test 1 at 0-3, of test 2 at 5-8 (moderngl's indirect stride is 20
-// bytes for both kinds of draw), the unit count at 12
+// hdr: the box-draw command of test 2 at 5-8 (moderngl reads indirect commands at a stride
+// of 20 bytes for both kinds of draw: the second slot), the unit count at 12
 #define N_UNITS hdr[12]
 layout(std430, binding = 2) readonly buffer Units { Unit units[]; };
 layout(std430, binding = 3) buffer Dyns { Dyn dyn[]; };
@@ -138,8 +145,7 @@ void main() {
     uint u = gl_GlobalInvocationID.x;
     if (u >= n) return;
     uint prev = w[u] & PREV;
-    w[%(flag1)d * n + u] = 0u;
-    w[%(flag2)d * n + u] = 0u;
+    w[%(flag)d * n + u] = 0u;
     c[5u * u + 1u] = 0u;
     c[5u * (n + u) + 1u] = 0u;
     Unit un = units[u];
@@ -172,7 +178,7 @@ void main() {
     }
     w[u] = bits;
 }
-""" % {"flag1": FLAG1_AT, "flag2": FLAG2_AT}
+""" % {"flag": FLAG_AT}
 
 # One dispatch builds levels 1 and 2 (each texel the FARTHEST depth of the pixels it
 # covers: conservative), one thread per level-2 texel (16 x 16 pixels), no barriers.
@@ -274,11 +280,11 @@ void main() {
     }
     if ((bits & (DRAWN1 | DRAWN2)) != 0u && (bits & NEAR) == 0u) {
         bits |= TESTED2;
-        w[%(list2)d * n + atomicAdd(hdr[6], 1u)] = u;
+        w[%(list)d * n + atomicAdd(hdr[6], 1u)] = u;
     }
     w[u] = bits;
 }
-""" % {"list2": LIST2_AT, "span": HIZ_SPAN}
+""" % {"list": LIST_AT, "span": HIZ_SPAN}
 
 FINAL = _COMPUTE_HEAD + """
 void main() {
@@ -289,10 +295,10 @@ void main() {
     if ((bits & INF) == 0u) { w[u] = bits | 2u; return; }
     // VISIBLE: near (by rule) or its box passed the test against the completed depth;
     // OCCLUDED: its box failed a test against real geometry (test 1 or test 2)
-    bool visible = (bits & NEAR) != 0u || ((bits & TESTED2) != 0u && w[%(flag2)d * n + u] != 0u);
+    bool visible = (bits & NEAR) != 0u || ((bits & TESTED2) != 0u && w[%(flag)d * n + u] != 0u);
     w[u] = bits | (visible ? PREV : 1u);
 }
-""" % {"flag2": FLAG2_AT}
+""" % {"flag": FLAG_AT}
 
 # The box test: list k's boxes, one instance each, corners from gl_VertexID (as the
 # renderer's BOX_VERTEX_43), front faces only, early depth test <=, no depth write.
@@ -351,7 +357,7 @@ class GpuCull:
         self.final = ctx.compute_shader(S.source(FINAL, "4.3"))
         for cs in (self.pyramid, self.second):
             cs["u_depth"].value = DEPTH_UNIT
-        self.box_prog = program(BOX_VERTEX, BOX_FRAGMENT, LIST=LIST2_AT, FLAG=FLAG2_AT)
+        self.box_prog = program(BOX_VERTEX, BOX_FRAGMENT, LIST=LIST_AT, FLAG=FLAG_AT)
         r.depth_tex.compare_func = ""                  # texelFetch reads depth values
         size = np.array([r.width, r.height])
         levels = [(size + 3) // 4]
@@ -362,7 +368,7 @@ class GpuCull:
         self.params = ctx.buffer(reserve=HEADER + 8 * PARAMS)
         self.unit_buf = ctx.buffer(reserve=UNIT_BYTES * cap)
         self.dyn = ctx.buffer(reserve=DYN_BYTES * cap)
-        self.words = ctx.buffer(reserve=4 * 5 * cap)
+        self.words = ctx.buffer(reserve=4 * 3 * cap)
         self.words.clear()
         # commands of pass 1 at [0, n), of pass 2 at [n, 2n): the renderer's, baseInstance = unit
         cmds = np.zeros((2, cap, 5), dtype=np.uint32)
@@ -408,7 +414,7 @@ class GpuCull:
         float32 view-projection) and the float64 values of the module doc."""
         r = self.r
         head = np.zeros(HEADER // 4, dtype=np.uint32)
-        head[0] = head[5] = 36                         # box draws: 36 vertices, instances counted by the GPU
+        head[5] = 36                                   # test 2's box draw: 36 vertices, instances counted by the GPU
         head[12] = self.n
         head[16:32] = np.ascontiguousarray(r.clip.T, dtype=np.float32).ravel().view(np.uint32)
         f = np.zeros(PARAMS, dtype=np.float64)
