@@ -16,8 +16,8 @@ from tests.test_gl_paths import HOLE_SCENE, ortho_cam
 from tests.test_issue9_engine import invalid_scene, shifted, slabs_behind_a_wall_edge
 
 DEPTH_STEP = 1.0 / 16777215.0
-GPU_CALLS = 24          # GL calls of a steady GPU pass (clear, 1 params write, 6 bindings, 4 dispatches,
-                        # 5 barriers, 1 texture bind, 2 multi-draws, 1 box draw, 1 read, finish)
+GPU_CALLS = 27          # GL calls of a steady GPU pass: clear, params write, 6 bindings, 5 dispatches,
+                        # 7 barriers, 1 texture bind, 2 multi-draws, 2 box draws, 1 read, finish
 
 
 def gpu_pass(c, cam, truth=None):

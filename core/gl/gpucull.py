@@ -34,7 +34,7 @@ read-back of a word per unit:
 Conservative by construction: a unit is OCCLUDED only when its grown box failed a
 test against depth that real geometry wrote (test 1 for those never drawn, test 2
 for those drawn); the memory only chooses what is drawn first.  A steady pass makes
-24 GL calls (27 with ``display=``) and one blocking read, whatever the scene's size.
+27 GL calls (30 with ``display=``) and one blocking read, whatever the scene's size.
 """
 
 import numpy as np
@@ -44,13 +44,13 @@ from . import shaders as S
 
 LOCAL = 64                                 # compute work-group size
 # Bits of a unit's word (the read-back): the state in bits 0-1 (core.traversal.Visibility)
-STATE, INF, NEAR, DRAWN1, DRAWN2, TESTED1, TESTED2, PREV = 3, 4, 8, 16, 32, 64, 128, 256
+STATE, INF, NEAR, DRAWN1, DRAWN2, TESTED1, TESTED2, PREV, HIZ = 3, 4, 8, 16, 32, 64, 128, 256, 512
 UNIT_BYTES = 192                           # dmat4 world, dvec4 lo (w: valid), dvec4 hi
 DYN_BYTES = 96                             # mat4 mvp, vec4 grown lo, vec4 grown hi
-HEADER = 128                               # params: the box-draw command, the unit count, float32 view-projection
+HEADER = 128                               # params: 2 box-draw commands, the unit count, float32 view-projection
 PARAMS = 64                                # doubles after the header
-# word arrays of the words buffer, in units of U: state, test 2's flags, test 2's list
-STATE_AT, FLAG_AT, LIST_AT = range(3)
+# word arrays of the words buffer, in units of U: state, the box tests' flags and lists
+STATE_AT, FLAG1_AT, FLAG2_AT, LIST1_AT, LIST2_AT = range(5)
 ALL_BARRIERS = 0xFFFFFFFF
 # The pyramid test reads the finest level where the box's rectangle spans at most this many
 # texels a side (level 2 whatever the span): 8 drew 206 units on city-xl where 4 drew 252.
@@ -66,11 +66,12 @@ _COMMON = """{v}
 #define TESTED1 64u
 #define TESTED2 128u
 #define PREV 256u
+#define HIZ 512u
 struct Unit { dmat4 world; dvec4 lo; dvec4 hi; };
 struct Dyn { mat4 mvp; vec4 glo; vec4 ghi; };
 layout(std430, binding = 1) buffer Params { uint hdr[16]; mat4 vp; double f[]; };
-// hdr: the box-draw command of test 2 at 5-8 (moderngl reads indirect commands at a stride
-// of 20 bytes for both kinds of draw: the second slot), the unit count at 12
+// hdr: the box-draw commands of the two box tests at 0-3 and 5-8 (moderngl reads indirect
+// commands at a stride of 20 bytes for both kinds of draw), the unit count at 12
 #define N_UNITS hdr[12]
 layout(std430, binding = 2) readonly buffer Units { Unit units[]; };
 layout(std430, binding = 3) buffer Dyns { Dyn dyn[]; };
@@ -145,7 +146,8 @@ void main() {
     uint u = gl_GlobalInvocationID.x;
     if (u >= n) return;
     uint prev = w[u] & PREV;
-    w[%(flag)d * n + u] = 0u;
+    w[%(flag1)d * n + u] = 0u;
+    w[%(flag2)d * n + u] = 0u;
     c[5u * u + 1u] = 0u;
     c[5u * (n + u) + 1u] = 0u;
     Unit un = units[u];
@@ -178,7 +180,7 @@ void main() {
     }
     w[u] = bits;
 }
-""" % {"flag": FLAG_AT}
+""" % {"flag1": FLAG1_AT, "flag2": FLAG2_AT}
 
 # One dispatch builds levels 1 and 2 (each texel the FARTHEST depth of the pixels it
 # covers: conservative), one thread per level-2 texel (16 x 16 pixels), no barriers.
@@ -274,17 +276,33 @@ void main() {
     uint bits = w[u];
     if ((bits & INF) == 0u) return;
     if ((bits & TESTED1) != 0u && passes(u)) {
+        w[u] = bits | HIZ;                           // the box test against pass 1's depth decides
+        w[%(list1)d * n + atomicAdd(hdr[1], 1u)] = u;
+    }
+}
+""" % {"list1": LIST1_AT, "span": HIZ_SPAN}
+
+# Units whose box passed both tests against pass 1's depth are drawn in pass 2; every
+# unit drawn and not near joins the list of test 2.
+THIRD = _COMPUTE_HEAD + """
+void main() {
+    uint n = N_UNITS;
+    uint u = gl_GlobalInvocationID.x;
+    if (u >= n) return;
+    uint bits = w[u];
+    if ((bits & INF) == 0u) return;
+    if ((bits & HIZ) != 0u && w[%(flag1)d * n + u] != 0u) {
         bits |= DRAWN2;
         c[5u * (n + u) + 1u] = 1u;
         set_mvp(u);
     }
     if ((bits & (DRAWN1 | DRAWN2)) != 0u && (bits & NEAR) == 0u) {
         bits |= TESTED2;
-        w[%(list)d * n + atomicAdd(hdr[6], 1u)] = u;
+        w[%(list2)d * n + atomicAdd(hdr[6], 1u)] = u;
     }
     w[u] = bits;
 }
-""" % {"list": LIST_AT, "span": HIZ_SPAN}
+""" % {"flag1": FLAG1_AT, "list2": LIST2_AT}
 
 FINAL = _COMPUTE_HEAD + """
 void main() {
@@ -295,10 +313,10 @@ void main() {
     if ((bits & INF) == 0u) { w[u] = bits | 2u; return; }
     // VISIBLE: near (by rule) or its box passed the test against the completed depth;
     // OCCLUDED: its box failed a test against real geometry (test 1 or test 2)
-    bool visible = (bits & NEAR) != 0u || ((bits & TESTED2) != 0u && w[%(flag)d * n + u] != 0u);
+    bool visible = (bits & NEAR) != 0u || ((bits & TESTED2) != 0u && w[%(flag2)d * n + u] != 0u);
     w[u] = bits | (visible ? PREV : 1u);
 }
-""" % {"flag": FLAG_AT}
+""" % {"flag2": FLAG2_AT}
 
 # The box test: list k's boxes, one instance each, corners from gl_VertexID (as the
 # renderer's BOX_VERTEX_43), front faces only, early depth test <=, no depth write.
@@ -354,10 +372,12 @@ class GpuCull:
         self.prepare = ctx.compute_shader(S.source(PREPARE, "4.3"))
         self.pyramid = ctx.compute_shader(S.source(PYRAMID, "4.3"))
         self.second = ctx.compute_shader(S.source(SECOND, "4.3"))
+        self.third = ctx.compute_shader(S.source(THIRD, "4.3"))
         self.final = ctx.compute_shader(S.source(FINAL, "4.3"))
         for cs in (self.pyramid, self.second):
             cs["u_depth"].value = DEPTH_UNIT
-        self.box_prog = program(BOX_VERTEX, BOX_FRAGMENT, LIST=LIST_AT, FLAG=FLAG_AT)
+        self.box_progs = [program(BOX_VERTEX, BOX_FRAGMENT, LIST=LIST1_AT, FLAG=FLAG1_AT),
+                          program(BOX_VERTEX, BOX_FRAGMENT, LIST=LIST2_AT, FLAG=FLAG2_AT)]
         r.depth_tex.compare_func = ""                  # texelFetch reads depth values
         size = np.array([r.width, r.height])
         levels = [(size + 3) // 4]
@@ -368,7 +388,7 @@ class GpuCull:
         self.params = ctx.buffer(reserve=HEADER + 8 * PARAMS)
         self.unit_buf = ctx.buffer(reserve=UNIT_BYTES * cap)
         self.dyn = ctx.buffer(reserve=DYN_BYTES * cap)
-        self.words = ctx.buffer(reserve=4 * 3 * cap)
+        self.words = ctx.buffer(reserve=4 * 5 * cap)
         self.words.clear()
         # commands of pass 1 at [0, n), of pass 2 at [n, 2n): the renderer's, baseInstance = unit
         cmds = np.zeros((2, cap, 5), dtype=np.uint32)
@@ -379,7 +399,7 @@ class GpuCull:
         self.cmds = ctx.buffer(cmds.tobytes())
         self.draw_vao = ctx.vertex_array(r.depth_prog, [(r.vbo, "3f", "in_pos"), (self.dyn, "16f 32x/i", "in_mvp")],
                                          index_buffer=r.ibo, index_element_size=4)
-        self.box_vao = ctx.vertex_array(self.box_prog, [])
+        self.box_vaos = [ctx.vertex_array(p, []) for p in self.box_progs]
         self.groups = max(1, -(-n // LOCAL))
         self.uploaded = False
 
@@ -414,7 +434,7 @@ class GpuCull:
         float32 view-projection) and the float64 values of the module doc."""
         r = self.r
         head = np.zeros(HEADER // 4, dtype=np.uint32)
-        head[5] = 36                                   # test 2's box draw: 36 vertices, instances counted by the GPU
+        head[0] = head[5] = 36                         # box draws: 36 vertices, instances counted by the GPU
         head[12] = self.n
         head[16:32] = np.ascontiguousarray(r.clip.T, dtype=np.float32).ravel().view(np.uint32)
         f = np.zeros(PARAMS, dtype=np.float64)
@@ -440,7 +460,7 @@ class GpuCull:
         self.bind()
         self.prepare.run(self.groups)
         ctx.memory_barrier(ALL_BARRIERS)
-        r._count(10)
+        r._count(9)                            # params, 6 bindings, dispatch, barrier
         self._draw(0)
         if r.reduces:                          # the whole screen: what the GPU drew is not known here
             r._dirty = np.array([0, 0, r.width - 1, r.height - 1])
@@ -449,13 +469,20 @@ class GpuCull:
         self.second.run(self.groups)
         ctx.memory_barrier(ALL_BARRIERS)
         r._count(5)
+        self._test(0)                          # pass 1's depth: reduced already
+        self.third.run(self.groups)
+        ctx.memory_barrier(ALL_BARRIERS)
+        r._count(2)
         self._draw(n)
-        self._test()
+        if r.reduces:
+            r._dirty = np.array([0, 0, r.width - 1, r.height - 1])
+            r._reduce()
+        self._test(1)
         self.final.run(self.groups)
         ctx.memory_barrier(ALL_BARRIERS)
         words = np.frombuffer(self.words.read(size=4 * n), dtype=np.uint32)
         r._count(3, reads=1)
-        r.counters["query_batches"] += 2
+        r.counters["query_batches"] += 3
         return words
 
     def bind(self):
@@ -486,18 +513,16 @@ class GpuCull:
         self.draw_vao.render_indirect(self.cmds, count=self.n, first=first)
         r._count(1, draws=1)
 
-    def _test(self):
+    def _test(self, k):
         r = self.r
-        if r.reduces:                          # the whole screen: what the GPU drew is not known here
-            r._dirty = np.array([0, 0, r.width - 1, r.height - 1])
-            r._reduce()
         r._use(r.query_fbo, "<=", True)
-        self.box_vao.render_indirect(self.params, mode=self.ctx.TRIANGLES, count=1, first=1)
+        self.box_vaos[k].render_indirect(self.params, mode=self.ctx.TRIANGLES, count=1, first=k)
         # the flags written by the boxes' fragments before the compute pass that reads them
         self.ctx.memory_barrier(ALL_BARRIERS)
         r._count(2, draws=1)
 
     def release(self):
-        for o in (self.box_vao, self.draw_vao, self.prepare, self.pyramid, self.second, self.final, self.box_prog,
+        for o in (*self.box_vaos, self.draw_vao, self.prepare, self.pyramid, self.second, self.third, self.final,
+                  *self.box_progs,
                   self.params, self.unit_buf, self.dyn, self.words, self.cmds, self.hiz):
             o.release()
