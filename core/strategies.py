@@ -35,8 +35,8 @@ less before a query can only make it say "visible" more often.
                of the frustum tested in one batch, the nearer half of those that pass
                drawn and the rest tested once more (a handful of GL calls a pass);
                after a camera cut, an ``om_multi`` pass.
-- ``gpu``      GPU-resident two passes: the units' boxes and matrices on the GPU, four
-               compute dispatches and three indirect draws whose commands the GPU writes,
+- ``gpu``      GPU-resident two passes: the units' boxes and matrices on the GPU, five
+               compute dispatches and four indirect draws whose commands the GPU writes,
                one read-back a pass (:mod:`core.gl.gpucull`); ``om_coherent`` on the
                4.1 path.
 - ``auto``     the default candidate: ``gpu`` where occlusion tests pay on this
@@ -433,14 +433,14 @@ class TwoPass(Strategy):
 
 class Gpu(Strategy):
     """GPU-resident two passes (nvpro's temporal culling, zeux's niagara): the units'
-    boxes and matrices live on the GPU; a pass is four compute dispatches, two
-    multi-draw-indirect draws and one box-test draw whose commands the GPU writes,
+    boxes and matrices live on the GPU; a pass is five compute dispatches, two
+    multi-draw-indirect draws and two box-test draws whose commands the GPU writes,
     and ONE read-back of every unit's state (:mod:`core.gl.gpucull`).  Pass 1 draws
     last pass's visible units (and those at the near plane); every other unit of
-    the frustum is tested against a max-depth pyramid of that depth; those that
-    pass are drawn in pass 2; every drawn unit's box is then tested (rasterised, as
-    a query) against the completed depth, which gives the states and the next
-    pass's memory.  No per-node Python work in steady state; per unit, a few numpy
+    the frustum is tested against a max-depth pyramid of that depth, and those that
+    pass as rasterised boxes (as queries); those that pass both are drawn in pass 2;
+    every drawn unit's box is then tested against the completed depth, which gives
+    the states and the next pass's memory.  No per-node Python work in steady state; per unit, a few numpy
     reductions over the read-back words (the counters).
 
     After a camera cut (:func:`camera_cut`), a ``reset()`` (objects moved) or on the

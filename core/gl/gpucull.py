@@ -22,11 +22,14 @@ read-back of a word per unit:
    its pixel rectangle rounded outward, and its nearest depth compared with the
    farthest depth of the rectangle at the finest level where it spans at most
    ``HIZ_SPAN`` texels (ties, and one 24-bit step, count as visible); those that
-   pass get ``instanceCount = 1`` in the pass-2 commands and their MVP.  Every unit
-   drawn (pass 1 or 2) and not near joins the test-2 list.
-5. pass 2: ONE multi-draw; test 2: the list's boxes in ONE instanced draw (instance
-   count written by the GPU) against the completed depth, early depth test ``<=``
-   as the renderer's queries, each passing fragment setting its unit's flag.
+   pass join a list whose boxes are drawn in ONE instanced draw (instance count
+   written by the GPU) against the same depth, early depth test ``<=`` as the
+   renderer's queries, each passing fragment setting its unit's flag (the pyramid
+   rejects cheaply, the rasterised box is exact on its outline).
+5. ``third`` (compute): units whose box passed both get ``instanceCount = 1`` in the
+   pass-2 commands and their MVP; every unit drawn (pass 1 or 2) and not near joins
+   the list of test 2.  Pass 2: ONE multi-draw; test 2: that list's boxes in one
+   draw against the completed depth.
 6. ``final`` (compute): the state of each unit (VIEW_CULLED outside the frustum;
    VISIBLE when near or when its box passed test 2; else OCCLUDED, since it
    failed a test against real geometry) and the memory for the next pass.
