@@ -72,6 +72,11 @@ class Strategy:
 
     forget = reset                   # the engine's older name
 
+    def moved(self):
+        """Objects moved (``Culler.set_matrices``): by default, forget everything; a
+        strategy whose memory only orders its work may keep it."""
+        self.reset()
+
 
 class Vfc(Strategy):
     def __call__(self, frame, chunk=16, truth=None):
@@ -443,10 +448,11 @@ class Gpu(Strategy):
     the states and the next pass's memory.  No per-node Python work in steady state; per unit, a few numpy
     reductions over the read-back words (the counters).
 
-    After a camera cut (:func:`camera_cut`), a ``reset()`` (objects moved) or on the
-    first pass, there is no memory: the pass is an ``om_coherent`` pass without
-    memory (the occupancy map finds the first occluders), whose visible units the
-    GPU then remembers.  Conservative: a unit is OCCLUDED only when its grown box
+    On the first pass, and after ``reset()`` (``cull(fresh=True)``, a new scene),
+    there is no memory: the pass is an ``om_coherent`` pass without memory (the
+    occupancy map finds the first occluders), whose visible units the GPU then
+    remembers.  Camera cuts and moved objects keep the memory: it only chooses what
+    pass 1 draws, so a cut costs drawing, never correctness.  Conservative: a unit is OCCLUDED only when its grown box
     (the engine's guard) passed no sample against depth real geometry wrote.
 
     Falls back to ``om_coherent`` where the GPU path cannot run: the OpenGL 4.1 path
@@ -473,6 +479,14 @@ class Gpu(Strategy):
         self.fallback.reset()
 
     forget = reset
+
+    def moved(self):
+        """Objects moved: the GPU's boxes and matrices are uploaded again; the memory is
+        kept (it only chooses what pass 1 draws, at the new places; every state is
+        still tested against the depth drawn), so live scenes with moving objects stay
+        on the GPU path.  The fallback forgets as usual."""
+        self.uploaded_for = None
+        self.fallback.reset()
 
     def _unusable(self, frame):
         """Why this frame cannot run on the GPU path, or None."""
@@ -597,6 +611,9 @@ class Auto(Strategy):
         self.occlusion.reset()
 
     forget = reset
+
+    def moved(self):
+        self.occlusion.moved()
 
     @property
     def learned(self):
