@@ -47,6 +47,7 @@ less before a query can only make it say "visible" more often.
 import heapq
 import math
 import time
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -502,6 +503,9 @@ class Gpu(Strategy):
             return self.gpu
         from .gl.gpucull import for_renderer
         gpu, self.reason = for_renderer(frame.r)
+        if gpu is None:
+            # not the expected 4.1 fallback: a driver that refuses the shaders, said once
+            warnings.warn(f"{self.reason}; the gpu strategy runs om_coherent instead", stacklevel=4)
         self.gpu, self.uploaded_for, self.remembered = gpu, None, False
         return gpu
 

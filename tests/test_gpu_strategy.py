@@ -245,6 +245,22 @@ def test_falls_back_to_om_coherent_on_the_41_path(ctx, monkeypatch):
     assert runs["gpu"] == runs["om_coherent"]
 
 
+def test_a_driver_that_refuses_the_shaders_falls_back_with_a_warning(ctx, monkeypatch):
+    """Shaders the driver does not compile (here a real compile error): a warning that
+    says so, om_coherent's answers, no false negative."""
+    from core.gl import gpucull
+    monkeypatch.setattr(gpucull, "PREPARE", gpucull.PREPARE.replace("void main() {", "void main() { oops;", 1))
+    scene, cams, _ = scenes.random_city(5, 200)
+    with Culler(scene, (64, 48), strategy="gpu", ctx=ctx) as c:
+        if not on_43(c):
+            pytest.skip("the GPU path is 4.3's")
+        truth = c.truth(cams[0])
+        with pytest.warns(UserWarning, match="do not compile"):
+            r = c.cull(cams[0])
+        r = c.cull(cams[0])
+        assert "do not compile" in c.strategy.reason and not (truth & ~r.visible).any()
+
+
 def test_falls_back_where_a_threshold_needs_sample_counts(ctx):
     from core.settings import CullOptions
     scene, cams, _ = scenes.random_city(5, 200)
