@@ -73,9 +73,10 @@ class Strategy:
 
     forget = reset                   # the engine's older name
 
-    def moved(self):
-        """Objects moved (``Culler.set_matrices``): by default, forget everything; a
-        strategy whose memory only orders its work may keep it."""
+    def moved(self, objects=None):
+        """Objects moved (``Culler.set_matrices``; ``objects``: their indices, None:
+        any): by default, forget everything; a strategy whose memory only orders its
+        work may keep it."""
         self.reset()
 
 
@@ -470,6 +471,8 @@ class Gpu(Strategy):
         self.gpu = None
         self.reason = None
         self.uploaded_for = None          # (hierarchy, its bounds array) the GPU's boxes come from
+        self.moved_objects = []           # objects moved since the last upload
+        self.leaf_of_unit = None          # (units,) the hierarchy leaf of each unit, -1: none
         self.remembered = False
         self.last_camera = None
 
@@ -481,12 +484,16 @@ class Gpu(Strategy):
 
     forget = reset
 
-    def moved(self):
-        """Objects moved: the GPU's boxes and matrices are uploaded again; the memory is
-        kept (it only chooses what pass 1 draws, at the new places; every state is
-        still tested against the depth drawn), so live scenes with moving objects stay
-        on the GPU path.  The fallback forgets as usual."""
-        self.uploaded_for = None
+    def moved(self, objects=None):
+        """Objects moved: their units' boxes and matrices are uploaded again (all of
+        them when ``objects`` is None or many moved); the memory is kept (it only
+        chooses what pass 1 draws, at the new places; every state is still tested
+        against the depth drawn), so live scenes with moving objects stay on the GPU
+        path.  The fallback forgets as usual."""
+        if objects is None or self.uploaded_for is None:
+            self.uploaded_for = None
+        else:
+            self.moved_objects.append(np.asarray(objects, dtype=np.int64).reshape(-1))
         self.fallback.reset()
 
     def _unusable(self, frame):
@@ -518,6 +525,8 @@ class Gpu(Strategy):
         h = frame.h
         if self.uploaded_for is None or self.uploaded_for[0] is not h or self.uploaded_for[1] is not h.bounds:
             self._upload(frame, gpu)
+        elif self.moved_objects:
+            self._upload(frame, gpu, np.unique(np.concatenate(self.moved_objects)))
         if not self.remembered:
             frame.stats["fresh"] = 1
             self.fresh.reset()
@@ -531,17 +540,23 @@ class Gpu(Strategy):
         frame.t_query += time.perf_counter() - t
         self._record(frame, words)
 
-    def _upload(self, frame, gpu):
+    MAX_RUNS = 16       # objects moved at once beyond which every unit is uploaded again
+
+    def _upload(self, frame, gpu, objects=None):
+        """The units' boxes (the hierarchy's leaves) and matrices to the GPU: all of
+        them, or those of ``objects`` (each object's units are consecutive)."""
         h, r = frame.h, frame.r
-        n = len(r.units)
-        boxes = np.zeros((n, 2, 3))
-        valid = np.zeros(n, dtype=bool)
-        leaves = np.flatnonzero(h.is_leaf)
-        boxes[h.leaf_unit[leaves]] = h.bounds[leaves]
-        valid[h.leaf_unit[leaves]] = True
-        t = time.perf_counter()
-        gpu.upload(boxes, valid, r.world[r.units.object])
-        frame.t_draw += time.perf_counter() - t
+        self.moved_objects = []
+        if objects is None or len(objects) > self.MAX_RUNS:
+            leaves = np.flatnonzero(h.is_leaf)
+            self.leaf_of_unit = np.full(len(r.units), -1, dtype=np.int64)
+            self.leaf_of_unit[h.leaf_unit[leaves]] = leaves
+            units = np.arange(len(r.units))
+        else:
+            units = np.concatenate([r.units.of_object[o] for o in objects]).astype(np.int64)
+        leaf = self.leaf_of_unit[units]
+        boxes = np.where((leaf >= 0)[:, None, None], h.bounds[np.maximum(leaf, 0)], 0.0)
+        gpu.upload(boxes, leaf >= 0, r.world[r.units.object[units]], units)
         self.uploaded_for = (h, h.bounds)
 
     @staticmethod
@@ -616,8 +631,8 @@ class Auto(Strategy):
 
     forget = reset
 
-    def moved(self):
-        self.occlusion.moved()
+    def moved(self, objects=None):
+        self.occlusion.moved(objects)
 
     @property
     def learned(self):

@@ -172,6 +172,28 @@ def test_moved_objects_reach_the_gpu(ctx):
                     assert r.stats["fresh"] == 0
 
 
+@pytest.mark.parametrize("moved", [1, 40])
+def test_moving_chunked_objects_never_hides_what_the_truth_shows(ctx, moved):
+    """Objects cut into several draw units each (chunks) move between passes, a few
+    (their units uploaded alone) or many (every unit uploaded again): no false
+    negative, and the passes stay the GPU's."""
+    scene, cams, _ = scenes.random_city(7, 200)
+    rng = np.random.default_rng(moved)
+    with Culler(scene, (128, 96), strategy="gpu", ctx=ctx, chunk_triangles=2, chunk_min_triangles=4) as c:
+        assert len(c.units) > 2 * len(scene)
+        for k, cam in enumerate(walk(cams[0], 5)):
+            if k:
+                idx = rng.choice(np.arange(1, len(scene)), moved, replace=False)
+                m = c.scene.matrices[idx].copy()
+                m[:, :3, 3] += rng.uniform(-8.0, 8.0, (moved, 3)) * [1, 1, 0]
+                c.set_matrices(idx, m)
+            truth = c.truth(cam)
+            r = c.cull(cam)
+            assert not (truth & ~r.visible).any()
+            if k and on_43(c):
+                assert r.stats["fresh"] == 0
+
+
 def test_thin_slabs_and_depth_ties_keep_the_engine_guard(ctx):
     """The GPU's guard is the engine's (half a query pixel, 2 depth steps): the slabs a
     renderer sampling 0.3 pixel off sees, and the depth ties of issue 9, are kept."""

@@ -406,21 +406,25 @@ class GpuCull:
         self.groups = max(1, -(-n // LOCAL))
         self.uploaded = False
 
-    def upload(self, boxes, valid, world):
-        """Unit world boxes ``(n, 2, 3) float64``, ``valid (n,) bool`` and world matrices
-        of the units' objects (mesh centre folded in) ``(n, 4, 4) float64``: one write."""
-        n = self.n
-        if not n:
+    def upload(self, boxes, valid, world, units=None):
+        """World boxes ``(k, 2, 3) float64``, ``valid (k,) bool`` and world matrices of
+        the units' objects (mesh centre folded in) ``(k, 4, 4) float64`` of ``units``
+        (default all, ``k = n``): one write per run of consecutive units."""
+        units = np.arange(self.n) if units is None else np.asarray(units, dtype=np.int64)
+        k = len(units)
+        if not k:
             return
-        data = np.zeros((n, UNIT_BYTES // 8), dtype=np.float64)
-        data[:, :16] = np.asarray(world, dtype=np.float64).transpose(0, 2, 1).reshape(n, 16)   # column-major
+        data = np.zeros((k, UNIT_BYTES // 8), dtype=np.float64)
+        data[:, :16] = np.asarray(world, dtype=np.float64).transpose(0, 2, 1).reshape(k, 16)   # column-major
         ok = valid & np.isfinite(boxes).all(axis=(1, 2)) & (boxes[:, 0] <= boxes[:, 1]).all(axis=1)
         data[:, 16:19] = np.where(ok[:, None], boxes[:, 0], 0.0)
         data[:, 19] = ok
         data[:, 20:23] = np.where(ok[:, None], boxes[:, 1], 0.0)
         self.r.activate()
-        self.unit_buf.write(data.tobytes())
-        self.r._count()
+        starts = np.flatnonzero(np.r_[True, np.diff(units) != 1])
+        for a, b in zip(starts, np.r_[starts[1:], k], strict=True):
+            self.unit_buf.write(data[a:b].tobytes(), offset=UNIT_BYTES * int(units[a]))
+        self.r._count(len(starts))
         self.uploaded = True
 
     def remember(self, visible):
