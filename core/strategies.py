@@ -540,14 +540,14 @@ class Gpu(Strategy):
         frame.t_query += time.perf_counter() - t
         self._record(frame, words)
 
-    MAX_RUNS = 16       # objects moved at once beyond which every unit is uploaded again
+    MAX_MOVED = 16      # objects moved at once beyond which every unit is uploaded again (one write)
 
     def _upload(self, frame, gpu, objects=None):
         """The units' boxes (the hierarchy's leaves) and matrices to the GPU: all of
         them, or those of ``objects`` (each object's units are consecutive)."""
         h, r = frame.h, frame.r
         self.moved_objects = []
-        if objects is None or len(objects) > self.MAX_RUNS:
+        if objects is None or len(objects) > self.MAX_MOVED:
             leaves = np.flatnonzero(h.is_leaf)
             self.leaf_of_unit = np.full(len(r.units), -1, dtype=np.int64)
             self.leaf_of_unit[h.leaf_unit[leaves]] = leaves
