@@ -251,7 +251,7 @@ class Culler:
             self._warn_invalid()
         # never drawn (see unit_bounds); identity keeps NaN out of the GPU's arrays
         self.renderer.set_matrices(idx, np.where(bad[:, None, None], np.eye(4), m))
-        self.strategy.reset()             # what was visible before the move proves nothing now
+        self.strategy.moved(idx)          # what was visible before the move proves nothing now
         if self.hierarchy is not None:
             self.hierarchy.refit(self.unit_bounds())
 

@@ -35,7 +35,11 @@ less before a query can only make it say "visible" more often.
                of the frustum tested in one batch, the nearer half of those that pass
                drawn and the rest tested once more (a handful of GL calls a pass);
                after a camera cut, an ``om_multi`` pass.
-- ``auto``     the default candidate: ``om_coherent`` where occlusion tests pay on this
+- ``gpu``      GPU-resident two passes: the units' boxes and matrices on the GPU, five
+               compute dispatches and four indirect draws whose commands the GPU writes,
+               one read-back a pass (:mod:`core.gl.gpucull`); ``om_coherent`` on the
+               4.1 path.
+- ``auto``     the default candidate: ``gpu`` where occlusion tests pay on this
                machine (costs measured), frustum culling alone where they cannot.
 - ``oracle``   draws exactly the ground-truth set, no queries: the physical limit.
 """
@@ -43,6 +47,7 @@ less before a query can only make it say "visible" more often.
 import heapq
 import math
 import time
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -67,6 +72,12 @@ class Strategy:
         """Forget what earlier passes taught (objects moved, a camera cut, a new scene)."""
 
     forget = reset                   # the engine's older name
+
+    def moved(self, objects=None):
+        """Objects moved (``Culler.set_matrices``; ``objects``: their indices, None:
+        any): by default, forget everything; a strategy whose memory only orders its
+        work may keep it."""
+        self.reset()
 
 
 class Vfc(Strategy):
@@ -427,10 +438,153 @@ class TwoPass(Strategy):
         frame.draw_leaves(second[visible])
 
 
+class Gpu(Strategy):
+    """GPU-resident two passes (nvpro's temporal culling, zeux's niagara): the units'
+    boxes and matrices live on the GPU; a pass is five compute dispatches, two
+    multi-draw-indirect draws and two box-test draws whose commands the GPU writes,
+    and ONE read-back of every unit's state (:mod:`core.gl.gpucull`).  Pass 1 draws
+    last pass's visible units (and those at the near plane); every other unit of
+    the frustum is tested against a max-depth pyramid of that depth, and those that
+    pass as rasterised boxes (as queries); those that pass both are drawn in pass 2;
+    every drawn unit's box is then tested against the completed depth, which gives
+    the states and the next pass's memory.  No per-node Python work in steady state; per unit, a few numpy
+    reductions over the read-back words (the counters).
+
+    On the first pass, and after ``reset()`` (``cull(fresh=True)``, a new scene),
+    there is no memory: the pass is an ``om_coherent`` pass without memory (the
+    occupancy map finds the first occluders), whose visible units the GPU then
+    remembers.  Camera cuts and moved objects keep the memory: it only chooses what
+    pass 1 draws, so a cut costs drawing, never correctness.  Conservative: a unit is OCCLUDED only when its grown box
+    (the engine's guard) passed no sample against depth real geometry wrote.
+
+    Falls back to ``om_coherent`` where the GPU path cannot run: the OpenGL 4.1 path
+    (``OCC_GL=4.1``, macOS: no compute shaders, storage buffers or indirect draws),
+    a ``visible_threshold`` above 0 (sample counts, not flags), or a driver whose
+    compiler refuses the shaders (float64 in shaders is required); ``reason`` says
+    which.  A display resolution above the query resolution is honoured (the whole
+    depth is reduced before each test).
+    """
+
+    def __init__(self, max_tests=8):
+        self.fallback = OmMulti(max_tests, coherent=True, read_budget=COHERENT_READS)
+        self.fresh = OmMulti(max_tests, coherent=True, read_budget=COHERENT_READS)
+        self.gpu = None
+        self.reason = None
+        self.uploaded_for = None          # (hierarchy, its bounds array) the GPU's boxes come from
+        self.moved_objects = []           # objects moved since the last upload
+        self.leaf_of_unit = None          # (units,) the hierarchy leaf of each unit, -1: none
+        self.remembered = False
+        self.last_camera = None
+
+    def reset(self):
+        self.uploaded_for = None
+        self.remembered = False
+        self.last_camera = None
+        self.fallback.reset()
+
+    forget = reset
+
+    def moved(self, objects=None):
+        """Objects moved: their units' boxes and matrices are uploaded again (all of
+        them when ``objects`` is None or many moved); the memory is kept (it only
+        chooses what pass 1 draws, at the new places; every state is still tested
+        against the depth drawn), so live scenes with moving objects stay on the GPU
+        path.  The fallback forgets as usual."""
+        if objects is None or self.uploaded_for is None:
+            self.uploaded_for = None
+        else:
+            self.moved_objects.append(np.asarray(objects, dtype=np.int64).reshape(-1))
+        self.fallback.reset()
+
+    def _unusable(self, frame):
+        """Why this frame cannot run on the GPU path, or None."""
+        if getattr(frame.r, "path", None) != "4.3":
+            return "the OpenGL 4.1 path has no compute shaders, storage buffers or indirect draws"
+        if frame.threshold > 0:
+            return "a visible threshold above 0 needs sample counts"
+        return None
+
+    def _culler(self, frame):
+        """The GPU side for this frame's renderer (made once per renderer), or None."""
+        if self.gpu is not None and self.gpu.r is frame.r:
+            return self.gpu
+        from .gl.gpucull import for_renderer
+        gpu, self.reason = for_renderer(frame.r)
+        if gpu is None:
+            # not the expected 4.1 fallback: a driver that refuses the shaders, said once
+            warnings.warn(f"{self.reason}; the gpu strategy runs om_coherent instead", stacklevel=4)
+        self.gpu, self.uploaded_for, self.remembered = gpu, None, False
+        return gpu
+
+    def __call__(self, frame, chunk=16, truth=None):
+        self.reason = self._unusable(frame) or self.reason
+        gpu = None if self.reason else self._culler(frame)
+        if gpu is None:
+            self.fallback(frame, chunk)
+            return
+        h = frame.h
+        if self.uploaded_for is None or self.uploaded_for[0] is not h or self.uploaded_for[1] is not h.bounds:
+            self._upload(frame, gpu)
+        elif self.moved_objects:
+            self._upload(frame, gpu, np.unique(np.concatenate(self.moved_objects)))
+        if not self.remembered:
+            frame.stats["fresh"] = 1
+            self.fresh.reset()
+            self.fresh(frame, chunk)                 # no memory: the occupancy map's pass
+            gpu.remember(frame.state == Visibility.VISIBLE)
+            self.remembered = True
+            return
+        t = time.perf_counter()
+        pixels = max(frame.options.pixel_guard, tol.query_guard_px, frame.reduce_guard_px)
+        words = gpu.run(frame, pixels)
+        frame.t_query += time.perf_counter() - t
+        self._record(frame, words)
+
+    MAX_MOVED = 16      # objects moved at once beyond which every unit is uploaded again (one write)
+
+    def _upload(self, frame, gpu, objects=None):
+        """The units' boxes (the hierarchy's leaves) and matrices to the GPU: all of
+        them, or those of ``objects`` (each object's units are consecutive)."""
+        h, r = frame.h, frame.r
+        self.moved_objects = []
+        if objects is None or len(objects) > self.MAX_MOVED:
+            leaves = np.flatnonzero(h.is_leaf)
+            self.leaf_of_unit = np.full(len(r.units), -1, dtype=np.int64)
+            self.leaf_of_unit[h.leaf_unit[leaves]] = leaves
+            units = np.arange(len(r.units))
+        else:
+            units = np.concatenate([r.units.of_object[o] for o in objects]).astype(np.int64)
+        leaf = self.leaf_of_unit[units]
+        boxes = np.where((leaf >= 0)[:, None, None], h.bounds[np.maximum(leaf, 0)], 0.0)
+        gpu.upload(boxes, leaf >= 0, r.world[r.units.object[units]], units)
+        self.uploaded_for = (h, h.bounds)
+
+    @staticmethod
+    def _record(frame, words):
+        """The states and counters of the pass from the units' words."""
+        from .gl import gpucull as G
+        state = (words & G.STATE).astype(np.uint8)
+        frame.state[:] = state
+        drawn = (words & (G.DRAWN1 | G.DRAWN2)) != 0
+        near = (words & G.NEAR) != 0
+        tri = frame.r.tri_counts
+        s = frame.stats
+        s["units_drawn"] = int(drawn.sum())
+        s["triangles_drawn"] = int(tri[drawn].sum())
+        # what the pass saved: occluded and never drawn (a unit drawn and then found hidden is not)
+        s["triangles_occluded"] = int(tri[(state == Visibility.OCCLUDED) & ~drawn].sum())
+        s["queries"] = int(np.count_nonzero(words & G.TESTED1) + np.count_nonzero(words & G.TESTED2))
+        s["multiple_queries"] = 2
+        s["queries_skipped"] = int(np.count_nonzero((words & G.DRAWN1) != 0) - near.sum())
+        s["near_visible"] = int(near.sum())
+        s["nodes_visited"] = len(words)
+
+
 class Auto(Strategy):
-    """The default: occlusion tests (``om_coherent``) where they pay on this machine,
-    frustum culling alone where they cannot (few or cheap triangles behind what is
-    seen, or a GPU that draws everything faster than the tests' round trips).
+    """The default: occlusion tests (``gpu``, which is ``om_coherent`` where the GPU
+    path cannot run) where they pay on this machine, frustum culling alone where they
+    cannot (few or cheap triangles behind what is seen, or a GPU that draws
+    everything faster than the tests' round trips).
 
     Costs are measured on real passes, not assumed: the first pass tests occlusion
     (and times a query batch's round trip); the second draws everything in the
@@ -460,7 +614,7 @@ class Auto(Strategy):
     LEARN = 0.3                  # weight of a new measurement in the running cost
 
     def __init__(self, max_tests=8, costs=None):
-        self.occlusion = OmMulti(max_tests, coherent=True, read_budget=COHERENT_READS)
+        self.occlusion = Gpu(max_tests)
         # tri_ms: ms per triangle a frustum-only pass draws; vfc_cpu_ms: such a pass's
         # time beyond its drawing; round_trip_ms: one query batch
         self.costs = dict(costs) if costs is not None else None
@@ -476,6 +630,9 @@ class Auto(Strategy):
         self.occlusion.reset()
 
     forget = reset
+
+    def moved(self, objects=None):
+        self.occlusion.moved(objects)
 
     @property
     def learned(self):
@@ -589,6 +746,9 @@ REGISTRY = {info.name: info for info in (
                  "Occupancy map, multiple queries, last pass's visible first", True),
     StrategyInfo("two_pass", lambda m: TwoPass(m), "Two passes",
                  "Last pass's visible first, every other leaf tested in one batch (GPU-driven)", True),
+    StrategyInfo("gpu", lambda m: Gpu(m), "GPU-driven",
+                 "Units' boxes on the GPU: last pass's visible drawn, everything else tested there, "
+                 "one read a pass", True),
     StrategyInfo("auto", lambda m: Auto(m), "Automatic",
                  "Occlusion tests where they pay on this machine, frustum culling where they cannot", True),
     StrategyInfo("oracle", lambda m: Oracle(), "Oracle",

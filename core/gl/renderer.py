@@ -634,6 +634,9 @@ class GLRenderer:
         if self.own_ctx:
             self.ctx.release()
             return
+        gpu = getattr(self, "gpu_cull", None)          # the gpu strategy's buffers (core/gl/gpucull.py)
+        if gpu is not None:
+            gpu.release()
         objs = [self.depth_vao, self.id_vao, self.vbo, self.ibo, self.depth_prog, self.id_prog,
                 *self.box_progs.values(), self.fbo, self.query_fbo, self.depth_tex]
         if self.path == "4.3":
