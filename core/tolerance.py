@@ -39,12 +39,18 @@ class Tolerance:
     depth_bits: int = 24
     # Query boxes also grow by this many depth-buffer steps at their distance:
     # the occluder's stored depth and the box fragment's depth are each rounded
-    # to the 24-bit grid (half a step each) and float32 interpolation adds up to
-    # about one more, so a surface tied with the occluder (ties count as
-    # visible) is never pushed behind it by rounding.  Perspective: one step in
-    # eye-space depth at distance d is d^2 (far - near) / (near far 2^bits);
-    # orthographic: (far - near) / 2^bits.
-    depth_guard_steps: float = 2.0
+    # to the 24-bit grid (half a step each), and each is computed in float32 on
+    # its own path (an MVP rounded to float32, a 4-term product, the division by
+    # w): near the far plane, where the window depth is within 1e-4 of 1, that
+    # alone puts a surface up to about 2 steps nearer or farther than it is
+    # (1.9 measured on the city-xl path, a wall seen edge-on 270 units away with
+    # far 360), for each of the two surfaces compared.  1 + 2 x 2 plus a step of
+    # margin: a surface tied with the occluder (ties count as visible), such as
+    # an object's box against the object's own depth, is never pushed behind it
+    # by rounding (tests/test_gpu_strategy.py::test_far_wall_against_its_own_depth).
+    # Perspective: one step in eye-space depth at distance d is
+    # d^2 (far - near) / (near far 2^bits); orthographic: (far - near) / 2^bits.
+    depth_guard_steps: float = 6.0
     # The coherent strategies' memory of last pass's visible leaves is used only
     # when the camera moved less than this fraction of the scene's size ...
     coherence_move_rel: float = 0.01

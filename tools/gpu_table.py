@@ -2,8 +2,8 @@
 
     python tools/gpu_table.py OUT_DIR
 
-One table of median frame milliseconds (strategies as columns, scenes as rows), one of the
-default strategy against vfc and the oracle, and the baseline's figures where present.
+One table of median frame milliseconds (strategies as columns, scenes as rows), one of
+every strategy against vfc and the oracle, and the baseline's figures where present.
 """
 
 import json
@@ -38,13 +38,12 @@ def main(out):
                for s in strategies]
         print(f"| {scene} | " + " | ".join(row) + " |")
     print()
-    default = current and next(iter(current.values())).get("default_strategy")
     print("| scene | strategy | median ms | / vfc | / oracle | FN | "
           + " | ".join(label for _, label in OPTIONAL) + " |")
     print("|---" * (6 + len(OPTIONAL)) + "|")
     for scene, rep in current.items():
         st = rep["strategies"]
-        for name in [n for n in (default, "om_coherent", "om_multi") if n and n in st]:
+        for name in [n for n in strategies if n in st]:
             s = st[name]
             vfc = st.get("vfc", {}).get("frame_ms_median")
             orc = st.get("oracle", {}).get("frame_ms_median")
