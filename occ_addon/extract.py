@@ -109,6 +109,24 @@ def _read_mesh(mesh):
     return v, f
 
 
+def instanced_sources(obj):
+    """Session ids of the objects ``obj`` may instance (vertex / face instancing's
+    children and theirs, particle systems' instance objects and collections), or
+    None where that cannot be told from settings (geometry nodes)."""
+    if any(m.type == "NODES" for m in obj.modifiers):
+        return None
+    out = set()
+    if obj.instance_type in {"VERTS", "FACES"}:
+        out.update(ident(c) for c in obj.children_recursive)
+    for ps in obj.particle_systems:
+        s = ps.settings
+        if s.instance_object is not None:
+            out.add(ident(s.instance_object))
+        if s.instance_collection is not None:
+            out.update(ident(o) for o in s.instance_collection.all_objects)
+    return out
+
+
 def is_instancer(obj):
     return obj.instance_type == "COLLECTION" and obj.instance_collection is not None
 
@@ -395,7 +413,8 @@ class Extractor:
             return True
         if self.touched:
             for o, k, c in zip(cand.objects, cand.kinds, cand.culled, strict=True):
-                if k == "collection" and not c and self._instance_stale(o):
+                if not c and ((k == "collection" and self._instance_stale(o))
+                              or (k == "instancer" and self._instancer_stale(o))):
                     return True
         return False
 
@@ -420,8 +439,7 @@ class Extractor:
         depsgraph = context.evaluated_depsgraph_get()
         fresh = {ident(o): o for o, k, c in zip(cand.objects, cand.kinds, cand.culled, strict=True)
                  if not c and ((k == "collection" and self._instance_stale(o))
-                               or (k == "instancer" and (ident(o) in self.dirty
-                                                         or ident(o) not in self.cache)))}
+                               or (k == "instancer" and self._instancer_stale(o)))}
         for uid, (v, f) in _instanced_geometry(depsgraph, fresh).items():
             o = fresh[uid]
             # instancer-local (a move is then a matrix), by the same evaluation as the instances
@@ -476,6 +494,20 @@ class Extractor:
             return True
         members = _members(obj.instance_collection)
         return hit[0][2] != members or not self.touched.keys().isdisjoint(members)
+
+    def _instancer_stale(self, obj):
+        """Whether the cached instances of an instancer may differ from what Blender
+        draws: never read, its own data changed, or an object it may instance changed
+        (its geometry or transform: a vertex-instanced child, a particle system's
+        object or collection; for geometry nodes, which can instance anything, any
+        object).  Its instances occlude: stale ones could hide what is visible."""
+        uid = ident(obj)
+        if uid in self.dirty or uid not in self.cache:
+            return True
+        if not self.touched:
+            return False
+        sources = instanced_sources(obj)
+        return sources is None or not self.touched.keys().isdisjoint(sources)
 
     def _geometry(self, obj, k, culled, depsgraph, read):
         """``(key, v, f)`` from the cache when still valid, else from the depsgraph

@@ -885,9 +885,38 @@ def case_minimal_writes():
     promise("writes_occluded_truth")
 
 
+def case_instanced_child_edited():
+    """A vertex instancer occludes with its instances; the instanced child's mesh is
+    then edited smaller: the next Cull must not hide what the old instance covered
+    (the instancer's cached instances are stale once an object it instances changes;
+    workflow seed 640 found it with a particle-free scene like this one)."""
+    new_scene()
+    pts = bpy.data.meshes.new("VertPoints")
+    pts.from_pydata([(-3.0, 0.0, 1.0)], [], [])
+    inst = bpy.data.objects.new("VertInstancer", pts)
+    bpy.context.scene.collection.objects.link(inst)
+    inst.instance_type = "VERTS"
+    child = box("VertChild", (-0.5, -2.5, -2.5), (0.5, 2.5, 2.5))
+    child.parent = inst
+    box("target", (-1.5, -0.3, 0.7), (-1.2, 0.3, 1.3))
+    update()
+    cull()
+    hid = hidden_by_addon("target")
+    me = child.data
+    co = np.zeros(len(me.vertices) * 3, np.float32)
+    me.vertices.foreach_get("co", co)
+    me.vertices.foreach_set("co", (co * 0.05).astype(np.float32))   # the instance shrinks to a speck
+    me.update()
+    update()
+    r, err = cull()
+    check("instanced_child_edited_seen", hid and r == {"FINISHED"} and not hidden_by_addon("target"),
+          (hid, r, hidden_by_addon("target"), err[-500:]))
+    promise("instanced_child_edited_truth")
+
+
 CASES = (case1, case2, case3, case4, case4_collections, case5, case6, case7, case8, case10, case11, case12,
          case_hidden_edits, case_display_resolution, case_report_path,
-         case_steps, case_minimal_writes)
+         case_steps, case_minimal_writes, case_instanced_child_edited)
 
 
 def main():
