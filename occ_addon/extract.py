@@ -383,7 +383,8 @@ class Extractor:
         return hit
 
     def mark(self, geometry=(), transform=()):
-        """Record depsgraph updates: uids whose geometry changed, and uids that moved."""
+        """Record depsgraph updates: uids whose geometry changed, and uids that moved
+        or changed otherwise (what instances them may be stale)."""
         self.marks += 1
         self.dirty.update(dict.fromkeys(geometry, self.marks))
         self.touched.update(dict.fromkeys(geometry, self.marks))

@@ -417,7 +417,9 @@ def _mark(depsgraph, edits=True):
         if isinstance(update.id, bpy.types.Object):
             if update.is_updated_geometry:
                 geometry.append(ident(update.id.original))
-            elif update.is_updated_transform:
+            else:
+                # moved, or any other change (display, in front, ...): what instances it
+                # (a collection, a particle system, a vertex parent) may draw it otherwise
                 moved.append(ident(update.id.original))
     if geometry or moved:
         SESSION.extractor.mark(geometry, moved)

@@ -912,6 +912,17 @@ def case_instanced_child_edited():
     check("instanced_child_edited_seen", hid and r == {"FINISHED"} and not hidden_by_addon("target"),
           (hid, r, hidden_by_addon("target"), err[-500:]))
     promise("instanced_child_edited_truth")
+    me.vertices.foreach_set("co", co)                  # full size again: it hides the target
+    me.update()
+    update()
+    cull()
+    hid = hidden_by_addon("target")
+    child.display_type = "WIRE"                        # its instances are wire now: they occlude nothing
+    update()
+    r, err = cull()
+    check("instanced_child_wire_seen", hid and r == {"FINISHED"} and not hidden_by_addon("target"),
+          (hid, r, hidden_by_addon("target"), err[-500:]))
+    promise("instanced_child_wire_truth")
 
 
 CASES = (case1, case2, case3, case4, case4_collections, case5, case6, case7, case8, case10, case11, case12,

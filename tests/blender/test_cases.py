@@ -44,6 +44,7 @@ CHECKS = [
     "writes_none_hidden_left_view_truth", "writes_when_hidden_becomes_visible", "writes_visible_truth",
     "writes_when_newly_occluded", "writes_occluded_truth",
     "instanced_child_edited_seen", "instanced_child_edited_truth",
+    "instanced_child_wire_seen", "instanced_child_wire_truth",
 ]
 
 
