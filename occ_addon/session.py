@@ -193,18 +193,16 @@ class Session:
         protected = self.protected(context, objects, culled)
         every = visibility.uids()
         hide = np.isin(every, self.kept_uids[culled & ~protected])
-        written = self.worth_writing(every, hide, state, protected)
-        if written:
-            self.applying = True
-            try:
-                visibility.apply(hide)
-                # Showing an object again makes the depsgraph report it, and every
-                # object sharing its mesh, as changed geometry.  Nothing else can have
-                # changed since the update above, so evaluate now and let the handler
-                # ignore it all: hiding never costs an engine rebuild on the next pass.
-                context.view_layer.update()
-            finally:
-                self.applying = False
+        self.applying = True
+        try:
+            visibility.apply(hide)
+            # Showing an object again makes the depsgraph report it, and every
+            # object sharing its mesh, as changed geometry.  Nothing else can have
+            # changed since the update above, so evaluate now and let the handler
+            # ignore it all: hiding never costs an engine rebuild on the next pass.
+            context.view_layer.update()
+        finally:
+            self.applying = False
         ms = 1e3 * (time.perf_counter() - t)
         tri = self.culler.scene.triangle_counts
         hidden = np.isin(self.kept_uids, every[visibility.flags("occ_culled")])
@@ -214,24 +212,9 @@ class Session:
         settings.last_triangles_hidden = int(tri[hidden].sum())
         settings.last_ms = ms
         self.last = {"state": state, "protected": protected, "bounds": self.culler.scene.bounds,
-                     "occupancy": result.occupancy, "stats": result.stats, "ms": ms, "written": written}
+                     "occupancy": result.occupancy, "stats": result.stats, "ms": ms}
         self.version += 1
         return result, objects
-
-    def worth_writing(self, every, hide, state, protected):
-        """Whether this pass writes the hide flags.  Blender pays for a write as a whole,
-        not per object: any ``hide_viewport`` change rebuilds its dependency graph
-        (seconds at 50,000 objects, ``tools/blender_hide_cost.py``).  So a pass writes
-        when it must (something the add-on hides is no longer hidable: visible now,
-        protected, or gone) or when it gains what culling is for (an occluded object
-        not hidden yet), and then writes the whole answer.  Otherwise every object it
-        keeps hidden is still occluded or outside the view (conservative as a write),
-        and an object that only left the view stays drawn, which Blender culls itself."""
-        held = visibility.flags("occ_culled")
-        if (held & ~hide).any():
-            return True
-        occluded = self.kept_uids[(state == Visibility.OCCLUDED) & ~protected]
-        return bool((np.isin(every, occluded) & ~held).any())
 
     def protected(self, context, objects, culled):
         """``(k,) bool`` over the engine's objects: never hidden.  The user's

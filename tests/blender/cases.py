@@ -844,47 +844,6 @@ def case_steps():
           scene.frame_current == 7 and not os.path.exists(path), (scene.frame_current, os.path.exists(path)))
 
 
-def case_minimal_writes():
-    """A pass writes the hide flags only when it must show something the add-on hid,
-    or when an occluded object is not hidden yet (Blender pays a dependency-graph
-    rebuild per write, whatever its size); an object that only left the view stays
-    as it is, and everything the add-on keeps hidden is still not visible."""
-    SESSION = addon("session").SESSION
-    new_scene()
-    box("target", (3, -1, 0), (4, 1, 1))
-    box("side", (-3, 2, 0), (-2.5, 2.5, 0.5))
-    update()
-    cull()
-    first = SESSION.last["written"], hidden_by_addon("target"), hidden_by_addon("side")
-    flags = hide_flags()
-    bpy.data.objects["side"].location.y = 80.0              # out of the view, nothing newly occluded
-    update()
-    r, _ = cull()
-    check("writes_none_when_only_leaving_view",
-          first == (True, True, False) and r == {"FINISHED"} and not SESSION.last["written"]
-          and np.array_equal(flags, hide_flags()), (first, r, SESSION.last["written"]))
-    promise("writes_none_truth")
-    bpy.data.objects["target"].location.y = -80.0           # hidden, now out of the view: may stay hidden
-    update()
-    cull()
-    check("writes_none_hidden_left_view", not SESSION.last["written"] and hidden_by_addon("target"),
-          (SESSION.last["written"], hidden_by_addon("target")))
-    promise("writes_none_hidden_left_view_truth")
-    bpy.data.objects["target"].location = (-3.0, -2.0, 0.0)  # in front of the wall: must be shown
-    update()
-    cull()
-    check("writes_when_hidden_becomes_visible", SESSION.last["written"] and drawn("target"),
-          (SESSION.last["written"], drawn("target")))
-    promise("writes_visible_truth")
-    # (that write hid "side" too, outside the view: a write writes the whole answer)
-    bpy.data.objects["target"].location = (3.5, 0.0, 0.5)     # behind the wall again: newly occluded
-    update()
-    cull()
-    check("writes_when_newly_occluded", SESSION.last["written"] and hidden_by_addon("target")
-          and hidden_by_addon("side"), (SESSION.last["written"], hidden_by_addon("target")))
-    promise("writes_occluded_truth")
-
-
 def case_instanced_child_edited():
     """A vertex instancer occludes with its instances; the instanced child's mesh is
     then edited smaller: the next Cull must not hide what the old instance covered
@@ -927,7 +886,7 @@ def case_instanced_child_edited():
 
 CASES = (case1, case2, case3, case4, case4_collections, case5, case6, case7, case8, case10, case11, case12,
          case_hidden_edits, case_display_resolution, case_report_path,
-         case_steps, case_minimal_writes, case_instanced_child_edited)
+         case_steps, case_instanced_child_edited)
 
 
 def main():

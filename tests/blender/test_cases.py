@@ -40,9 +40,6 @@ CHECKS = [
     "analyze_unsaved_path_in_cwd", "analyze_background_progress",
     "steps_cancel_build_nothing_changed", "steps_cancel_build_then_cull", "steps_cancel_build_truth",
     "steps_edit_between_steps_seen", "steps_edit_between_steps_truth", "steps_analyze_cancel_restores_frame",
-    "writes_none_when_only_leaving_view", "writes_none_truth", "writes_none_hidden_left_view",
-    "writes_none_hidden_left_view_truth", "writes_when_hidden_becomes_visible", "writes_visible_truth",
-    "writes_when_newly_occluded", "writes_occluded_truth",
     "instanced_child_edited_seen", "instanced_child_edited_truth",
     "instanced_child_wire_seen", "instanced_child_wire_truth",
 ]
