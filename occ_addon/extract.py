@@ -38,7 +38,7 @@ with other contents.
 Each pass asks two questions of different cost: which objects take part and
 where they are (:meth:`Extractor.candidates`: one ``visible_get`` per object,
 one ``foreach_get`` of every world matrix), and what they look like
-(:meth:`Extractor.scene`, ``to_mesh`` per changed object, only when the set of
+(:meth:`Extractor.scene_steps`, ``to_mesh`` per changed object, only when the set of
 objects or some geometry changed; the depsgraph and frame-change handlers mark
 what changed).
 """
@@ -52,7 +52,6 @@ import numpy as np
 from ..core import OccError, Scene
 from . import visibility
 from .visibility import ident
-from .worker import drive
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
 SOLID_DISPLAY = {"SOLID", "TEXTURED"}            # wire and bounds display never occlude
@@ -409,7 +408,7 @@ class Extractor:
         return ident(obj) not in self.dirty
 
     def needs_geometry(self, cand):
-        """Whether :meth:`scene` must read geometry again for these candidates."""
+        """Whether :meth:`scene_steps` must read geometry again for these candidates."""
         if not self.dirty.keys().isdisjoint(cand.uids.tolist()):
             return True
         if self.touched:
@@ -425,17 +424,13 @@ class Extractor:
         self.dirty = {u: m for u, m in self.dirty.items() if m > seen}
         self.touched = {u: m for u, m in self.touched.items() if m > seen}
 
-    def scene(self, context, cand):
-        """``(core.Scene, kept, bad)``: the engine's scene of the candidates with finite
-        triangles, ``kept`` their indices into ``cand``, ``bad`` the names left out
-        for NaN or infinite vertices."""
-        return drive(self.scene_steps(context, cand))
-
     def scene_steps(self, context, cand):
-        """:meth:`scene` as a generator that yields ``(label, fraction)`` about every
-        :data:`STEP_S` seconds while it reads geometry (a modal operator redraws and
-        looks for Esc in between) and returns what :meth:`scene` returns.  Stopped
-        early, what it read stays cached and nothing else changes."""
+        """A generator (see :func:`.worker.drive`) that returns ``(core.Scene, kept,
+        bad)``: the engine's scene of the candidates with finite triangles, ``kept``
+        their indices into ``cand``, ``bad`` the names left out for NaN or infinite
+        vertices.  It yields ``(label, fraction)`` about every :data:`STEP_S` seconds
+        while it reads geometry (a modal operator redraws and looks for Esc in
+        between).  Stopped early, what it read stays cached and nothing else changes."""
         seen = self.marks
         depsgraph = context.evaluated_depsgraph_get()
         fresh = {ident(o): o for o, k, c in zip(cand.objects, cand.kinds, cand.culled, strict=True)

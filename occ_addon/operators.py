@@ -173,7 +173,7 @@ class OCC_OT_live(Stepped, bpy.types.Operator):
     bl_label = "Live"
 
     def invoke(self, context, event):
-        if bpy.app.background or context.scene.occ.live or not self.windowed(context):
+        if context.scene.occ.live or not self.windowed(context):
             return self.execute(context)
         try:                                         # the first build in steps, then live
             _, display = camera_for(context)

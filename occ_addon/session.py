@@ -89,15 +89,12 @@ class Session:
             cand = self.extractor.candidates(context)
         return cand
 
-    def engine(self, context, resolution, strategy, verify=False, display=None):
-        """The engine for the current candidates: rebuilt when objects or geometry
-        changed, otherwise only the moved objects' matrices are sent."""
-        return drive(self.engine_steps(context, resolution, strategy, verify, display))
-
     def engine_steps(self, context, resolution, strategy, verify=False, display=None):
-        """:meth:`engine` in steps (a generator, see :func:`.worker.drive`): it yields
-        progress while it reads geometry and the build's :class:`.worker.Job` while
-        the engine thread builds.  Stopped early (Esc), the session keeps no half
+        """The engine for the current candidates, ``(culler, objects)``: rebuilt when
+        objects or geometry changed, otherwise only the moved objects' matrices are
+        sent.  A generator (see :func:`.worker.drive`): it yields progress while it
+        reads geometry and the build's :class:`.worker.Job` while the engine thread
+        builds.  Stopped early (Esc), the session keeps no half
         state: the engine is dropped (closed on its thread once built) and the next
         pass builds again; nothing in the scene was touched."""
         cand = self.candidates(context, verify)
@@ -191,8 +188,7 @@ class Session:
         state = result.state
         culled = state != Visibility.VISIBLE
         protected = self.protected(context, objects, culled)
-        every = visibility.uids()
-        hide = np.isin(every, self.kept_uids[culled & ~protected])
+        hide = np.isin(visibility.uids(), self.kept_uids[culled & ~protected])
         self.applying = True
         try:
             visibility.apply(hide)
@@ -205,11 +201,10 @@ class Session:
             self.applying = False
         ms = 1e3 * (time.perf_counter() - t)
         tri = self.culler.scene.triangle_counts
-        hidden = np.isin(self.kept_uids, every[visibility.flags("occ_culled")])
         settings.last_tested = len(objects)
         settings.last_occluded = int((state == Visibility.OCCLUDED).sum())
         settings.last_outside = int((state == Visibility.VIEW_CULLED).sum())
-        settings.last_triangles_hidden = int(tri[hidden].sum())
+        settings.last_triangles_hidden = int(tri[culled & ~protected].sum())
         settings.last_ms = ms
         self.last = {"state": state, "protected": protected, "bounds": self.culler.scene.bounds,
                      "occupancy": result.occupancy, "stats": result.stats, "ms": ms}
@@ -253,9 +248,13 @@ class Session:
 def _replaced(culler, scene, strategy):
     """On the engine thread: ``culler`` rebuilt for ``scene`` (same GL context; meshes
     read unchanged keep their chunks), with ``strategy``."""
-    culler.replace_scene(scene)
-    if strategy != culler.strategy_name:
-        culler.set_strategy(strategy)
+    try:
+        culler.replace_scene(scene)
+        if strategy != culler.strategy_name:
+            culler.set_strategy(strategy)
+    except BaseException:  # half replaced: the session dropped it, nothing else will close it
+        culler.close()
+        raise
     return culler
 
 

@@ -25,7 +25,7 @@ class Job:
     """One call handed to the engine thread: :meth:`done` polls, :meth:`result` waits."""
 
     def __init__(self):
-        self._box = []
+        self._ok = self._value = None
         self._done = threading.Event()
 
     @classmethod
@@ -35,7 +35,7 @@ class Job:
         return job
 
     def _set(self, ok, value):
-        self._box.append((ok, value))
+        self._ok, self._value = ok, value
         self._done.set()
 
     def done(self):
@@ -47,10 +47,9 @@ class Job:
     def result(self):
         """The call's value (waiting for it), or its exception raised here."""
         self._done.wait()
-        ok, value = self._box[0]
-        if not ok:
-            raise value
-        return value
+        if not self._ok:
+            raise self._value
+        return self._value
 
 
 def drive(steps, progress=None):

@@ -79,6 +79,14 @@ def update():
     bpy.context.view_layer.update()
 
 
+def analyzed_objects(name):
+    """occ.analyze of frame 1 into WORK/<name>.json: its per-object entries."""
+    report = os.path.join(WORK, f"{name}.json")
+    bpy.ops.occ.analyze(filepath=report, frame_start=1, frame_end=1)
+    with open(report) as f:
+        return json.load(f)["objects"]
+
+
 def cull():
     """occ.cull, its result, and the reports (errors become RuntimeError in scripts)."""
     err = io.StringIO()
@@ -390,12 +398,8 @@ def case4():
     cull()
     check("case4_instances_occlude", hidden_by_addon("behind_instance"), drawn("behind_instance"))
     promise("case4_occlude_truth")
-    report = os.path.join(WORK, "case4.json")
-    bpy.ops.occ.analyze(filepath=report, frame_start=1, frame_end=1)
-    with open(report) as f:
-        data = json.load(f)
-    check("case4_analyze_sees_instancer", data["objects"].get("gn_base", {}).get("frames_visible") == 1,
-          data["objects"])
+    seen = analyzed_objects("case4")
+    check("case4_analyze_sees_instancer", seen.get("gn_base", {}).get("frames_visible") == 1, seen)
 
 
 def case4_collections():
@@ -422,10 +426,7 @@ def case4_collections():
     check("case4_instanced_member_kept", not hidden_by_addon("member"), hidden_by_addon("member"))
     check("case4_wire_member_instance_kept", not hidden_by_addon("wired_instance"), hidden_by_addon("wired_instance"))
     promise("case4_collections_truth")
-    report = os.path.join(WORK, "case4_collections.json")
-    bpy.ops.occ.analyze(filepath=report, frame_start=1, frame_end=1)
-    with open(report) as f:
-        seen = json.load(f)["objects"]
+    seen = analyzed_objects("case4_collections")
     check("case4_analyze_member_seen_in_instance", seen.get("member", {}).get("frames_visible") == 1, seen)
 
 
@@ -580,12 +581,8 @@ def case8():
     vis.apply(np.array([o.name == "target" for o in bpy.data.objects]))
     bpy.data.objects["wall"].location.z = -20.0        # target in view now
     update()
-    report = os.path.join(WORK, "case8.json")
-    bpy.ops.occ.analyze(filepath=report, frame_start=1, frame_end=1)
-    with open(report) as f:
-        data = json.load(f)
-    check("case8_analyze_counts_hidden", data["objects"].get("target", {}).get("frames_visible") == 1,
-          data["objects"])
+    seen = analyzed_objects("case8")
+    check("case8_analyze_counts_hidden", seen.get("target", {}).get("frames_visible") == 1, seen)
 
 
 def case10():
@@ -598,10 +595,7 @@ def case10():
         cull()
         check(f"case10_{display.lower()}_not_occluder", drawn("target"), "")
         promise(f"case10_{display.lower()}_truth")
-        report = os.path.join(WORK, "case10_display.json")
-        bpy.ops.occ.analyze(filepath=report, frame_start=1, frame_end=1)
-        with open(report) as f:
-            seen = json.load(f)["objects"]
+        seen = analyzed_objects("case10_display")
         check(f"case10_{display.lower()}_analyzed_visible", seen.get("wall", {}).get("frames_visible") == 1, seen)
     new_scene()
     box("in_front", (3, -1, 0), (4, 1, 1)).show_in_front = True     # drawn over the wall
