@@ -453,8 +453,8 @@ class Gpu(Strategy):
     On the first pass, and after ``reset()`` (``cull(fresh=True)``, a new scene),
     there is no memory: the pass is an ``om_coherent`` pass without memory (the
     occupancy map finds the first occluders), whose visible units the GPU then
-    remembers.  Camera cuts and moved objects keep the memory: it only chooses what
-    pass 1 draws, so a cut costs drawing, never correctness.  Conservative: a unit is OCCLUDED only when its grown box
+    remembers.  Camera cuts, moved objects and the add-on's ``forget()`` keep the
+    memory: it only chooses what pass 1 draws, so a cut costs drawing, never correctness.  Conservative: a unit is OCCLUDED only when its grown box
     (the engine's guard) passed no sample against depth real geometry wrote.
 
     Falls back to ``om_coherent`` where the GPU path cannot run: the OpenGL 4.1 path
@@ -482,7 +482,13 @@ class Gpu(Strategy):
         self.last_camera = None
         self.fallback.reset()
 
-    forget = reset
+    def forget(self):
+        """A fresh pass asked by the add-on (a click, a camera cut, a scene edit): the
+        GPU's boxes and memory stay.  The memory only chooses what pass 1 draws and every
+        state is still tested against the depth drawn, so it costs no accuracy, and a
+        pass with it costs a fraction of a first pass (an ``om_coherent`` pass and a full
+        upload).  The fallback's memory would cost accuracy: it goes."""
+        self.fallback.reset()
 
     def moved(self, objects=None):
         """Objects moved: their units' boxes and matrices are uploaded again (all of
@@ -629,7 +635,8 @@ class Auto(Strategy):
     def reset(self):
         self.occlusion.reset()
 
-    forget = reset
+    def forget(self):
+        self.occlusion.forget()
 
     def moved(self, objects=None):
         self.occlusion.moved(objects)

@@ -172,6 +172,37 @@ def test_moved_objects_reach_the_gpu(ctx):
                     assert r.stats["fresh"] == 0
 
 
+def test_forget_keeps_the_gpu_memory_and_hides_nothing_seen(ctx):
+    """The add-on's fresh passes (a click, a camera cut, an edit) call ``forget()``:
+    the GPU pass keeps its boxes and memory (no ``om_coherent`` pass, no upload: the
+    steady pass's calls and one read), with no false negative through cuts and a move;
+    the fallback's memory, which would cost accuracy, goes; ``auto`` passes it on."""
+    scene, cams, _ = scenes.random_city(11, 300)
+    path = walk(cams[0], 2) + list(cams[1:]) + [cams[0]]
+    with Culler(scene, (160, 120), strategy="gpu", ctx=ctx) as c:
+        for k, cam in enumerate(path):
+            if k == 3:
+                m = c.scene.matrices[5:6].copy()
+                m[:, :3, 3] += 6.0
+                c.set_matrices([5], m)
+            c.strategy.forget()
+            assert c.strategy.fallback.assumed is None
+            truth = c.truth(cam)
+            r = c.cull(cam)
+            assert not (truth & ~r.visible).any(), f"pass {k} culled truly visible objects"
+            if k and on_43(c):
+                assert r.stats["fresh"] == 0
+                # the moved object's units: one more write
+                assert r.stats["blocking_reads"] == 1 and r.stats["gl_calls"] == GPU_CALLS + (k == 3)
+    with Culler(scene, (160, 120), strategy="auto", ctx=ctx) as c:
+        for cam in path[:2]:
+            c.strategy.forget()
+            r = c.cull(cam)
+            assert not (c.truth(cam) & ~r.visible).any()
+        if on_43(c):
+            assert c.strategy.occlusion.remembered
+
+
 @pytest.mark.parametrize("moved", [1, 40])
 def test_moving_chunked_objects_never_hides_what_the_truth_shows(ctx, moved):
     """Objects cut into several draw units each (chunks) move between passes, a few
