@@ -454,8 +454,9 @@ class Gpu(Strategy):
     there is no memory: the pass is an ``om_coherent`` pass without memory (the
     occupancy map finds the first occluders), whose visible units the GPU then
     remembers.  Camera cuts, moved objects and the add-on's ``forget()`` keep the
-    memory: it only chooses what pass 1 draws, so a cut costs drawing, never correctness.  Conservative: a unit is OCCLUDED only when its grown box
-    (the engine's guard) passed no sample against depth real geometry wrote.
+    memory: it only chooses what pass 1 draws, so a cut costs drawing, never correctness.
+    Conservative: a unit is OCCLUDED only when its grown box (the engine's guard) passed
+    no sample against depth real geometry wrote.
 
     Falls back to ``om_coherent`` where the GPU path cannot run: the OpenGL 4.1 path
     (``OCC_GL=4.1``, macOS: no compute shaders, storage buffers or indirect draws),
