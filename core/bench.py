@@ -36,39 +36,70 @@ def peak_rss_mb():
 
 
 def run_bench(scene, cameras, strategies, resolution=DEFAULT_RESOLUTION, warmup=1, culler_kw=None,
-              progress=None):
-    """Run every strategy over ``cameras``; returns the report dict (the ``--json`` shape)."""
+              progress=None, rounds=1):
+    """Run every strategy over ``cameras``; returns the report dict (the ``--json`` shape).
+
+    ``rounds``: the whole path this many times for each strategy, the strategies'
+    order rotated each round (a new strategy each time: nothing learnt carries over),
+    so that a machine busy with something else for a while slows every strategy
+    alike; a strategy's median frame is then the median of its rounds' medians
+    (``frame_ms_rounds``), its other figures those of all its passes."""
     unknown = [s for s in strategies if s not in STRATEGIES]
     if unknown:
         raise OccError(f"unknown strategies {unknown}; choose from {', '.join(STRATEGIES)}")
+    if rounds < 1:
+        raise OccError(f"rounds must be at least 1, not {rounds}")
     culler = Culler(scene, resolution, strategy=strategies[0], **(culler_kw or {}))
     try:
         truths = [culler.truth(cam) for cam in cameras]
         tri_total = int(scene.triangle_counts.sum())
         report = {"objects": len(scene), "triangles_total": tri_total, "frames": len(cameras),
-                  "resolution": list(resolution), "device": culler.renderer.device,
+                  "resolution": list(resolution), "device": culler.renderer.device, "rounds": rounds,
                   "strategies": {}}
-        for name in strategies:
-            culler.set_strategy(name)
-            for cam, truth in zip(cameras[:warmup], truths, strict=False):   # compile, warm caches
-                culler.cull(cam, truth=truth)
-            culler.set_strategy(name)
-            rows = []
-            for cam, truth in zip(cameras, truths, strict=True):
-                r = culler.cull(cam, truth=truth)
-                fn = int((truth & ~r.visible).sum())
-                rows.append({**r.stats, "false_negatives": fn, "truly_visible": int(truth.sum())})
-            report["strategies"][name] = summarise(rows, tri_total)
-            report["strategies"][name]["peak_rss_mb"] = round(peak_rss_mb(), 1)
-            report["strategies"][name]["per_frame"] = {
-                "frame_ms": [round(x["total_ms"], 3) for x in rows],
-                "triangles": [x["triangles_drawn"] for x in rows]}
-            if progress:
-                progress(name, report["strategies"][name])
+        runs = {name: [] for name in strategies}
+        rows_of = {}
+        for k in range(rounds):
+            shift = k % len(strategies)
+            for name in strategies[shift:] + strategies[:shift]:
+                runs[name].append(_path(culler, name, cameras, truths, warmup))
+                if len(runs[name]) == rounds:
+                    rows_of[name] = _summary(runs[name], tri_total)
+                    if progress:
+                        progress(name, rows_of[name])
+        report["strategies"] = {name: rows_of[name] for name in strategies}
         add_speedups(report["strategies"])
         return report
     finally:
         culler.close()
+
+
+def _path(culler, name, cameras, truths, warmup):
+    """One strategy, new, over the whole path: the rows of its passes."""
+    culler.set_strategy(name)
+    for cam, truth in zip(cameras[:warmup], truths, strict=False):   # compile, warm caches
+        culler.cull(cam, truth=truth)
+    culler.set_strategy(name)
+    rows = []
+    for cam, truth in zip(cameras, truths, strict=True):
+        r = culler.cull(cam, truth=truth)
+        fn = int((truth & ~r.visible).sum())
+        rows.append({**r.stats, "false_negatives": fn, "truly_visible": int(truth.sum())})
+    return rows
+
+
+def _summary(runs, tri_total):
+    """A strategy's row from its rounds (lists of pass rows): the median of the rounds'
+    median frames, every other figure over all passes; the per-frame series of the
+    round with the median frame (the plots')."""
+    row = summarise([x for rows in runs for x in rows], tri_total)
+    medians = [float(np.median([x["total_ms"] for x in rows])) for rows in runs]
+    row["frame_ms_median"] = float(np.median(medians))
+    row["frame_ms_rounds"] = medians
+    row["peak_rss_mb"] = round(peak_rss_mb(), 1)
+    middle = runs[int(np.argsort(medians)[(len(medians) - 1) // 2])]
+    row["per_frame"] = {"frame_ms": [round(x["total_ms"], 3) for x in middle],
+                        "triangles": [x["triangles_drawn"] for x in middle]}
+    return row
 
 
 HIERARCHY_COLUMNS = (
@@ -180,8 +211,9 @@ def format_table(report, title=""):
     head = " ".join(fmt.replace(".2f", "").replace(".0f", "").replace(".1f", "")
                     .replace("d}", "}").format(name) for name, fmt in TABLE_COLUMNS)
     lines = [title, f"{report['objects']} objects, {report['triangles_total']:,} triangles, "
-             f"{report['frames']} frames at {report['resolution'][0]}x{report['resolution'][1]}, "
-             f"device: {report['device']}", head, "-" * len(head)]
+             f"{report['frames']} frames at {report['resolution'][0]}x{report['resolution'][1]}"
+             + (f", {report['rounds']} rounds (median of the rounds' medians)" if report.get("rounds", 1) > 1 else "")
+             + f", device: {report['device']}", head, "-" * len(head)]
     for name, s in report["strategies"].items():
         nan = float("nan")
         vals = [name, s["frame_ms_median"], s["frame_ms_p95"], s.get("cpu_ms", nan),

@@ -115,7 +115,7 @@ def cmd_bench(args):
     with Progress(bench_steps(strategies, args.plot, args.snapshot), f"bench {_short_name(args.scene)}",
                   quiet=args.quiet) as progress:
         report, table = bench_scene(args.scene, args.camera, strategies, resolution,
-                                    args.frames, out, args.plot, args.snapshot, progress)
+                                    args.frames, out, args.plot, args.snapshot, progress, rounds=args.rounds)
         if out:
             write_index(out)
     if args.json:
@@ -211,16 +211,20 @@ def _short_name(spec):
     return os.path.splitext(os.path.basename(spec))[0]
 
 
-def positive_int(text):
-    """``--frames``: a whole number >= 1 (0 would silently mean 'all' or 'none')."""
+def positive_int(text, hint=""):
+    """A count: a whole number >= 1 (0 would silently mean 'all' or 'none')."""
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"must be a whole number >= 1, got '{text}'") from None
     if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a whole number >= 1, got {value} "
-                                         "(leave it out for every frame)")
+        raise argparse.ArgumentTypeError(f"must be a whole number >= 1, got {value}{hint}")
     return value
+
+
+def frame_count(text):
+    """``--frames``: :func:`positive_int`, whose error says how to get every frame."""
+    return positive_int(text, " (leave it out for every frame)")
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -261,7 +265,10 @@ def build_parser():
     b.add_argument("--camera", help="camera path JSON (default: the sample scene's own path)")
     b.add_argument("--strategies", default=",".join(STRATEGIES), help="comma list (default: all)")
     b.add_argument("--resolution", default=res, help=f"query resolution WxH (default {res})")
-    b.add_argument("--frames", type=positive_int, help="use only this many frames, evenly spread")
+    b.add_argument("--frames", type=frame_count, help="use only this many frames, evenly spread")
+    b.add_argument("--rounds", type=positive_int, default=1,
+                   help="the path this many times per strategy, the order rotated each round; the median "
+                        "frame is the median of the rounds' (ratios that hold on a busy machine)")
     b.add_argument("--out", help="report folder (default reports/ with --plot or --snapshot)")
     b.add_argument("--plot", action="store_true", help="PNG plots along the path")
     b.add_argument("--snapshot", action="store_true", help="pictures of one frame")
@@ -275,7 +282,7 @@ def build_parser():
     d.add_argument("--all", action="store_true", help="every sample scene, not only city")
     d.add_argument("--out", default="reports", help="report folder (default reports/)")
     d.add_argument("--resolution", default=res, help=f"query resolution WxH (default {res})")
-    d.add_argument("--frames", type=positive_int, help="use only this many frames, evenly spread")
+    d.add_argument("--frames", type=frame_count, help="use only this many frames, evenly spread")
     d.add_argument("--quiet", "-q", action="store_true", help=QUIET_HELP)
     d.set_defaults(func=cmd_demo)
 

@@ -166,6 +166,7 @@ def _bad_input(case, scene, cam, tmp_path):
         "frames_negative": (["bench", s, "--camera", c, "--frames", "-3"], "--frames: must be a whole number >= 1"),
         "frames_zero": (["bench", s, "--camera", c, "--frames", "0"], "--frames: must be a whole number >= 1"),
         "tradeoff_frames_zero": (["tradeoff", s, "--camera", c, "--frames", "0"], ">= 1"),
+        "rounds_zero": (["bench", s, "--camera", c, "--rounds", "0"], "--rounds: must be a whole number >= 1, got 0;"),
         "strategies_comma": (["bench", s, "--camera", c, "--strategies", ","], "no strategies given"),
         "strategies_unknown": (["bench", s, "--camera", c, "--strategies", "vfc,fast"], "unknown strategies fast"),
         "knobs_comma": (["tradeoff", s, "--camera", c, "--knobs", ","], "no knobs given"),
