@@ -99,6 +99,8 @@ uniform sampler2D u_depth;
 
 _COMPUTE_HEAD = _COMMON + """
 layout(local_size_x = %d) in;
+// a compute pass: one thread per unit u of the n
+#define EACH_UNIT uint n = N_UNITS; uint u = gl_GlobalInvocationID.x; if (u >= n) return;
 double maxabs(dvec3 a) { dvec3 b = abs(a); return max(b.x, max(b.y, b.z)); }
 dmat4 clip() { return dmat4(f[4], f[5], f[6], f[7], f[8], f[9], f[10], f[11],
                             f[12], f[13], f[14], f[15], f[16], f[17], f[18], f[19]); }
@@ -145,9 +147,7 @@ dvec3 guard(dvec3 lo, dvec3 hi) {
 }
 
 void main() {
-    uint n = N_UNITS;
-    uint u = gl_GlobalInvocationID.x;
-    if (u >= n) return;
+    EACH_UNIT
     uint prev = w[u] & PREV;
     w[%(flag1)d * n + u] = 0u;
     w[%(flag2)d * n + u] = 0u;
@@ -273,9 +273,7 @@ bool passes(uint u) {
 }
 
 void main() {
-    uint n = N_UNITS;
-    uint u = gl_GlobalInvocationID.x;
-    if (u >= n) return;
+    EACH_UNIT
     uint bits = w[u];
     if ((bits & INF) == 0u) return;
     if ((bits & TESTED1) != 0u && passes(u)) {
@@ -289,9 +287,7 @@ void main() {
 # unit drawn and not near joins the list of test 2.
 THIRD = _COMPUTE_HEAD + """
 void main() {
-    uint n = N_UNITS;
-    uint u = gl_GlobalInvocationID.x;
-    if (u >= n) return;
+    EACH_UNIT
     uint bits = w[u];
     if ((bits & INF) == 0u) return;
     if ((bits & HIZ) != 0u && w[%(flag1)d * n + u] != 0u) {
@@ -309,9 +305,7 @@ void main() {
 
 FINAL = _COMPUTE_HEAD + """
 void main() {
-    uint n = N_UNITS;
-    uint u = gl_GlobalInvocationID.x;
-    if (u >= n) return;
+    EACH_UNIT
     uint bits = w[u] & ~(STATE | PREV);
     if ((bits & INF) == 0u) { w[u] = bits | 2u; return; }
     // VISIBLE: near (by rule) or its box passed the test against the completed depth;
