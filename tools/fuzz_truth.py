@@ -104,22 +104,16 @@ def parse_seeds(text):
     return out
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--seeds", default="0-19", help="e.g. 0-99 or 3,7,11")
-    ap.add_argument("--strategies", default="gpu,auto,om_coherent,om_multi,two_pass")
-    ap.add_argument("--frames", type=int, default=12)
-    args = ap.parse_args(argv)
-    strategies = args.strategies.split(",")
-    ctx = create_context()
-    failures, passes, occluded, seen = 0, 0, 0, 0
-    t0 = time.perf_counter()
-    for seed in parse_seeds(args.seeds):
+def search(seeds, strategies, frames, ctx, report=print):
+    """Every strategy over every seed's walk: ``(passes, truly visible, culled as
+    occluded, [(seed, strategy, pass, resolution, display, missed names), ...])``."""
+    passes, seen, occluded, failures = 0, 0, 0, []
+    for seed in seeds:
         rng = np.random.default_rng(seed + 20_000)
         res = (int(rng.integers(31, 330)), int(rng.integers(23, 200)))
         display = (res[0] * 2 + 1, res[1] * 2 + 1) if rng.random() < 0.3 else None
         scene, offset, size = scene_for(seed)
-        cams = walk_for(seed, offset, size, args.frames)
+        cams = walk_for(seed, offset, size, frames)
         for name in strategies:
             with Culler(scene, res, strategy=name, ctx=ctx, display=display) as c:
                 for k, cam in enumerate(cams):
@@ -130,11 +124,22 @@ def main(argv=None):
                     seen += int(truth.sum())
                     missed = np.flatnonzero(truth & ~r.visible)
                     if len(missed):
-                        failures += 1
-                        print(f"FN seed {seed} {name} pass {k} res {res} display {display}: "
-                              f"{[scene.names[i] for i in missed[:8]]}", flush=True)
+                        failures.append((seed, name, k, res, display, [scene.names[i] for i in missed[:8]]))
+                        report(f"FN seed {seed} {name} pass {k} res {res} display {display}: {failures[-1][-1]}")
+    return passes, seen, occluded, failures
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--seeds", default="0-19", help="e.g. 0-99 or 3,7,11")
+    ap.add_argument("--strategies", default="gpu,auto,om_coherent,om_multi,two_pass")
+    ap.add_argument("--frames", type=int, default=12)
+    args = ap.parse_args(argv)
+    t0 = time.perf_counter()
+    passes, seen, occluded, failures = search(parse_seeds(args.seeds), args.strategies.split(","), args.frames,
+                                              create_context(), report=lambda line: print(line, flush=True))
     print(f"{passes} passes ({seen} truly visible, {occluded} culled as occluded), "
-          f"{failures} with false negatives, {time.perf_counter() - t0:.0f} s")
+          f"{len(failures)} with false negatives, {time.perf_counter() - t0:.0f} s")
     return 1 if failures else 0
 
 

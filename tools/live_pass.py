@@ -94,7 +94,8 @@ def main(argv=None):
     rows = np.array(rows)
     med = np.median(rows, axis=0)
     n = len(scene) if args.objects is None else min(args.objects, len(scene))
-    out = {"scene": args.scene, "strategy": ctx.scene.occ.strategy, "after_edit": args.after_edit, "objects": n, "triangles": int(scene.triangle_counts[:n].sum()),
+    out = {"scene": args.scene, "strategy": ctx.scene.occ.strategy, "after_edit": args.after_edit,
+           "objects": n, "triangles": int(scene.triangle_counts[:n].sum()),
            "display": DISPLAY, "blender": bpy.app.version_string, "first_pass_ms": first,
            "passes": len(rows), "pass_ms_median": med[0], "pass_ms_p95": float(np.percentile(rows[:, 0], 95)),
            "candidates_ms_median": med[1], "matrices_ms_median": med[2], "engine_ms_median": med[3],
