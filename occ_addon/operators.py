@@ -247,6 +247,7 @@ class OCC_OT_analyze(Stepped, bpy.types.Operator):
         never = sorted(n for n, c in seen.items() if c == 0)
         if self.link_never_visible:
             link_collection(context.scene, "Never Visible", never)
+            push_undo("Collect Never Visible")
         warn(self)
         self.report({"INFO"}, f"{len(frames)} frames in {time.perf_counter() - t:.1f} s; "
                               f"{len(never)} of {len(seen)} objects never visible; report {path}")
@@ -346,6 +347,26 @@ def write_report(path, frames, per_frame, seen):
         for n, o in objects.items():
             w.writerow([n, o["frames_visible"], f"{o['frames_visible'] / max(len(frames), 1):.4f}",
                         o["first"] if o["first"] is not None else "", o["last"] if o["last"] is not None else ""])
+
+
+def push_undo(message):
+    """Make what an operator just changed an undo step of its own, as every edit is.
+
+    Needed after any change that creates a datablock and links it to existing ones
+    (the "Never Visible" collection in the scene's children): Blender's memfile undo
+    keeps in place every datablock whose saved state did not change between the two
+    undo steps it moves across, and knows nothing of changes made after the last
+    push.  Undo without this step restores the scene as it is now, still pointing at
+    the new collection, which the undo frees: a view layer then holds a freed
+    collection (a crash, or Python reading it as a bare ``ID``).  With the step, the
+    scene differs between the steps and is read back, the collection with it.
+
+    The operators carry no UNDO flag (Cull and Restore must not add steps, and a
+    script's ``bpy.ops`` call pushes nothing for it anyway), so the push is explicit.
+    Headless without an undo history (the common script) nothing is pushed: nothing
+    can be undone there, and a first push would copy the whole file into memory."""
+    if not bpy.app.background or bpy.ops.ed.undo_history.poll():
+        bpy.ops.ed.undo_push(message=message)
 
 
 def link_collection(scene, name, object_names):

@@ -8,7 +8,8 @@ from the evaluated depsgraph (instances included) as it would draw them if the
 add-on hid nothing, from the scene camera at the render resolution: no object
 that covers a pixel there may be hidden by the add-on (:func:`hidden_but_seen`).
 
-Usage: python cases.py EXTENSION.zip WORKDIR REPO_ROOT
+Usage: python cases.py EXTENSION.zip WORKDIR REPO_ROOT [CASE,...]
+(the named cases only; those of ``ALONE`` run only so)
 """
 
 import io
@@ -741,6 +742,58 @@ def case_report_path():
     check("analyze_background_progress", 2 <= len(lines) <= 12 and "20/20" in lines[-1], lines)
 
 
+def dangling_collections():
+    """Addresses of the collections the scene's children and its view layers' layer
+    collections point to that are no datablock of ``bpy.data`` any more (freed).
+    Pointer values only: nothing in a freed collection is read by the comparison."""
+    scene = bpy.context.scene
+    kept = {c.as_pointer() for c in bpy.data.collections} | {scene.collection.as_pointer()}
+    held = [c.as_pointer() for c in scene.collection.children]
+    stack = [vl.layer_collection for vl in scene.view_layers]
+    while stack:
+        lc = stack.pop()
+        held.append(lc.collection.as_pointer())
+        stack.extend(lc.children)
+    return sorted({hex(p) for p in held if p not in kept})
+
+
+def case_undo_after_collect():
+    """Undo right after "Collect Never Visible" (then redo) leaves no view layer
+    pointing at a freed collection, and takes back exactly the analysis's collection.
+    Blender's memfile undo keeps in place every datablock that did not change between
+    the two steps it moves across and knows nothing of changes made after the last
+    push: the two moves below leave the scene unchanged, so without an undo step of
+    its own the new collection is freed under a scene that still links it (a crash,
+    or Python reading it as a bare ID).  Run in a process of its own (a crash here
+    must not hide the other cases' results)."""
+    scene = new_scene()
+    scene.view_layers.new("Other")
+    box("target", (3, -1, 0), (4, 1, 1))
+    update()
+    bpy.ops.ed.undo_push(message="scene")
+    for x in (5.0, 6.0):                                 # edits that leave the scene as it is, a step each
+        bpy.data.objects["target"].location.x = x
+        update()
+        bpy.ops.ed.undo_push(message=f"move to {x}")
+    report = os.path.join(WORK, "undo_after_collect.json")
+    r = bpy.ops.occ.analyze(filepath=report, frame_start=1, frame_end=1, link_never_visible=True)
+    collected = sorted(o.name for o in bpy.data.collections["Never Visible"].objects)
+    bpy.ops.ed.undo()
+    update()
+    after_undo = dangling_collections(), sorted(bpy.data.collections.keys())
+    check("undo_after_collect_no_dangling", r == {"FINISHED"} and collected == ["target"]
+          and after_undo == ([], []), (r, collected, after_undo))
+    check("undo_after_collect_keeps_last_edit", bpy.data.objects["target"].location.x == 6.0,
+          bpy.data.objects["target"].location.x)
+    bpy.ops.ed.redo()
+    update()
+    never = bpy.data.collections.get("Never Visible")
+    check("redo_after_collect_no_dangling", dangling_collections() == [] and never is not None
+          and sorted(o.name for o in never.objects) == ["target"]
+          and all("Never Visible" in vl.layer_collection.children for vl in bpy.context.scene.view_layers),
+          (dangling_collections(), never and sorted(o.name for o in never.objects)))
+
+
 def hide_flags():
     objs = bpy.data.objects
     out = np.zeros(len(objs), dtype=bool)
@@ -881,11 +934,15 @@ def case_instanced_child_edited():
 CASES = (case1, case2, case3, case4, case4_collections, case5, case6, case7, case8, case10, case11, case12,
          case_hidden_edits, case_display_resolution, case_report_path,
          case_steps, case_instanced_child_edited)
+# Cases whose failure was a crash of Blender: each runs only when named (a process of its own).
+ALONE = (case_undo_after_collect,)
 
 
 def main():
     bpy.ops.extensions.package_install_files(filepath=ZIP, repo="user_default", enable_on_install=True)
-    for case in CASES:
+    named = sys.argv[4].split(",") if len(sys.argv) > 4 else None
+    cases = CASES if named is None else [c for c in CASES + ALONE if c.__name__ in named]
+    for case in cases:
         try:
             case()
         except Exception:  # one case's crash must not hide the others' results

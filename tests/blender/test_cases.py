@@ -66,3 +66,18 @@ def test_case(case_run, name):
     assert name in case_run[0], f"the cases never reached '{name}'"
     ok, detail = case_run[0][name]
     assert ok, detail
+
+
+# Cases that once crashed Blender, each in a process of its own (see cases.ALONE).
+ALONE = {"case_undo_after_collect": ["undo_after_collect_no_dangling", "undo_after_collect_keeps_last_edit",
+                                     "redo_after_collect_no_dangling"]}
+
+
+@pytest.mark.parametrize("case", sorted(ALONE))
+def test_alone(tmp_path, case):
+    """A crash shows as this case's failure (rc -11 and the output tail), not the others'."""
+    results, p = run_script(CASES, tmp_path, ROOT, case)
+    assert p.returncode == 0, (p.returncode, p.stderr[-3000:])
+    missing = [n for n in ALONE[case] if n not in results]
+    failed = {n: results[n] for n in ALONE[case] if n in results and not results[n][0]}
+    assert not missing and not failed and not any(k.endswith("_crashed") for k in results), (missing, failed, results)

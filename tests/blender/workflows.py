@@ -82,7 +82,8 @@ SOURCE_HIDES_INSTANCES = {"VERTS", "FACES", "COLLECTION"}
 # Steps that need the add-on enabled (its operators or properties).
 NEEDS_ADDON = {"cull", "restore", "never_cull", "exclude_setting", "live", "analyze", "settings"}
 # Steps after which Blender's undo system gets a step, as the UI pushes one after
-# every user edit (the add-on's Cull and Restore carry no UNDO flag: no push).
+# every user edit (the add-on's Cull and Restore carry no UNDO flag: no push; an
+# analysis pushes its own step when it collects the never-visible objects).
 NO_PUSH = {"cull", "restore", "undo", "redo", "save_reload", "addon_toggle", "live", "analyze"}
 
 # Step kinds switched off because the add-on still fails them, each with its reason.
@@ -448,6 +449,11 @@ def forget_lost_bases(w):
 def push_undo(w, message):
     import bpy
     bpy.ops.ed.undo_push(message=message)
+    mirror_undo_push(w)
+
+
+def mirror_undo_push(w):
+    """The model's copy of an undo step Blender just took (by the harness or the add-on)."""
     del w.undo[w.undo_pos + 1:]
     w.undo.append(copy.deepcopy(w.model))
     w.undo_pos = len(w.undo) - 1
@@ -1097,6 +1103,9 @@ def do_analyze(w):
         if wrong:
             problems.append(f"analyze: 'Never Visible' holds objects seen in frames {first}..{first + 2}: {wrong}")
     w.pending += problems
+    if collect and "FINISHED" in r:
+        # the add-on makes the collection an undo step of its own (the history is never empty here)
+        mirror_undo_push(w)
     return f"analyze {first}..{first + 2}{' collecting never visible' if collect else ''} -> {sorted(r)}"
 
 
