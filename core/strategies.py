@@ -71,7 +71,9 @@ class Strategy:
     def reset(self):
         """Forget what earlier passes taught (objects moved, a camera cut, a new scene)."""
 
-    forget = reset                   # the engine's older name
+    # A fresh pass asked (the add-on: a camera cut, a scene change): forget what would
+    # cost accuracy; by default everything
+    forget = reset
 
     def moved(self, objects=None):
         """Objects moved (``Culler.set_matrices``; ``objects``: their indices, None:

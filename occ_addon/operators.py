@@ -140,7 +140,7 @@ class OCC_OT_cull(Stepped, bpy.types.Operator):
         changed meanwhile)."""
         try:
             camera, display = camera_for(context)
-            SESSION.cull(context, camera, display, fresh=True, progress=progress)
+            SESSION.cull(context, camera, display, fresh=True, progress=progress, restart=True)
             overlay.install()
         except Exception as e:  # every failure is a report, never a traceback
             return failed(self, e)
@@ -269,7 +269,8 @@ def analysis(context, frames, path):
             scene.frame_set(f)
             camera, display = scene_camera(context)
             # nothing is hidden
-            result, objects = yield from SESSION.compute_steps(context, camera, display)
+            # the first frame a new engine's answer, later ones from what it taught
+            result, objects = yield from SESSION.compute_steps(context, camera, display, restart=k == 0)
             if SESSION.kept_uids is not held:   # the engine's objects changed: their names, once
                 held = SESSION.kept_uids
                 held_names = [o.name for o in objects]

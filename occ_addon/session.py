@@ -158,33 +158,37 @@ class Session:
         _, res, shown = self._sizes(context, display)
         yield from self.engine_steps(context, res, context.scene.occ.strategy, verify=fresh, display=shown)
 
-    def compute(self, context, camera, display, fresh=True, progress=None):
+    def compute(self, context, camera, display, fresh=True, progress=None, restart=False):
         """Visibility from ``camera`` at ``display`` resolution, without hiding anything.
-        ``fresh``: the strategy forgets earlier passes (a Cull click, a camera cut,
-        analyze); only a live pass right after a small view change keeps its memory.
-        ``progress``: called with the steps' ``(label, fraction)``."""
-        return drive(self.compute_steps(context, camera, display, fresh), progress)
+        ``fresh``: the strategy forgets what earlier passes taught it that would cost
+        accuracy (a Cull click, a camera cut, analyze, a scene change); only a live
+        pass right after a small view change keeps all of it.  ``restart``: the answer
+        is a new engine's first pass, whatever came before (a Cull click, an analysis's
+        first frame: the same click gives the same answer).  ``progress``: called with
+        the steps' ``(label, fraction)``."""
+        return drive(self.compute_steps(context, camera, display, fresh, restart), progress)
 
-    def compute_steps(self, context, camera, display, fresh=True):
+    def compute_steps(self, context, camera, display, fresh=True, restart=False):
         """:meth:`compute` in steps (see :meth:`engine_steps`)."""
         options, res, shown = self._sizes(context, display)
         # a fresh pass (a click, analyze, a scene change) also checks what the add-on
         # hides against its data: edits to hidden objects are never reported
         culler, objects = yield from self.engine_steps(context, res, context.scene.occ.strategy,
-                                                       verify=fresh, display=shown)
+                                                       verify=fresh or restart, display=shown)
         culler.options = options
-        forget = getattr(culler.strategy, "forget", None)
-        if fresh and forget is not None:
-            forget()
+        if restart:
+            culler.strategy.reset()
+        elif fresh:
+            culler.strategy.forget()
         return self.worker.run(culler.cull, camera), objects
 
-    def cull(self, context, camera, display, fresh=False, progress=None):
+    def cull(self, context, camera, display, fresh=False, progress=None, restart=False):
         """One pass: cull from ``camera`` at ``display`` resolution and apply it."""
         settings = context.scene.occ
         t = time.perf_counter()
         visibility.reconcile()                 # what the user showed is the user's
         context.view_layer.update()            # edits still pending reach the handler now, not below
-        result, objects = self.compute(context, camera, display, fresh, progress)
+        result, objects = self.compute(context, camera, display, fresh, progress, restart)
         state = result.state
         culled = state != Visibility.VISIBLE
         protected = self.protected(context, objects, culled)

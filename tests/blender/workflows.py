@@ -1104,6 +1104,11 @@ def do_analyze(w):
             problems.append(f"analyze: 'Never Visible' holds objects seen in frames {first}..{first + 2}: {wrong}")
     w.pending += problems
     if collect and "FINISHED" in r:
+        # Blender's consequence of the objects unlinked from the collection: one whose
+        # other collections are all excluded loses its base there, and its eye flag
+        # with it (the flag lived only through the collection: without it, excluding
+        # its own collection had dropped the base already)
+        forget_lost_bases(w)
         # the add-on makes the collection an undo step of its own (the history is never empty here)
         mirror_undo_push(w)
     return f"analyze {first}..{first + 2}{' collecting never visible' if collect else ''} -> {sorted(r)}"
