@@ -931,9 +931,40 @@ def case_instanced_child_edited():
     promise("instanced_child_wire_truth")
 
 
+def case_click_restarts():
+    """A Cull click gives a new engine's answer whatever came before (the same click,
+    the same answer): live passes from other views in between leave the default
+    strategy (gpu) its memory, which the click drops; an analysis starts the same way
+    and goes on from what its earlier frames taught."""
+    scene = new_scene()
+    for k in range(12):
+        box(f"b{k}", (2 + 1.5 * (k % 4), -4 + 2.5 * (k // 4), 0), (3 + 1.5 * (k % 4), -3 + 2.5 * (k // 4), 1 + k % 3))
+    update()
+    session = addon("session").SESSION
+    cull()
+    first = dict(session.last["stats"])
+    hidden = sorted(o.name for o in scene.objects if hidden_by_addon(o.name))
+    camera, display = addon("session").scene_camera(bpy.context)
+    cam = scene.camera
+    for x in (-9.0, -8.0):                               # live passes from nearer views: memory kept
+        cam.location.x = x
+        update()
+        camera, display = addon("session").scene_camera(bpy.context)
+        session.cull(bpy.context, camera, display, fresh=True)
+    kept = session.last["stats"].get("fresh", 0) == 0
+    cam.location.x = -10.0
+    update()
+    r, err = cull()
+    again = sorted(o.name for o in scene.objects if hidden_by_addon(o.name))
+    check("click_restarts_fresh", r == {"FINISHED"} and first.get("fresh") == 1 and kept
+          and session.last["stats"].get("fresh") == 1, (first.get("fresh"), kept, session.last["stats"], err[-300:]))
+    check("click_restarts_same_answer", hidden and again == hidden, (hidden, again))
+    promise("click_restarts_truth")
+
+
 CASES = (case1, case2, case3, case4, case4_collections, case5, case6, case7, case8, case10, case11, case12,
          case_hidden_edits, case_display_resolution, case_report_path,
-         case_steps, case_instanced_child_edited)
+         case_steps, case_instanced_child_edited, case_click_restarts)
 # Cases whose failure was a crash of Blender: each runs only when named (a process of its own).
 ALONE = (case_undo_after_collect,)
 
