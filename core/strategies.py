@@ -758,7 +758,7 @@ REGISTRY = {info.name: info for info in (
                  "Last pass's visible first, every other leaf tested in one batch (GPU-driven)", True),
     StrategyInfo("gpu", lambda m: Gpu(m), "GPU-driven",
                  "Units' boxes on the GPU: last pass's visible drawn, everything else tested there, "
-                 "one read a pass", True),
+                 "one read a pass; Coherent where the GPU path cannot run (OpenGL 4.1, macOS)", True),
     StrategyInfo("auto", lambda m: Auto(m), "Automatic",
                  "Occlusion tests where they pay on this machine, frustum culling where they cannot", True),
     StrategyInfo("oracle", lambda m: Oracle(), "Oracle",
