@@ -604,9 +604,12 @@ class Auto(Strategy):
     pass's time with what frustum culling would have cost -- the triangles drawn
     plus those the tests proved hidden, at the measured cost, plus the frustum-only
     overhead -- and after ``LOSSES`` passes in a row where the tests did not pay it
-    switches to frustum culling, probing the tests again every ``PROBE_EVERY``
-    passes, or at once when a frustum-only pass is ``PROBE_SLOWER`` times slower
-    than the last test pass (``FIRST_SLOWER`` for the first one after a switch).
+    switches to frustum culling, probing the tests again after ``PROBE_EVERY``
+    passes (twice as many after each probe that loses, up to ``PROBE_MAX``: on a
+    scene where the tests never pay, the probes fade out; back to ``PROBE_EVERY``
+    once one wins), or at once when a frustum-only pass is ``PROBE_SLOWER`` times
+    slower than the last test pass (``FIRST_SLOWER`` for the first one after a
+    switch), so a view that gets heavy is tested at once whatever the interval.
     Both modes are conservative, so the choice changes speed only.
     """
 
@@ -614,6 +617,7 @@ class Auto(Strategy):
 
     LOSSES = 3                   # passes in a row where the tests did not pay (timing noise is common)
     PROBE_EVERY = 16
+    PROBE_MAX = 128              # the longest interval between probes, after probes that lost
     PROBE_SLOWER = 2.0           # a frustum-only pass this much slower than the last test pass: probe at once
     FIRST_SLOWER = 1.0           # ... and the first frustum-only pass after a switch: was the switch right?
     PROBE_MARGIN = 0.9           # a probe switches back when it beats the frustum-only estimate by this much
@@ -630,6 +634,7 @@ class Auto(Strategy):
         self.use_tests = True
         self.losses = 0
         self.since_probe = 0             # frustum-only passes since the last test pass
+        self.probe_every = self.PROBE_EVERY  # frustum-only passes before the next probe
         self.since_learn = 0             # test passes since the last frustum-only one
         self.last_test_ms = None
         self.close = True                # the last test pass was near the frustum-only estimate
@@ -673,7 +678,7 @@ class Auto(Strategy):
                 self._frustum_only(frame, learning=True)
             else:
                 self._tests(frame, chunk, probe=False)
-        elif self.since_probe >= self.PROBE_EVERY:
+        elif self.since_probe >= self.probe_every:
             self._tests(frame, chunk, probe=True)
         else:
             self._frustum_only(frame, learning=False)
@@ -696,6 +701,8 @@ class Auto(Strategy):
         self.close = spent > self.CLOSE * frustum_only
         self.losses = 0 if paid else self.losses + 1
         self.use_tests = paid if probe else self.losses < self.LOSSES
+        if probe:
+            self.probe_every = self.PROBE_EVERY if paid else min(2 * self.probe_every, self.PROBE_MAX)
 
     def _frustum_only(self, frame, learning):
         if learning:
@@ -724,7 +731,7 @@ class Auto(Strategy):
         # pass as it is (was the switch right?), later ones with a margin (the view got heavier)
         slower = self.PROBE_SLOWER if self.since_probe > 1 else self.FIRST_SLOWER
         if self.last_test_ms is not None and 1e3 * (end - frame.t0) > slower * self.last_test_ms:
-            self.since_probe = self.PROBE_EVERY          # test again next pass
+            self.since_probe = self.probe_every = self.PROBE_EVERY     # test again next pass
 
 
 @dataclass(frozen=True)

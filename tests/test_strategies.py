@@ -60,6 +60,28 @@ def test_auto_falls_back_to_frustum_culling_where_tests_cannot_pay(ctx):
     assert modes[-1] == 0
 
 
+def test_auto_probes_less_often_while_the_probes_lose(ctx):
+    """Where the tests never pay, each losing probe doubles the interval before the
+    next (16, 32, 64 frustum-only passes, at most ``PROBE_MAX``); a frustum-only pass
+    much slower than the last test pass probes at once and restarts at 16."""
+    scene, cams, _ = scenes.random_city(11, 300)
+    cam = cams[0]
+    with Culler(scene, (128, 96), strategy="auto", ctx=ctx) as c:
+        a = c.strategy
+        a.costs = {"tri_ms": 0.0, "round_trip_ms": 1.0, "vfc_cpu_ms": 0.0}
+        a.learn_count, a.LEARN = 2, 0.0
+        a.PROBE_SLOWER = a.FIRST_SLOWER = float("inf")
+        modes = [c.cull(cam).stats["occlusion_pass"] for _ in range(Auto.LOSSES + 16 + 1 + 32 + 1 + 64 + 1 + 5)]
+        probes = [i for i, m in enumerate(modes) if m][Auto.LOSSES:]
+        assert np.diff(probes).tolist() == [33, 65] and probes[0] == Auto.LOSSES + 16
+        assert a.probe_every == 128 == Auto.PROBE_MAX
+        a.PROBE_SLOWER = a.FIRST_SLOWER = 0.0                       # any frustum pass is "much slower"
+        a.last_test_ms = 0.0
+        assert c.cull(cam).stats["occlusion_pass"] == 0 and a.probe_every == Auto.PROBE_EVERY
+        assert c.cull(cam).stats["occlusion_pass"] == 1                 # the probe, at once
+        assert a.probe_every == 2 * Auto.PROBE_EVERY                    # lost: 32 from the restart
+
+
 def test_auto_learns_from_a_real_frustum_only_pass(ctx):
     """The first pass tests occlusion (its answer equals a fresh om_coherent pass's);
     the second draws the frustum and so learns what a triangle costs here."""
