@@ -462,6 +462,8 @@ def child_main(args):
         label = f"analyze: {args.analyze_objects:,} objects, {args.frames} frames"
     bpy.context.view_layer.update()
     scene.occ.source = "CAMERA"
+    if args.strategy:
+        scene.occ.strategy = args.strategy
     build_s = time.perf_counter() - t
     base, _ = memory()
     print(f"{label}: scene built in {build_s:.1f} s, resident {base / MB:.0f} MB", flush=True)
@@ -534,6 +536,7 @@ def blender_main(argv):
     ap.add_argument("--steps", action="store_true",
                     help="also time the first cull's steps (extraction, chunking, hierarchy, upload, "
                          "pass), each with its peak resident set above the scene's own")
+    ap.add_argument("--strategy", help="the add-on's strategy setting (default: the add-on's default)")
     ap.add_argument("--json", help="write every scene's rows here")
     ap.add_argument("--child", help=argparse.SUPPRESS)
     ap.add_argument("--zip", help=argparse.SUPPRESS)
