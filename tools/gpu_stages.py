@@ -1,0 +1,104 @@
+"""Time each stage of the ``gpu`` strategy's pass (core/gl/gpucull.py) on this machine:
+
+    .venv/bin/python tools/gpu_stages.py city [--empty]
+
+Runs the sample scene's path (or, with ``--empty``, 40 passes from its first eye
+looking straight up, where nothing is in the frustum) and waits for the GL after
+every stage (``ctx.finish()``), so each stage's own time shows: the parameter write,
+the five compute dispatches, the two multi-draws, the pyramid, the two box tests
+and the read.  The waits add a little to the total: compare stages, not totals,
+with ``bench``.  ``--empty`` also times ``vfc`` from the same view (the fixed cost
+of a pass that tests nothing).
+"""
+
+import argparse
+import collections
+import os
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+from core import Camera, Culler, load_scene  # noqa: E402
+from core.gl import gpucull as G  # noqa: E402
+from core.jobs import resolve_cameras, resolve_scene  # noqa: E402
+
+
+def timed_run(times):
+    """``GpuCull.run`` with a wait and a clock after every stage (same GL work)."""
+    def run(self, frame, pixels):
+        r, ctx, n = self.r, self.ctx, self.n
+        r.activate()
+        ctx.finish()
+        last = [time.perf_counter()]
+
+        def done(label):
+            ctx.finish()
+            now = time.perf_counter()
+            times[label].append(1e3 * (now - last[0]))
+            last[0] = now
+
+        def dispatch(shader, label):
+            shader.run(self.groups)
+            ctx.memory_barrier(G.ALL_BARRIERS)
+            done(label)
+
+        self.params.write(self.params_blob(frame, pixels))
+        self.bind()
+        done("params")
+        dispatch(self.prepare, "prepare (frustum, guard)")
+        self._draw(0)
+        if r.reduces:
+            r._dirty = np.array([0, 0, r.width - 1, r.height - 1])
+            r._reduce()
+        done("draw 1 (last visible)")
+        self.build_pyramid()
+        done("pyramid")
+        dispatch(self.second, "second (pyramid test)")
+        self._test(0)
+        done("box test 1")
+        dispatch(self.third, "third")
+        self._draw(n)
+        if r.reduces:
+            r._dirty = np.array([0, 0, r.width - 1, r.height - 1])
+            r._reduce()
+        done("draw 2 (newly visible)")
+        self._test(1)
+        done("box test 2")
+        dispatch(self.final, "final")
+        words = np.frombuffer(self.words.read(size=4 * n), dtype=np.uint32)
+        done("read")
+        return words
+    return run
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("scene", help="a sample scene name")
+    ap.add_argument("--empty", action="store_true", help="passes from a view with nothing in it, and vfc's")
+    ap.add_argument("--resolution", default="640x360")
+    args = ap.parse_args(argv)
+    path, sample = resolve_scene(args.scene)
+    scene = load_scene(path)
+    cams = resolve_cameras(None, sample)
+    res = tuple(int(v) for v in args.resolution.split("x"))
+    if args.empty:
+        eye = cams[0].eye
+        cams = [Camera.look_at(eye, eye + np.array([1e-3, 0.0, 1.0]), up=(0, 1, 0), fov_y_deg=10,
+                               aspect=res[0] / res[1], near=0.1, far=1e3)] * 40
+    times = collections.defaultdict(list)
+    G.GpuCull.run = timed_run(times)
+    totals = {}
+    for name in ("gpu", "vfc") if args.empty else ("gpu",):
+        with Culler(scene, res, strategy=name) as c:
+            totals[name] = [c.cull(cam).stats["total_ms"] for cam in cams][2:]      # after the first pass
+    print(f"{args.scene}{' (empty view)' if args.empty else ''}, {len(cams)} passes at {args.resolution}: "
+          + ", ".join(f"{k} median {np.median(v):.2f} ms" for k, v in totals.items()))
+    for label, v in times.items():
+        print(f"  {label:<26} median {np.median(v):6.3f} ms   mean {np.mean(v):6.3f} ms")
+
+
+if __name__ == "__main__":
+    main()
