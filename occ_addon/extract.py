@@ -243,6 +243,14 @@ def user_shown(obj, view_layer, shown):
 DRAWN_TYPES = GEOMETRY_TYPES | {"POINTCLOUD", "VOLUME", "GREASEPENCIL", "GPENCIL", "CURVES"}
 
 
+def draws_beyond_geometry(collection):
+    """Whether an instanced collection holds a member Blender draws but the engine's
+    geometry of its instances leaves out (wire, bounds or "in front" display, point
+    clouds, volumes, ...): such a member may stand anywhere, so an instance of the
+    collection is larger than its box in the engine."""
+    return any(kind(m) is None and m.type in DRAWN_TYPES for m in collection.all_objects)
+
+
 def bystanders(view_layer, held):
     """Objects Blender draws now that the engine does not hold (``held``: the
     engine's objects' session ids, ``(k,) int64``): wire and bounds display, point

@@ -12,7 +12,7 @@ from bpy.props import BoolProperty, IntProperty, StringProperty
 
 from ..core import OccError, Visibility
 from . import live, overlay, visibility
-from .extract import bystanders, is_instancer
+from .extract import bystanders, draws_beyond_geometry, is_instancer
 from .session import SESSION, camera_for, scene_camera
 from .worker import Job, drive
 
@@ -278,6 +278,14 @@ def analysis(context, frames, path):
                 for n in held_names:
                     seen.setdefault(n, 0)
             vis = result.state == Visibility.VISIBLE          # one array compare, no per-object enum
+            # an instance with members drawn beside its geometry (wire, bounds, ...) is seen
+            # wherever it is drawn: the engine knows only its solid part (conservative by construction)
+            wide = {}                                         # collection name -> the answer, once a frame
+            for i in (i for i in collections if not vis[i]):
+                c = objects[i].instance_collection
+                if c.name_full not in wide:
+                    wide[c.name_full] = draws_beyond_geometry(c)
+                vis[i] = wide[c.name_full]
             shown = [held_names[i] for i in np.flatnonzero(vis)]
             extra = bystanders(context.view_layer, held)       # drawn, never culled: visible
             # an object is seen where a visible collection instance draws it, too

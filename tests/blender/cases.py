@@ -962,9 +962,39 @@ def case_click_restarts():
     promise("click_restarts_truth")
 
 
+def case_instance_wire_member_analyzed():
+    """A collection instance whose solid member is hidden behind the wall and whose
+    wire (or bounds) member stands in plain view: analyze counts the instance seen
+    (the engine holds only its solid part) and "Collect Never Visible" leaves it out;
+    deleting that collection's contents must never delete what the camera sees.
+    Cull already kept such an instance (case4_collections); the analysis did not
+    (workflow seed 918: the collection excluded in the view layer, as here)."""
+    for display in ("WIRE", "BOUNDS"):
+        scene = new_scene()
+        lib = bpy.data.collections.new("Lib")
+        scene.collection.children.link(lib)
+        bpy.context.view_layer.layer_collection.children["Lib"].exclude = True
+        box("solid_part", (3, -0.5, 0), (3.5, 0.5, 1), lib)           # behind the wall
+        box("drawn_part", (-6, -1, 0), (-5.5, -0.5, 0.5), lib).display_type = display   # in view
+        inst = bpy.data.objects.new("lib_instance", None)
+        inst.instance_type, inst.instance_collection = "COLLECTION", lib
+        scene.collection.objects.link(inst)
+        box("target", (3, 2, 0), (4, 3, 1))                            # behind the wall: never visible
+        update()
+        report = os.path.join(WORK, f"instance_{display.lower()}_member.json")
+        r = bpy.ops.occ.analyze(filepath=report, frame_start=1, frame_end=1, link_never_visible=True)
+        with open(report) as f:
+            named = set(json.load(f)["frames"][0]["visible"])
+        never = {o.name for o in bpy.data.collections["Never Visible"].objects}
+        truth = {n for n in seen_names() if n in bpy.context.view_layer.objects}
+        check(f"instance_{display.lower()}_member_analyzed_seen",
+              r == {"FINISHED"} and "lib_instance" in truth and truth <= named and "lib_instance" not in never
+              and "target" in never, (r, sorted(truth), sorted(named), sorted(never)))
+
+
 CASES = (case1, case2, case3, case4, case4_collections, case5, case6, case7, case8, case10, case11, case12,
          case_hidden_edits, case_display_resolution, case_report_path,
-         case_steps, case_instanced_child_edited, case_click_restarts)
+         case_steps, case_instanced_child_edited, case_click_restarts, case_instance_wire_member_analyzed)
 # Cases whose failure was a crash of Blender: each runs only when named (a process of its own).
 ALONE = (case_undo_after_collect,)
 

@@ -43,6 +43,7 @@ CHECKS = [
     "instanced_child_edited_seen", "instanced_child_edited_truth",
     "instanced_child_wire_seen", "instanced_child_wire_truth",
     "click_restarts_fresh", "click_restarts_same_answer", "click_restarts_truth",
+    "instance_wire_member_analyzed_seen", "instance_bounds_member_analyzed_seen",
 ]
 
 
