@@ -344,6 +344,7 @@ class Extractor:
         self.shown = {}          # uid -> user_shown (hidden by the add-on); any visibility change clears it
         self.shown_ids = None    # sorted uids of the objects in shown collections (see shown_by_collections)
         self.fps = {}            # uid -> fingerprint of the data its cached geometry was read from
+        self.sources = {}        # instancer uid -> its instanced_sources when its instances were read
 
     def forget(self, uid):
         """Forget what object ``uid`` is (it will be classified again)."""
@@ -458,6 +459,8 @@ class Extractor:
                     v, f = np.concatenate([ov, v]), np.concatenate([of, f.astype(np.int64) + len(ov)])
             self.cache[uid] = (key, _finite_or_none(v), f)
             self.fps[uid] = fingerprint(o, "collection" if o.type == "EMPTY" else "instancer", {})
+            if o.type != "EMPTY":
+                self.sources[uid] = instanced_sources(o)
         uids, meshes, mesh_of, kept, bad = [], [], [], [], []
         mesh_index, read = {}, {}
         n = len(cand.objects)
@@ -504,13 +507,21 @@ class Extractor:
         draws: never read, its own data changed, or an object it may instance changed
         (its geometry or transform: a vertex-instanced child, a particle system's
         object or collection; for geometry nodes, which can instance anything, any
-        object).  Its instances occlude: stale ones could hide what is visible."""
+        object), or it may instance other objects than when it was read (a deleted
+        particle object or collection member is never reported itself, and the
+        instancer is reported with neither flag).  Its instances occlude: stale ones
+        could hide what is visible."""
         uid = ident(obj)
         if uid in self.dirty or uid not in self.cache:
             return True
+        sources = instanced_sources(obj)
+        # conservative by construction: other sources than those read, whatever was
+        # reported (a deletion need not report anything that touches this instancer)
+        if sources is not None and sources != self.sources.get(uid):
+            return True
         if not self.touched:
             return False
-        sources = instanced_sources(obj)
+        # sources unknown (geometry nodes: anything touched may be one) or one of them touched
         return sources is None or not self.touched.keys().isdisjoint(sources)
 
     def _geometry(self, obj, k, culled, depsgraph, read):

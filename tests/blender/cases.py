@@ -931,6 +931,53 @@ def case_instanced_child_edited():
     promise("instanced_child_wire_truth")
 
 
+def hair_instancer(source):
+    """An emitter in front of the wall whose hair particles instance ``source`` (an
+    object, or a collection) around (-4, 0, 1), and a target right behind them."""
+    em = box("Emitter", (-4.1, -0.1, 0.9), (-3.9, 0.1, 1.1))
+    em.modifiers.new("hair", "PARTICLE_SYSTEM")
+    ps = em.particle_systems[0].settings
+    ps.type, ps.count, ps.hair_length, ps.particle_size = "HAIR", 4, 0.2, 1.0
+    ps.display_method = "RENDER"                       # the viewport draws the instances
+    if isinstance(source, bpy.types.Collection):
+        ps.render_type, ps.instance_collection = "COLLECTION", source
+    else:
+        ps.render_type, ps.instance_object = "OBJECT", source
+    box("target", (-2.0, -0.3, 0.7), (-1.7, 0.3, 1.3))
+    update()
+
+
+def case_instance_source_deleted():
+    """Hair particles instance a large box (an object, then a collection's member) that
+    hides a target; the box is deleted: the next Cull must not hide the target behind
+    the instances that went with it (Blender reports neither the deleted object nor a
+    geometry change of the emitter; workflow seed 956 found it)."""
+    new_scene()
+    src = box("HairSource", (4.5, 4.5, -1.5), (7.5, 7.5, 1.5))     # behind the wall, aside
+    hair_instancer(src)
+    cull()
+    hid = hidden_by_addon("target")
+    bpy.data.objects.remove(src)
+    update()
+    r, err = cull()
+    check("instance_source_deleted_seen", hid and r == {"FINISHED"} and not hidden_by_addon("target"),
+          (hid, r, hidden_by_addon("target"), err[-500:]))
+    promise("instance_source_deleted_truth")
+    scene = new_scene()
+    lib = bpy.data.collections.new("HairLib")
+    scene.collection.children.link(lib)
+    member = box("HairMember", (4.5, 4.5, -1.5), (7.5, 7.5, 1.5), lib)
+    hair_instancer(lib)
+    cull()
+    hid = hidden_by_addon("target")
+    bpy.data.objects.remove(member)
+    update()
+    r, err = cull()
+    check("instance_member_deleted_seen", hid and r == {"FINISHED"} and not hidden_by_addon("target"),
+          (hid, r, hidden_by_addon("target"), err[-500:]))
+    promise("instance_member_deleted_truth")
+
+
 def case_click_restarts():
     """A Cull click gives a new engine's answer whatever came before (the same click,
     the same answer): live passes from other views in between leave the default
@@ -994,7 +1041,8 @@ def case_instance_wire_member_analyzed():
 
 CASES = (case1, case2, case3, case4, case4_collections, case5, case6, case7, case8, case10, case11, case12,
          case_hidden_edits, case_display_resolution, case_report_path,
-         case_steps, case_instanced_child_edited, case_click_restarts, case_instance_wire_member_analyzed)
+         case_steps, case_instanced_child_edited, case_instance_source_deleted, case_click_restarts,
+         case_instance_wire_member_analyzed)
 # Cases whose failure was a crash of Blender: each runs only when named (a process of its own).
 ALONE = (case_undo_after_collect,)
 

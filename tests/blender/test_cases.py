@@ -42,6 +42,8 @@ CHECKS = [
     "steps_edit_between_steps_seen", "steps_edit_between_steps_truth", "steps_analyze_cancel_restores_frame",
     "instanced_child_edited_seen", "instanced_child_edited_truth",
     "instanced_child_wire_seen", "instanced_child_wire_truth",
+    "instance_source_deleted_seen", "instance_source_deleted_truth",
+    "instance_member_deleted_seen", "instance_member_deleted_truth",
     "click_restarts_fresh", "click_restarts_same_answer", "click_restarts_truth",
     "instance_wire_member_analyzed_seen", "instance_bounds_member_analyzed_seen",
 ]
