@@ -239,8 +239,7 @@ class Session:
         for c, at in colls.values():
             members = c.all_objects
             flagged = np.concatenate([flagged, visibility.uids(members)])
-            if culled[at].any() and any(extract.kind(m) is None and m.type in extract.DRAWN_TYPES
-                                        for m in members):
+            if culled[at].any() and extract.draws_beyond_geometry(c):
                 out[at] = True
         out[np.isin(self.kept_uids, flagged)] = True
         extractor = self.extractor
