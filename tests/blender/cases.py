@@ -952,30 +952,22 @@ def case_instance_source_deleted():
     hides a target; the box is deleted: the next Cull must not hide the target behind
     the instances that went with it (Blender reports neither the deleted object nor a
     geometry change of the emitter; workflow seed 956 found it)."""
-    new_scene()
-    src = box("HairSource", (4.5, 4.5, -1.5), (7.5, 7.5, 1.5))     # behind the wall, aside
-    hair_instancer(src)
-    cull()
-    hid = hidden_by_addon("target")
-    bpy.data.objects.remove(src)
-    update()
-    r, err = cull()
-    check("instance_source_deleted_seen", hid and r == {"FINISHED"} and not hidden_by_addon("target"),
-          (hid, r, hidden_by_addon("target"), err[-500:]))
-    promise("instance_source_deleted_truth")
-    scene = new_scene()
-    lib = bpy.data.collections.new("HairLib")
-    scene.collection.children.link(lib)
-    member = box("HairMember", (4.5, 4.5, -1.5), (7.5, 7.5, 1.5), lib)
-    hair_instancer(lib)
-    cull()
-    hid = hidden_by_addon("target")
-    bpy.data.objects.remove(member)
-    update()
-    r, err = cull()
-    check("instance_member_deleted_seen", hid and r == {"FINISHED"} and not hidden_by_addon("target"),
-          (hid, r, hidden_by_addon("target"), err[-500:]))
-    promise("instance_member_deleted_truth")
+    for what in ("source", "member"):
+        scene = new_scene()
+        lib = None
+        if what == "member":
+            lib = bpy.data.collections.new("HairLib")
+            scene.collection.children.link(lib)
+        src = box(f"Hair_{what}", (4.5, 4.5, -1.5), (7.5, 7.5, 1.5), lib)     # behind the wall, aside
+        hair_instancer(lib or src)
+        cull()
+        hid = hidden_by_addon("target")
+        bpy.data.objects.remove(src)
+        update()
+        r, err = cull()
+        check(f"instance_{what}_deleted_seen", hid and r == {"FINISHED"} and not hidden_by_addon("target"),
+              (hid, r, hidden_by_addon("target"), err[-500:]))
+        promise(f"instance_{what}_deleted_truth")
 
 
 def case_click_restarts():
