@@ -148,6 +148,8 @@ def kind(obj):
             return None                   # drawn only as the parent's instances
         return "instancer" if may_instance(obj) else "mesh"
     if obj.type == "EMPTY" and is_instancer(obj):
+        if obj.display_type not in SOLID_DISPLAY or obj.show_in_front:
+            return None                   # its instances are drawn as it is (wire, bounds, in front)
         return "collection"
     return None
 

@@ -241,6 +241,11 @@ class Session:
             flagged = np.concatenate([flagged, visibility.uids(members)])
             if culled[at].any() and extract.draws_beyond_geometry(c):
                 out[at] = True
+        # ... and so are those of instances the engine does not hold (drawn as wire or
+        # bounds, in front): hiding a member would take it out of them too
+        for o in extract.bystanders(context.view_layer, self.kept_uids):
+            if extract.is_instancer(o) and ident(o.instance_collection) not in colls:
+                flagged = np.concatenate([flagged, visibility.uids(o.instance_collection.all_objects)])
         out[np.isin(self.kept_uids, flagged)] = True
         extractor = self.extractor
         for k in np.flatnonzero(culled & ~out):        # O(hidden), cached: what Blender has no bulk form of

@@ -970,6 +970,35 @@ def case_instance_source_deleted():
         promise(f"instance_{what}_deleted_truth")
 
 
+def case_wire_collection_instance():
+    """A collection instance displayed as wire (or bounds) draws its instances so: it
+    is not an occluder and never hidden, as a wire object; and a member of its
+    collection is never hidden either, since hiding it would take it out of the
+    instance (workflow seeds 1024, 1059, 1111, 1130 found such an instance hidden while
+    in view)."""
+    for display in ("WIRE", "BOUNDS"):
+        scene = new_scene()
+        lib = bpy.data.collections.new("Lib")
+        scene.collection.children.link(lib)
+        box("lib_part", (2.0, -1.0, 0.0), (3.0, 1.0, 2.0), lib)             # behind the wall
+        inst = bpy.data.objects.new("lib_instance", None)
+        inst.instance_type, inst.instance_collection = "COLLECTION", lib
+        scene.collection.objects.link(inst)
+        hidden_inst = bpy.data.objects.new("behind_instance", None)      # behind the wall as well
+        hidden_inst.instance_type, hidden_inst.instance_collection = "COLLECTION", lib
+        hidden_inst.location = (3.0, 0.0, 0.0)
+        scene.collection.objects.link(hidden_inst)
+        inst.location = (-6.0, 0.0, 0.0)                                 # its instance: in front of the wall
+        inst.display_type = hidden_inst.display_type = display
+        update()
+        r, err = cull()
+        check(f"wire_instance_{display.lower()}_never_hidden",
+              r == {"FINISHED"} and not hidden_by_addon("behind_instance") and not hidden_by_addon("lib_part")
+              and not hidden_by_addon("lib_instance"),
+              (r, hidden_by_addon("behind_instance"), hidden_by_addon("lib_part"), err[-300:]))
+        promise(f"wire_instance_{display.lower()}_truth")
+
+
 def case_click_restarts():
     """A Cull click gives a new engine's answer whatever came before (the same click,
     the same answer): live passes from other views in between leave the default
@@ -1034,7 +1063,7 @@ def case_instance_wire_member_analyzed():
 CASES = (case1, case2, case3, case4, case4_collections, case5, case6, case7, case8, case10, case11, case12,
          case_hidden_edits, case_display_resolution, case_report_path,
          case_steps, case_instanced_child_edited, case_instance_source_deleted, case_click_restarts,
-         case_instance_wire_member_analyzed)
+         case_instance_wire_member_analyzed, case_wire_collection_instance)
 # Cases whose failure was a crash of Blender: each runs only when named (a process of its own).
 ALONE = (case_undo_after_collect,)
 

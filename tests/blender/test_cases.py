@@ -46,6 +46,8 @@ CHECKS = [
     "instance_member_deleted_seen", "instance_member_deleted_truth",
     "click_restarts_fresh", "click_restarts_same_answer", "click_restarts_truth",
     "instance_wire_member_analyzed_seen", "instance_bounds_member_analyzed_seen",
+    "wire_instance_wire_never_hidden", "wire_instance_wire_truth",
+    "wire_instance_bounds_never_hidden", "wire_instance_bounds_truth",
 ]
 
 
