@@ -419,14 +419,16 @@ class Extractor:
         return ident(obj) not in self.dirty
 
     def needs_geometry(self, cand):
-        """Whether :meth:`scene_steps` must read geometry again for these candidates."""
+        """Whether :meth:`scene_steps` must read geometry again for these candidates.
+        Instancers are asked whatever was reported: what they instance may change
+        unreported (a deleted particle object or collection member)."""
         if not self.dirty.keys().isdisjoint(cand.uids.tolist()):
             return True
-        if self.touched:
-            for o, k, c in zip(cand.objects, cand.kinds, cand.culled, strict=True):
-                if not c and ((k == "collection" and self._instance_stale(o))
-                              or (k == "instancer" and self._instancer_stale(o))):
-                    return True
+        memo = {}                                     # collection -> its members, once a pass
+        for o, k, c in zip(cand.objects, cand.kinds, cand.culled, strict=True):
+            if not c and ((k == "collection" and self._instance_stale(o, memo))
+                          or (k == "instancer" and self._instancer_stale(o))):
+                return True
         return False
 
     def forget_changes(self, seen):
@@ -497,11 +499,16 @@ class Extractor:
                                   cand.matrices[kept], tree_parent, tree_object)
         return scene, kept, bad
 
-    def _instance_stale(self, obj):
+    def _instance_stale(self, obj, memo=None):
         hit = self.cache.get(ident(obj))
         if hit is None:
             return True
-        members = _members(obj.instance_collection)
+        c = obj.instance_collection
+        members = memo.get(ident(c)) if memo is not None else None
+        if members is None:
+            members = _members(c)
+            if memo is not None:
+                memo[ident(c)] = members
         return hit[0][2] != members or not self.touched.keys().isdisjoint(members)
 
     def _instancer_stale(self, obj):
