@@ -336,6 +336,10 @@ void main() { w[FLAG * N_UNITS + v_unit] = 1u; }
 """
 
 
+def _nothing(_stage):
+    pass
+
+
 def for_renderer(renderer):
     """``(GpuCull, None)`` for a 4.3 renderer (made once per renderer and shared by the
     strategies that use it: the shaders compile once), or ``(None, reason)`` where the
@@ -452,38 +456,52 @@ class GpuCull:
         f[53:56] = np.abs(frame.camera.direction)
         return head.tobytes() + f.tobytes()
 
-    def run(self, frame, pixels):
+    def run(self, frame, pixels, stage=None):
         """One pass from the frame's camera (the renderer's ``begin_frame`` done):
-        returns the word of every unit, ``(n,) uint32`` (module doc)."""
+        returns the word of every unit, ``(n,) uint32`` (module doc).  ``stage``:
+        called with each stage's name once its GL work is issued (a profiler's hook,
+        tools/gpu_stages.py)."""
         r, ctx, n = self.r, self.ctx, self.n
+        done = stage or _nothing
         r.activate()
         self.params.write(self.params_blob(frame, pixels))
         self.bind()
+        done("params")
         self.prepare.run(self.groups)
         ctx.memory_barrier(ALL_BARRIERS)
         r._count(9)                            # params, 6 bindings, dispatch, barrier
+        done("prepare (frustum, guard)")
         self._draw(0)
         if r.reduces:                          # the whole screen: what the GPU drew is not known here
             r._dirty = np.array([0, 0, r.width - 1, r.height - 1])
             r._reduce()
+        done("draw 1 (last visible)")
         self.build_pyramid()
+        done("pyramid")
         self.second.run(self.groups)
         ctx.memory_barrier(ALL_BARRIERS)
         r._count(5)
+        done("second (pyramid test)")
         self._test(0)                          # pass 1's depth: reduced already
+        done("box test 1")
         self.third.run(self.groups)
         ctx.memory_barrier(ALL_BARRIERS)
         r._count(2)
+        done("third")
         self._draw(n)
         if r.reduces:
             r._dirty = np.array([0, 0, r.width - 1, r.height - 1])
             r._reduce()
+        done("draw 2 (newly visible)")
         self._test(1)
+        done("box test 2")
         self.final.run(self.groups)
         ctx.memory_barrier(ALL_BARRIERS)
+        done("final")
         words = np.frombuffer(self.words.read(size=4 * n), dtype=np.uint32)
         r._count(3, reads=1)
         r.counters["query_batches"] += 3
+        done("read")
         return words
 
     def bind(self):
