@@ -280,11 +280,17 @@ class Culler:
         out[ids[ids >= 0]] = True
         return out
 
-    def cull(self, camera, truth=None, fresh=False):
+    def cull(self, camera, truth=None, fresh=False, envelope=None):
         """One culling pass from ``camera``; ``truth`` is needed by the oracle only;
         ``fresh``: forget what earlier passes taught the strategy (its answer is
-        then that of a new engine's first pass)."""
+        then that of a new engine's first pass); ``envelope``: ``(D, A)`` or a
+        :class:`core.envelope.Envelope`: hide only what is hidden from every view
+        whose eye is within ``D`` of the camera's and whose direction is within ``A``
+        degrees of its direction (same lens, any roll); see :mod:`core.envelope`.
+        The strategy does not change that answer, only the point pass's."""
         n = len(self.scene)
+        if envelope is not None:
+            return self._envelope_cull(camera, envelope)
         if fresh:
             self.strategy.reset()
         if self.hierarchy is None:
@@ -302,6 +308,14 @@ class Culler:
         stats.update(self._counts(state))
         assert len(state) == n
         return CullResult(state, stats, frame.om.grid.copy())
+
+    def _envelope_cull(self, camera, envelope):
+        from .envelope import Envelope, envelope_pass
+        if not isinstance(envelope, Envelope):
+            envelope = Envelope(*envelope)
+        state, stats = envelope_pass(self, camera, envelope)
+        stats.update(self._counts(state))
+        return CullResult(state, stats, np.zeros((0, 0), bool))
 
     def _counts(self, state):
         tri = self.scene.triangle_counts

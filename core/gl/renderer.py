@@ -595,8 +595,24 @@ class GLRenderer:
 
         objects: the objects to draw (default all of them).
         """
+        fbo = self._id_pass(camera, self.display if display else (self.width, self.height), objects)
+        return self._read_ids(fbo)
+
+    def ids_and_depth(self, camera, size, objects=None):
+        """ID buffer and window depth from ``camera`` at ``size = (w, h)``: ``(h, w)
+        int64`` (-1 = none) and ``(h, w) float32`` in [0, 1] (1 = nothing drawn), row 0
+        at the bottom.  The envelope pass (:mod:`core.envelope`) erodes these."""
+        fbo = self._id_pass(camera, size, objects)
+        ids = self._read_ids(fbo)
+        raw = fbo.read(components=1, attachment=-1, dtype="f4", alignment=1)
+        self._count(1, reads=1)
+        return ids, np.frombuffer(raw, dtype=np.float32).reshape(ids.shape)
+
+    def _id_pass(self, camera, size, objects):
+        """Draw ``objects`` (default all) with their ids from ``camera`` into an
+        ``size`` target of their own; returns its framebuffer."""
         self.begin_frame(camera)
-        w, h = self.display if display else (self.width, self.height)
+        w, h = (int(size[0]), int(size[1]))
         fbo = self.id_fbos.get((w, h))
         if fbo is None:
             fbo = self.ctx.framebuffer(color_attachments=[self.ctx.texture((w, h), 1, dtype="u4")],
@@ -615,6 +631,10 @@ class GLRenderer:
                 self._draw_43(self.id_vao, units)
             else:
                 self._draw_41(self.id_prog, self.id_vao, units, ids=True)
+        return fbo
+
+    def _read_ids(self, fbo):
+        w, h = fbo.size
         raw = fbo.read(components=1, dtype="u4", alignment=1)
         self._count(1, reads=1)
         ids = np.frombuffer(raw, dtype=np.uint32).reshape(h, w)
