@@ -35,15 +35,24 @@ def peak_rss_mb():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
+ENVELOPE_VIEWS = 4        # views of the envelope sampled per frame for the envelope row's FN
+
+
 def run_bench(scene, cameras, strategies, resolution=DEFAULT_RESOLUTION, warmup=1, culler_kw=None,
-              progress=None, rounds=1):
+              progress=None, rounds=1, envelope=None):
     """Run every strategy over ``cameras``; returns the report dict (the ``--json`` shape).
 
     ``rounds``: the whole path this many times for each strategy, the strategies'
     order rotated each round (a new strategy each time: nothing learnt carries over),
     so that a machine busy with something else for a while slows every strategy
     alike; a strategy's median frame is then the median of its rounds' medians
-    (``frame_ms_rounds``), its other figures those of all its passes."""
+    (``frame_ms_rounds``), its other figures those of all its passes.
+
+    ``envelope``: a :class:`core.envelope.Envelope`; adds the row ``envelope D,A``
+    (its pass, whatever the strategy) whose ``false_negatives`` count the frame's
+    view and :data:`ENVELOPE_VIEWS` seeded views of the envelope per frame, and
+    whose ``hidden_kept`` is the share of the default strategy's hidden objects it
+    still hides (``hidden_triangles_kept`` the same in triangles)."""
     unknown = [s for s in strategies if s not in STRATEGIES]
     if unknown:
         raise OccError(f"unknown strategies {unknown}; choose from {', '.join(STRATEGIES)}")
@@ -67,6 +76,11 @@ def run_bench(scene, cameras, strategies, resolution=DEFAULT_RESOLUTION, warmup=
                     if progress:
                         progress(name, rows_of[name])
         report["strategies"] = {name: rows_of[name] for name in strategies}
+        if envelope is not None:
+            name = f"envelope {envelope.distance:g},{envelope.angle_deg:g}"
+            report["strategies"][name] = _envelope_row(culler, cameras, truths, envelope, tri_total)
+            if progress:
+                progress(name, report["strategies"][name])
         add_speedups(report["strategies"])
         return report
     finally:
@@ -85,6 +99,35 @@ def _path(culler, name, cameras, truths, warmup):
         fn = int((truth & ~r.visible).sum())
         rows.append({**r.stats, "false_negatives": fn, "truly_visible": int(truth.sum())})
     return rows
+
+
+def _envelope_row(culler, cameras, truths, envelope, tri_total):
+    """The envelope's row: its pass per frame against the frame's truth and sampled
+    views of the envelope, and what it hides beside a point pass of the default."""
+    from .envelope import sample_views
+    from .strategies import DEFAULT_STRATEGY
+    rng = np.random.default_rng(0)
+    tri = culler.scene.triangle_counts
+    culler.set_strategy(DEFAULT_STRATEGY)
+    culler.cull(cameras[0], envelope=envelope)                       # warm-up
+    rows, point_hidden, env_hidden, point_tri, env_tri = [], 0, 0, 0, 0
+    for cam, truth in zip(cameras, truths, strict=True):
+        point = culler.cull(cam)
+        r = culler.cull(cam, envelope=envelope)
+        seen = truth.copy()
+        for view in sample_views(cam, envelope, ENVELOPE_VIEWS, rng):
+            seen |= culler.truth(view)
+        hidden = ~r.visible
+        point_hidden += int((~point.visible).sum())
+        env_hidden += int(hidden.sum())
+        point_tri += int(tri[~point.visible].sum())
+        env_tri += int(tri[hidden].sum())
+        stats = {**r.stats, "triangles_drawn": r.stats["triangles_visible"]}   # what drawing it would draw
+        rows.append({**stats, "false_negatives": int((seen & hidden).sum()), "truly_visible": int(truth.sum())})
+    row = _summary([rows], tri_total)
+    row["hidden_kept"] = env_hidden / max(point_hidden, 1)
+    row["hidden_triangles_kept"] = env_tri / max(point_tri, 1)
+    return row
 
 
 def _summary(runs, tri_total):

@@ -1,4 +1,4 @@
-"""Command line: ``python -m core cull | truth | bench | tradeoff | demo``.
+"""Command line: ``python -m core cull | truth | bench | motion | tradeoff | demo``.
 
 The command front-ends live here and only here; the work is in libraries
 (:mod:`core.jobs` loads a job, :mod:`core.bench`, :mod:`core.tradeoff` and
@@ -25,6 +25,8 @@ from .traversal import Visibility
 EXIT_USER_ERROR = 2
 CAMERA_HELP = 'camera JSON: one camera or {"frames": [camera, ...]}'
 JSON_HELP = "JSON on stdout: per frame the visible names and every object's index, name and state"
+ENVELOPE_HELP = ("hide only what stays hidden from every view whose eye is within D scene units of the "
+                 "camera's and whose direction is within A degrees of its direction (same lens, any roll)")
 QUIET_HELP = "no progress on stderr (a bar on a terminal, else a short line per step); errors still show"
 
 
@@ -42,10 +44,31 @@ def _frame(scene, state, stats):
 
 def _job(args):
     """Scene and cameras of ``cull`` / ``truth``, every input checked before the GL work."""
+    resolution = parse_resolution(args.resolution)
+    _display(args, resolution)
+    _envelope(args)
     path, sample = resolve_scene(args.scene)
     cameras = resolve_cameras(args.camera, sample)
-    resolution = parse_resolution(args.resolution)
     return load_scene(path), cameras, resolution
+
+
+def _display(args, resolution):
+    """``--display WxH``: at least the query resolution on both sides, or one error line."""
+    if getattr(args, "display", None) is None:
+        return None
+    display = parse_resolution(args.display)
+    if display[0] < resolution[0] or display[1] < resolution[1]:
+        raise OccError(f"--display {args.display} must be at least the query resolution "
+                       f"{resolution[0]}x{resolution[1]} on both sides")
+    return display
+
+
+def _envelope(args):
+    """``--envelope D,A`` as an :class:`core.envelope.Envelope`, or None."""
+    if getattr(args, "envelope", None) is None:
+        return None
+    from .envelope import Envelope
+    return Envelope.parse(args.envelope)
 
 
 def _frames_progress(args, n):
@@ -55,11 +78,12 @@ def _frames_progress(args, n):
 
 def cmd_cull(args):
     scene, cameras, resolution = _job(args)
-    with Culler(scene, resolution, strategy=args.strategy) as culler, \
+    display, envelope = _display(args, resolution), _envelope(args)
+    with Culler(scene, resolution, strategy=args.strategy, display=display) as culler, \
             _frames_progress(args, len(cameras)) as progress:
         frames = []
         for i, cam in enumerate(cameras):
-            r = culler.cull(cam)
+            r = culler.cull(cam, envelope=envelope)
             frames.append(_frame(scene, r.state, r.stats))
             progress.step(f"frame {i}: {r.stats['visible']} of {len(scene)} visible")
     _print_frames(frames, args.json)
@@ -107,6 +131,7 @@ def cmd_bench(args):
     from .reports import bench_scene, bench_steps, write_index
     strategies = parse_names(args.strategies, STRATEGIES, "strategies")
     resolution = parse_resolution(args.resolution)
+    envelope = _envelope(args)
     out = args.out or ((args.plot or args.snapshot) and "reports") or None
     if args.plot or args.snapshot:
         require_matplotlib()
@@ -115,7 +140,8 @@ def cmd_bench(args):
     with Progress(bench_steps(strategies, args.plot, args.snapshot), f"bench {_short_name(args.scene)}",
                   quiet=args.quiet) as progress:
         report, table = bench_scene(args.scene, args.camera, strategies, resolution,
-                                    args.frames, out, args.plot, args.snapshot, progress, rounds=args.rounds)
+                                    args.frames, out, args.plot, args.snapshot, progress, rounds=args.rounds,
+                                    envelope=envelope)
         if out:
             write_index(out)
     if args.json:
@@ -123,6 +149,24 @@ def cmd_bench(args):
                                              for k, v in report["strategies"].items()}})
     else:
         print(table)
+
+
+def cmd_motion(args):
+    from .motion import MOTIONS, format_motion, run_motion
+    names = parse_names(args.motions, MOTIONS, "motions")
+    resolution = parse_resolution(args.resolution)
+    if not (math.isfinite(args.latency) and 0.0 < args.latency <= 10.0):
+        raise OccError(f"--latency must be between 0 and 10 seconds, got {args.latency}")
+    scene, cameras, title = load_job(args.scene, args.camera, args.frames)
+    with Culler(scene, resolution) as culler, \
+            Progress(len(names), f"motion {title}", unit="motion", quiet=args.quiet) as progress:
+        report = run_motion(culler, cameras, names, args.latency,
+                            progress=lambda n, r: progress.step(f"{n}: {r['false_negatives']} FN"))
+    if args.json:
+        _dump_json({"scene": title, "objects": len(scene), "latency_s": args.latency, "motions": report})
+    else:
+        print(format_motion(report, f"== {title}: {len(scene)} objects, a step every 1/30 s, "
+                                    f"passes land {1e3 * args.latency:.0f} ms after they start =="))
 
 
 def cmd_hierarchies(args):
@@ -248,6 +292,8 @@ def build_parser():
     c.add_argument("--camera", help=CAMERA_HELP)
     c.add_argument("--strategy", default=DEFAULT_STRATEGY, choices=STRATEGIES)
     c.add_argument("--resolution", default=res, help=f"query resolution WxH (default {res})")
+    c.add_argument("--display", help="display resolution WxH: queries at --resolution, conservative at this one")
+    c.add_argument("--envelope", metavar="D,A", help=ENVELOPE_HELP)
     c.add_argument("--json", action="store_true", help=JSON_HELP)
     c.add_argument("--quiet", "-q", action="store_true", help=QUIET_HELP)
     c.set_defaults(func=cmd_cull)
@@ -269,6 +315,8 @@ def build_parser():
     b.add_argument("--rounds", type=positive_int, default=1,
                    help="the path this many times per strategy, the order rotated each round; the median "
                         "frame is the median of the rounds' (ratios that hold on a busy machine)")
+    b.add_argument("--envelope", metavar="D,A", help="also a row 'envelope D,A': " + ENVELOPE_HELP +
+                   "; its FN counts views of the envelope too (a few sampled per frame)")
     b.add_argument("--out", help="report folder (default reports/ with --plot or --snapshot)")
     b.add_argument("--plot", action="store_true", help="PNG plots along the path")
     b.add_argument("--snapshot", action="store_true", help="pictures of one frame")
@@ -277,6 +325,19 @@ def build_parser():
     b.add_argument("--json", action="store_true", help="the report as JSON on stdout (progress on stderr)")
     b.add_argument("--quiet", "-q", action="store_true", help=QUIET_HELP)
     b.set_defaults(func=cmd_bench)
+
+    m = sub.add_parser("motion", help="replay motions under live mode's policy: visible-but-hidden objects")
+    m.add_argument("scene", help=scene_help)
+    m.add_argument("--camera", help="camera path JSON (default: the sample scene's own path)")
+    m.add_argument("--motions", default="drag,orbit,dolly,walk", help="comma list of drag, orbit, dolly, walk")
+    m.add_argument("--resolution", default=res, help=f"query resolution WxH (default {res})")
+    m.add_argument("--frames", type=frame_count, help="use only this many frames of the path, evenly spread")
+    m.add_argument("--latency", type=float, default=0.1,
+                   help="seconds from a pass's start to its landing (default 0.1; fixed, so the count "
+                        "never depends on this machine's speed)")
+    m.add_argument("--json", action="store_true", help="the report as JSON on stdout")
+    m.add_argument("--quiet", "-q", action="store_true", help=QUIET_HELP)
+    m.set_defaults(func=cmd_motion)
 
     d = sub.add_parser("demo", help="generate the sample scene(s) and benchmark them")
     d.add_argument("--all", action="store_true", help="every sample scene, not only city")

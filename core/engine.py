@@ -280,17 +280,20 @@ class Culler:
         out[ids[ids >= 0]] = True
         return out
 
-    def cull(self, camera, truth=None, fresh=False, envelope=None):
+    def cull(self, camera, truth=None, fresh=False, envelope=None, lights=None):
         """One culling pass from ``camera``; ``truth`` is needed by the oracle only;
         ``fresh``: forget what earlier passes taught the strategy (its answer is
         then that of a new engine's first pass); ``envelope``: ``(D, A)`` or a
         :class:`core.envelope.Envelope`: hide only what is hidden from every view
         whose eye is within ``D`` of the camera's and whose direction is within ``A``
         degrees of its direction (same lens, any roll); see :mod:`core.envelope`.
-        The strategy does not change that answer, only the point pass's."""
+        The strategy does not change that answer, only the point pass's.
+        ``lights``: :class:`core.lights.Light` of a lit view: an object also stays
+        while its shadow may fall on something seen (an envelope pass, of ``(0, 0)``
+        when no envelope is given)."""
         n = len(self.scene)
-        if envelope is not None:
-            return self._envelope_cull(camera, envelope)
+        if envelope is not None or lights:
+            return self._envelope_cull(camera, (0.0, 0.0) if envelope is None else envelope, lights)
         if fresh:
             self.strategy.reset()
         if self.hierarchy is None:
@@ -309,13 +312,21 @@ class Culler:
         assert len(state) == n
         return CullResult(state, stats, frame.om.grid.copy())
 
-    def _envelope_cull(self, camera, envelope):
+    def _envelope_cull(self, camera, envelope, lights=None):
         from .envelope import Envelope, envelope_pass
         if not isinstance(envelope, Envelope):
             envelope = Envelope(*envelope)
-        state, stats = envelope_pass(self, camera, envelope)
+        state, stats = envelope_pass(self, camera, envelope, lights=lights)
         stats.update(self._counts(state))
         return CullResult(state, stats, np.zeros((0, 0), bool))
+
+    def scene_bounds(self):
+        """``(2, 3)``: the box of every valid object (where any shadow can fall)."""
+        ok = ~self.scene.invalid
+        if not ok.any():
+            return np.zeros((2, 3))
+        b = self.scene.bounds[ok]
+        return np.array([b[:, MIN].min(axis=0), b[:, MAX].max(axis=0)])
 
     def _counts(self, state):
         tri = self.scene.triangle_counts

@@ -48,20 +48,23 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import umbra
 from .bounds import MAX, MIN, corners, transform_boxes
 from .camera import Camera, perspective
 from .errors import OccError
 from .frustum import classify, planes_from_matrix
 from .tolerance import tol
 from .traversal import STAT_KEYS, Visibility
-from . import umbra
 from .umbra import hidden_by_polygons
 
 MAX_HALF_DEG = 80.0        # widest half-angle of the envelope's square image (tan 80 = 5.7)
 MAX_SIDE = 2048            # largest side of the envelope's image, pixels
 MIN_SIDE = 64
+MARGIN_PX = 4              # the render square reaches this many pixels past the cull square ...
+MARGIN_REL = 0.05          # ... or this share of its side, the larger
 HALF_SIZES = (1, 3, 7, 15, 31, 63, 127, 255)   # window half-sizes: each 2h + 1 of the one before
 RECT_TEXELS = 8            # a box's rectangle is read at the pyramid level where it spans this many
+SPLITS = 2                 # a box that starts before the covered depth and ends behind it: cut this often
 
 
 @dataclass(frozen=True)
@@ -117,17 +120,36 @@ def _lens(camera):
     return float(near), float(far), 1.0 / float(p[1, 1])
 
 
+@dataclass(frozen=True)
+class EnvelopeView:
+    """The square views of an envelope.  ``cull``: the square around the cone that
+    holds every view of the envelope (a grown box outside it is VIEW_CULLED);
+    ``render``: the same square widened by a margin of pixels, so that windows at the
+    cone's edge find surface beyond it (``side`` pixels a side; the cull square is
+    pixels ``lo .. hi`` of it on both axes)."""
+
+    cull: Camera
+    render: Camera
+    side: int
+    lo: int
+    hi: int
+
+
 def envelope_camera(camera, envelope, query_height):
-    """The square view from the camera's eye that holds every view of the envelope,
-    and its side in pixels (the query's angular pixel size at the centre), or
-    ``(None, 0)`` when the turn makes it wider than :data:`MAX_HALF_DEG`."""
+    """The :class:`EnvelopeView` from the camera's eye that holds every view of the
+    envelope (at the query's angular pixel size at the centre), or None when the
+    turn makes it wider than :data:`MAX_HALF_DEG`."""
     half = corner_half_angle(camera) + math.radians(envelope.angle_deg)
     if half >= math.radians(MAX_HALF_DEG):
-        return None, 0
+        return None
     near, far, tan_y = _lens(camera)
-    side = int(np.clip(math.ceil(query_height * math.tan(half) / tan_y), MIN_SIDE, MAX_SIDE))
-    proj = perspective(math.degrees(2.0 * half), 1.0, near, far + envelope.distance)
-    return Camera(camera.view, proj), side
+    inner = int(np.clip(math.ceil(query_height * math.tan(half) / tan_y), MIN_SIDE, MAX_SIDE))
+    margin = max(MARGIN_PX, math.ceil(MARGIN_REL * inner))
+    side = inner + 2 * margin
+    wide = math.atan(math.tan(half) * side / inner)
+    cull = Camera(camera.view, perspective(math.degrees(2.0 * half), 1.0, near, far + envelope.distance))
+    render = Camera(camera.view, perspective(math.degrees(2.0 * wide), 1.0, near, far + envelope.distance))
+    return EnvelopeView(cull, render, side, margin, margin + inner - 1)
 
 
 def _shift_max(a, h, axis, fill):
@@ -168,14 +190,15 @@ def _jumps(z, ok, tan_px, distance, w_tol):
     an eye ``D`` away that slips between two surfaces ``dz`` apart at distance ``r``
     drifts ``D dz / r^2`` radians across them, under half a pixel here (both rules
     judge from pixel centres: the module doc's sampling limit)."""
-    w = np.where(ok, 1.0 / np.where(ok, z, 1.0), np.nan)
-    zz = np.where(ok, z, np.inf)
+    w = np.where(ok, 1.0 / np.where(ok, z, 1.0), np.nan).astype(np.float32)
+    zz = np.where(ok, z, np.inf).astype(np.float32)
     out = np.zeros(z.shape, dtype=bool)
     for axis in (0, 1):
         a = np.moveaxis(w, axis, 0)
         zn = np.moveaxis(zz, axis, 0)
         px = np.moveaxis(tan_px, axis, 0)
-        step = a[1:] - a[:-1]                                   # between pixel k and k + 1
+        # between pixel k and k + 1; float32: ~1e-7 relative, far below w_tol
+        step = a[1:] - a[:-1]
         before = np.full(step.shape, np.nan)
         after = np.full(step.shape, np.nan)
         before[1:] = step[:-1]                                  # the step from k - 1 to k
@@ -211,7 +234,7 @@ def extended_depth(ids, depth, camera, envelope):
     dt = 2.0 * tan_half / s
     c = (np.arange(s) + 0.5) * dt - tan_half
     t = np.hypot(c[None, :], c[:, None])
-    tan_px = dt / (1.0 + t * t)                        # angle of one pixel there, radians (at most)
+    tan_px = (dt / (1.0 + t * t)).astype(np.float32)   # angle of one pixel there, radians (at most)
     brk = ~ok
     if envelope.distance > 0.0:
         # 1/z is known to a few steps of the 24-bit depth grid: (far - near) / (near far 2^24) each
@@ -220,8 +243,8 @@ def extended_depth(ids, depth, camera, envelope):
     guard = 1.0 + tol.near_guard_rel
     ext = np.full(z.shape, np.inf)
     b = brk.astype(np.uint8)
-    zlo = np.where(ok, -z, -np.inf)                     # max of -z: the nearest depth
-    zhi = np.where(ok, z, np.inf)
+    zlo = np.where(ok, -z, -np.inf).astype(np.float32)  # max of -z: the nearest depth
+    zhi = np.where(ok, z, np.inf).astype(np.float32)
     open_ = np.ones(z.shape, dtype=bool)
     for h in HALF_SIZES:                               # each window from the one before
         if h >= s:
@@ -229,10 +252,13 @@ def extended_depth(ids, depth, camera, envelope):
         b = _grow(b, h, np.uint8(1))                   # past the border: unknown, a break
         zlo = _grow(zlo, h, np.inf)
         zhi = _grow(zhi, h, np.inf)
-        cand = np.flatnonzero((open_ & (b == 0) & (-zlo > envelope.distance * guard)).ravel())
+        free = open_ & (b == 0)
+        if not free.any():
+            break                                      # windows only grow: no pixel can be covered now
+        cand = np.flatnonzero((free & (-zlo > envelope.distance * guard)).ravel())
         if not len(cand):
             continue
-        nearest = -zlo.ravel()[cand]
+        nearest = -zlo.ravel()[cand].astype(np.float64)
         alpha = np.arcsin(np.clip(envelope.distance / nearest, 0.0, 1.0))
         # the window's angle in pixels where it is widest on screen: at its outer
         # corner, where a tangent step per radian is 1 + tan^2
@@ -240,6 +266,7 @@ def extended_depth(ids, depth, camera, envelope):
         fits = reach < 0.5 * math.pi - 1e-6
         need = alpha * (1.0 + np.tan(np.where(fits, reach, 0.0)) ** 2) / dt + 1.0   # + the pixel's own footprint
         good = cand[fits & (need <= h)]
+        # float32 rounds the farthest depth by 6e-8 of itself: far below the depth guard
         ext.ravel()[good] = zhi.ravel()[good]
         open_.ravel()[good] = False
         if not open_.any():
@@ -292,22 +319,40 @@ def grown_boxes(boxes, eye, distance, scene_size):
     return out
 
 
-def classify_boxes(rel, view_camera, side, ext, depth_step_at):
-    """States of camera-relative boxes (already grown) from the envelope's view:
-    VISIBLE, OCCLUDED or VIEW_CULLED per box."""
+def _split8(boxes):
+    """Each box ``(k, 2, 3)`` cut in half along every axis: ``(8 k, 2, 3)``, box ``i``'s
+    eight halves at ``8 i .. 8 i + 7``."""
+    mid = 0.5 * (boxes[:, MIN] + boxes[:, MAX])
+    out = np.empty((len(boxes), 8, 2, 3))
+    for j in range(8):
+        bits = np.array([(j >> a) & 1 for a in range(3)], dtype=bool)
+        out[:, j, MIN] = np.where(bits, mid, boxes[:, MIN])
+        out[:, j, MAX] = np.where(bits, boxes[:, MAX], mid)
+    return out.reshape(-1, 2, 3)
+
+
+def classify_boxes(rel, view, levels, depth_step_at, splits=SPLITS):
+    """States of camera-relative boxes (already grown) from the envelope's
+    :class:`EnvelopeView`: VISIBLE, OCCLUDED or VIEW_CULLED per box; ``levels``: the
+    max pyramid of the extended depth image (:func:`_pyramid`).  A box's pixel
+    rectangle is clipped to the cull square: no view of the envelope sees past it.
+
+    A box is tested by its nearest depth against the farthest covered depth over its
+    rectangle; one that reaches behind that depth but starts before it is cut in
+    eight and each half tested so (``splits`` times): a box just behind a wall seen
+    at a slant is not kept for the wall's far end."""
     k = len(rel)
     state = np.full(k, Visibility.VISIBLE, dtype=np.uint8)
     if not k:
         return state
-    clip = view_camera.relative_view_projection()
-    outside, _ = classify(planes_from_matrix(clip), rel)
+    outside, _ = classify(planes_from_matrix(view.cull.relative_view_projection()), rel)
     state[outside] = Visibility.VIEW_CULLED
-    if ext is None:
-        return state
-    near, _, _ = _lens(view_camera)
+    clip = view.render.relative_view_projection()
+    side = view.side
+    near, _, _ = _lens(view.render)
     inside = np.flatnonzero(~outside)
     c = corners(rel[inside])                                 # (k, 8, 3) camera-relative
-    view_rot = view_camera.view[:3, :3]
+    view_rot = view.render.view[:3, :3]
     vz = -(c @ view_rot.T)[..., 2]                           # view-space depth of each corner
     zmin = vz.min(axis=1)
     front = zmin > near * (1.0 + tol.near_guard_rel)        # a box at or before the near plane is visible
@@ -320,13 +365,19 @@ def classify_boxes(rel, view_camera, side, ext, depth_step_at):
     # direction of the box falls in, rounded outward
     u0 = np.floor((lo + 1.0) * 0.5 * side).astype(np.int64)
     u1 = np.floor((hi + 1.0) * 0.5 * side).astype(np.int64)
-    rects = np.clip(np.concatenate([u0, u1], axis=1), 0, side - 1)
-    levels = _pyramid(ext)
+    rects = np.clip(np.concatenate([u0, u1], axis=1), view.lo, view.hi) - view.lo   # the pyramid's pixels
     far_occ = _rect_max(levels, rects)
     zm = zmin[front]
     # ties and the depth buffer's rounding count as visible
     hidden = zm > far_occ + tol.depth_guard_steps * depth_step_at(zm)
     state[idx[hidden]] = Visibility.OCCLUDED
+    if splits > 0:
+        # open only in front: the far part of the box lies behind every covered depth
+        retry = idx[~hidden & np.isfinite(far_occ) & (vz[front].max(axis=1) > far_occ)]
+        if len(retry):
+            halves = classify_boxes(_split8(rel[retry]), view, levels, depth_step_at, splits - 1)
+            gone = (halves != Visibility.VISIBLE).reshape(-1, 8).all(axis=1)
+            state[retry[gone]] = Visibility.OCCLUDED
     return state
 
 
@@ -368,56 +419,97 @@ def occluder_polygons(culler, eye):
     return polys[np.argsort(-weight)[:umbra.POLYGONS]]
 
 
-def envelope_pass(culler, camera, envelope, display=None):
+class _Tester:
+    """The envelope's proof for any world boxes: the frustum of the square view, the
+    extended depth image and the big polygons (built once a pass, asked twice: the
+    objects' units, then the shadows of those found hidden)."""
+
+    def __init__(self, culler, camera, envelope, height, stats):
+        self.culler, self.camera, self.envelope = culler, camera, envelope
+        self.eye = camera.eye
+        self.view = self.ext = self.levels = None
+        self.polygons = None
+        self.orthographic = camera.is_orthographic
+        if self.orthographic:
+            return
+        self.view = envelope_camera(camera, envelope, height)
+        if self.view is None:
+            return
+        scene = culler.scene
+        ub = culler.unit_bounds()
+        rel = grown_boxes(ub, self.eye, envelope.distance, culler.scene_size)
+        # only what can show in the square view: the same picture, less to draw
+        out_units, _ = classify(planes_from_matrix(self.view.render.relative_view_projection()), rel)
+        shown = np.zeros(len(scene), dtype=bool)
+        shown[culler.units.object[~out_units]] = True
+        objects = np.flatnonzero(shown & ~scene.invalid)
+        side = self.view.side
+        ids, depth = culler.renderer.ids_and_depth(self.view.render, (side, side), objects)
+        stats["gl_calls"] = culler.renderer.counters["gl_calls"]
+        stats["blocking_reads"] = culler.renderer.counters["blocking_reads"]
+        self.ext = extended_depth(ids, depth, self.view.render, envelope)
+        lo, hi = self.view.lo, self.view.hi + 1
+        self.levels = _pyramid(self.ext[lo:hi, lo:hi])      # the cull square's: rectangles read no margin
+        stats["query_rect_pixels"] = int(side * side)
+
+    def states(self, boxes):
+        """VISIBLE, OCCLUDED or VIEW_CULLED for world boxes ``(k, 2, 3)``."""
+        env = self.envelope
+        rel = grown_boxes(boxes, self.eye, env.distance, self.culler.scene_size)
+        state = np.full(len(boxes), Visibility.VISIBLE, dtype=np.uint8)
+        if self.orthographic:
+            if env.angle_deg == 0.0:
+                # a parallel view moved by D sees the frustum moved by D: grown boxes test it
+                outside, _ = classify(planes_from_matrix(self.camera.relative_view_projection()), rel)
+                state[outside] = Visibility.VIEW_CULLED
+            return state
+        if self.view is None:
+            return state
+        near, far, _ = _lens(self.view.render)
+
+        def step(zd):
+            return zd * zd * (far - near) / (near * far * 2.0 ** tol.depth_bits)
+
+        state = classify_boxes(rel, self.view, self.levels, step)
+        if env.distance > 0.0:
+            test = np.flatnonzero(state == Visibility.VISIBLE)
+            if self.polygons is None:
+                self.polygons = occluder_polygons(self.culler, self.eye)
+            hidden = hidden_by_polygons(boxes[test] - self.eye, self.polygons, env.distance,
+                                        self.camera.view[:3, :3])
+            state[test[hidden]] = Visibility.OCCLUDED
+        return state
+
+
+def envelope_pass(culler, camera, envelope, display=None, lights=None):
     """States ``(n,) uint8`` and stats of the objects of ``culler``'s scene for every
-    view of ``envelope`` around ``camera`` (see the module doc)."""
+    view of ``envelope`` around ``camera`` (see the module doc).  ``lights``
+    (:class:`core.lights.Light`): an object stays VISIBLE while its shadow from one
+    of them may fall on something seen (its shadow volume's box is tested as an
+    object's box is; :func:`core.lights.shadow_boxes`)."""
     t0 = time.perf_counter()
     scene = culler.scene
     n = len(scene)
     stats = dict.fromkeys(STAT_KEYS, 0)
-    ub = culler.unit_bounds()
-    valid_units = ~scene.invalid[culler.units.object]
-    eye = camera.eye
-    rel = grown_boxes(ub, eye, envelope.distance, culler.scene_size)
-    unit_state = np.full(len(ub), Visibility.VISIBLE, dtype=np.uint8)
     height = (display or culler.display or culler.resolution)[1]
-    if camera.is_orthographic:
-        if envelope.angle_deg == 0.0:
-            # a parallel view moved by D sees the frustum moved by D: grown boxes test it
-            outside, _ = classify(planes_from_matrix(camera.relative_view_projection()), rel)
-            unit_state[outside] = Visibility.VIEW_CULLED
-        ext = None
-        view_camera = None
-    else:
-        view_camera, side = envelope_camera(camera, envelope, height)
-        ext = None
-        if view_camera is not None:
-            # only what can show in the square view: the same picture, less to draw
-            out_units, _ = classify(planes_from_matrix(view_camera.relative_view_projection()), rel)
-            shown = np.zeros(n, dtype=bool)
-            shown[culler.units.object[~out_units]] = True
-            objects = np.flatnonzero(shown & ~scene.invalid)
-            ids, depth = culler.renderer.ids_and_depth(view_camera, (side, side), objects)
-            stats["gl_calls"] = culler.renderer.counters["gl_calls"]
-            stats["blocking_reads"] = culler.renderer.counters["blocking_reads"]
-            ext = extended_depth(ids, depth, view_camera, envelope)
-            near, far, _ = _lens(view_camera)
-
-            def step(zd):
-                return zd * zd * (far - near) / (near * far * 2.0 ** tol.depth_bits)
-
-            unit_state = classify_boxes(rel, view_camera, side, ext, step)
-            stats["query_rect_pixels"] = int(side * side)
-            if envelope.distance > 0.0:
-                test = np.flatnonzero((unit_state == Visibility.VISIBLE) & valid_units)
-                hidden = hidden_by_polygons(ub[test] - eye, occluder_polygons(culler, eye), envelope.distance,
-                                            camera.view[:3, :3])
-                unit_state[test[hidden]] = Visibility.OCCLUDED
-                stats["queries"] = int(len(test))
+    tester = _Tester(culler, camera, envelope, height, stats)
+    valid_units = ~scene.invalid[culler.units.object]
+    unit_state = tester.states(culler.unit_bounds())
     unit_state[~valid_units] = Visibility.VISIBLE
     state = np.full(n, Visibility.VIEW_CULLED, dtype=np.uint8)
     np.minimum.at(state, culler.units.object, unit_state)     # an object: the most visible of its units
     state[scene.invalid] = Visibility.VISIBLE
+    stats["queries"] = int(len(unit_state))
+    if lights:
+        from .lights import in_world, shadow_boxes
+        hidden = np.flatnonzero(state != Visibility.VISIBLE)
+        boxes, owner = shadow_boxes(scene.bounds[hidden], in_world(lights, camera, envelope.angle_deg),
+                                    culler.scene_bounds())
+        shows = tester.states(boxes) == Visibility.VISIBLE
+        casters = hidden[np.unique(owner[shows])]
+        state[casters] = Visibility.VISIBLE
+        stats["shadow_boxes"] = int(len(boxes))
+        stats["shadow_casters_kept"] = int(len(casters))
     stats["total_ms"] = stats["cpu_ms"] = 1e3 * (time.perf_counter() - t0)
     stats["invalid_objects"] = int(scene.invalid.sum())
     stats["envelope_distance"] = envelope.distance
@@ -427,7 +519,8 @@ def envelope_pass(culler, camera, envelope, display=None):
 
 def sample_views(camera, envelope, count, rng):
     """``count`` random views of the envelope around a look-at ``camera``: eyes
-    uniform in the ball, directions uniform in the cone, any roll; the same projection (for tests and the motion benchmark)."""
+    uniform in the ball, directions uniform in the cone, any roll; the same
+    projection (for tests and the motion benchmark)."""
     eye, d = camera.eye, camera.direction
     r = camera.view[:3, :3]
     out = []
@@ -454,5 +547,5 @@ def _rotation(axis, angle):
     return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
 
 
-__all__ = ["Envelope", "envelope_pass", "envelope_camera", "extended_depth", "sample_views",
+__all__ = ["Envelope", "EnvelopeView", "envelope_pass", "envelope_camera", "extended_depth", "sample_views",
            "corner_half_angle", "transform_boxes"]

@@ -3,6 +3,15 @@ what is visible: the view moved (polled: navigation fires no depsgraph update),
 or anything else changed (the depsgraph and frame-change handlers, "never
 cull" and the exclusion collection report it, see :func:`changed`).  GUI only.
 
+While the view moves: every hidden set holds for an envelope around the view it
+was made from (:mod:`..core.envelope`; a pass at rest takes a small one).  Before
+every redraw of the culled viewport (:func:`guard`, a draw handler) and at every
+tick, the view is checked against it with room for the next step of the measured
+motion; a view about to leave it makes a pass during motion at once
+(:func:`leave`): it shows what that pass finds visible and hides nothing new, and
+its envelope is sized from the motion (:class:`..core.motion.LivePolicy`).  Hiding
+waits for rest.  Without live mode (a Cull click), leaving shows everything.
+
 No Blender object is held between ticks (undo and file loads replace them):
 the tick reads ``bpy.context.scene`` each time, and ``scene.occ.live`` is the
 one truth.  After an undo or redo the timer follows the restored flag
@@ -15,9 +24,10 @@ import traceback
 import bpy
 import numpy as np
 
-from ..core import OccError
+from ..core import Camera, OccError
+from ..core.motion import view_change
 from . import visibility
-from .session import LISTENERS, SESSION, camera_for
+from .session import LISTENERS, POLICY, SESSION, camera_for, find_viewport
 
 POLL_S = 0.1          # timer period
 DEBOUNCE_S = 0.15     # the view (or the scene) must rest this long before a pass
@@ -25,6 +35,81 @@ CUT_DEG = 10.0        # a view turned further than this between passes is a cut:
 CUT_MOVE = 0.05       # and so is one moved further than this fraction of the scene's size
 
 _state = {"last_view": None, "changed_at": None, "dirty_at": None, "passed_view": None}
+# the view's motion, measured between successive looks (redraws and ticks)
+_motion = {"view": None, "t": None, "step": (0.0, 0.0), "speeds": [0.0], "turns": [0.0], "leaving": False}
+
+
+def observe(camera):
+    """Measure the motion since the last look at the view: the last step and the
+    speeds (of the last three looks, the fastest counts)."""
+    now = time.perf_counter()
+    prev, t = _motion["view"], _motion["t"]
+    if prev is not None and np.array_equal(prev.projection, camera.projection):
+        move, turn = view_change(prev, camera)
+        if move or turn:
+            dt = max(now - t, 1e-3)
+            _motion["step"] = (move, turn)
+            _motion["speeds"] = (_motion["speeds"] + [move / dt])[-3:]
+            _motion["turns"] = (_motion["turns"] + [turn / dt])[-3:]
+    _motion.update(view=camera, t=now)
+
+
+def _unsafe(camera):
+    shown = SESSION.shown
+    return shown is not None and not POLICY.safe(shown[0], shown[1], camera, *_motion["step"])
+
+
+def guard():
+    """Before a redraw of the culled viewport (a draw handler, so cheap): a view about
+    to leave the hidden set's envelope makes :func:`leave` run at once (a timer: data
+    cannot change while drawing)."""
+    if SESSION.shown is None or _motion["leaving"]:
+        return
+    context = bpy.context
+    if context.scene is None or context.scene.occ.source != "VIEWPORT":
+        return
+    found = find_viewport(context)
+    if found is None or found[2] != context.region_data:
+        return                                        # another view's redraw
+    rv3d = found[2]
+    camera = Camera.from_matrices(np.array(rv3d.view_matrix), np.array(rv3d.window_matrix))
+    observe(camera)
+    if _unsafe(camera):
+        _motion["leaving"] = True
+        bpy.app.timers.register(_leave_timer, first_interval=0.0)
+
+
+def _leave_timer():
+    try:
+        context = bpy.context
+        camera, display = camera_for(context)
+        leave(context, camera, display)
+    except Exception:  # a timer must not raise: show everything instead
+        traceback.print_exc()
+        SESSION.shown = None
+        visibility.restore()
+    finally:
+        _motion["leaving"] = False
+    return None
+
+
+def leave(context, camera, display):
+    """The view is leaving the hidden set's envelope: live, a pass during motion (it
+    shows, it hides nothing new); otherwise show everything."""
+    if context.scene is None or not context.scene.occ.live or SESSION.busy or SESSION.culler is None:
+        SESSION.shown = None
+        visibility.restore()
+        return
+    speed, turn = max(_motion["speeds"]), max(_motion["turns"])
+    latency = (SESSION.last or {}).get("ms", 100.0) / 1e3
+    env = POLICY.envelope(speed, turn, latency, *_motion["step"], SESSION.culler.scene_size)
+    try:
+        SESSION.cull(context, camera, display, fresh=False, envelope=env, show_only=True)
+        _state["dirty_at"] = None                     # our own pass's updates are not a change
+    except OccError as e:
+        print(f"occlusion culling: {e}")
+        SESSION.shown = None
+        visibility.restore()
 
 
 def changed():
@@ -71,6 +156,9 @@ def _tick():
         return POLL_S
     key = np.concatenate([camera.view.ravel(), camera.projection.ravel(), display])
     now = time.perf_counter()
+    observe(camera)
+    if _unsafe(camera):                               # the redraw guard missed it: leave now
+        leave(context, camera, display)
     if _state["last_view"] is None or not np.array_equal(key, _state["last_view"]):
         _state["last_view"], _state["changed_at"] = key, now
         return POLL_S
@@ -79,12 +167,13 @@ def _tick():
         fresh = _state["dirty_at"] is not None or _is_cut(_state["passed_view"], key)
         _state.update(changed_at=None, dirty_at=None)
         try:
-            SESSION.cull(context, camera, display, fresh=fresh)
+            SESSION.cull(context, camera, display, fresh=fresh, envelope="rest")
             _state["passed_view"] = key
             _state["dirty_at"] = None                 # our own pass's updates are not a change
         except OccError as e:  # the user's to fix (an empty scene, a panoramic camera): show all, keep going
             print(f"occlusion culling: {e}")
             _state["passed_view"] = None
+            SESSION.shown = None
             visibility.restore()
         except Exception:  # a timer must not raise: our bug, live mode stops and shows everything
             traceback.print_exc()

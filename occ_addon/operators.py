@@ -8,12 +8,13 @@ import traceback
 
 import bpy
 import numpy as np
-from bpy.props import BoolProperty, IntProperty, StringProperty
+from bpy.props import BoolProperty, EnumProperty, IntProperty, StringProperty
 
 from ..core import OccError, Visibility
 from . import live, overlay, visibility
 from .extract import bystanders, draws_beyond_geometry, is_instancer
 from .session import SESSION, camera_for, scene_camera
+from .shading import rule as rule_of
 from .worker import Job, drive
 
 # "//" paths are blend-relative; Blender 4.5+ wants string properties to say they accept them
@@ -140,7 +141,10 @@ class OCC_OT_cull(Stepped, bpy.types.Operator):
         changed meanwhile)."""
         try:
             camera, display = camera_for(context)
-            SESSION.cull(context, camera, display, fresh=True, progress=progress, restart=True)
+            # from the viewport the hidden set holds for a small motion; live mode
+            # (or, without it, showing everything) takes over when the view leaves it
+            envelope = "rest" if context.scene.occ.source == "VIEWPORT" else None
+            SESSION.cull(context, camera, display, fresh=True, progress=progress, restart=True, envelope=envelope)
             overlay.install()
         except Exception as e:  # every failure is a report, never a traceback
             return failed(self, e)
@@ -162,6 +166,7 @@ class OCC_OT_restore(bpy.types.Operator):
         if context.scene.occ.live:
             live.stop(context)
         n = visibility.restore()
+        SESSION.shown = None
         self.report({"INFO"}, f"restored {n} objects")
         return {"FINISHED"}
 
@@ -193,6 +198,7 @@ class OCC_OT_live(Stepped, bpy.types.Operator):
         if context.scene.occ.live:
             live.stop(context)
             visibility.restore()
+            SESSION.shown = None
         else:
             live.start(context)
         return {"FINISHED"}
@@ -211,6 +217,12 @@ class OCC_OT_analyze(Stepped, bpy.types.Operator):
                              options=BLEND_RELATIVE)
     link_never_visible: BoolProperty(name="Collect Never Visible", default=False,
                                      description="Link never-visible objects into a collection")
+    rule: EnumProperty(
+        name="Rule", default="AUTO",
+        items=[("AUTO", "Auto", "Needed for the render when collecting never-visible objects, else seen"),
+               ("SEEN", "Seen", "An object counts where a pixel of it is seen"),
+               ("RENDER", "Needed for the Render", "Seen, or shadowing what is seen under the render "
+                          "engine's lights (everything under ray tracing, unless Cull Under Ray Tracing)")])
 
     def _plan(self, context):
         """``(frames, report path)``, or an OccError the user can act on."""
@@ -228,20 +240,25 @@ class OCC_OT_analyze(Stepped, bpy.types.Operator):
             frames, path = self._plan(context)
         except Exception as e:  # every failure is a report, never a traceback
             return failed(self, e)
-        return self.start_steps(context, analysis(context, frames, path), "analyze")
+        return self.start_steps(context, analysis(context, frames, path, self._rule()), "analyze")
+
+    def _rule(self):
+        if self.rule == "AUTO":
+            return "render" if self.link_never_visible else "seen"
+        return self.rule.lower()
 
     def execute(self, context):
         try:
             frames, path = self._plan(context)
-            value = self.run_steps(analysis(context, frames, path), "analyze")
+            value = self.run_steps(analysis(context, frames, path, self._rule()), "analyze")
         except Exception as e:  # every failure is a report, never a traceback
             return failed(self, e)
         return self.finish(context, value)
 
     def finish(self, context, value):
-        frames, path, per_frame, seen, t = value
+        frames, path, per_frame, seen, t, rule = value
         try:
-            write_report(path, frames, per_frame, seen)
+            write_report(path, frames, per_frame, seen, rule)
         except OSError as e:
             return failed(self, OccError(f"cannot write the report {path}: {e.strerror or e}"))
         never = sorted(n for n, c in seen.items() if c == 0)
@@ -254,10 +271,12 @@ class OCC_OT_analyze(Stepped, bpy.types.Operator):
         return {"FINISHED"}
 
 
-def analysis(context, frames, path):
+def analysis(context, frames, path, rule="seen"):
     """Analyze in steps (a generator, see :func:`.worker.drive`): one a frame, and a
     first build's own; returns what :meth:`OCC_OT_analyze.finish` writes.  Stopped
-    early (Esc), the scene goes back to its frame and nothing is written."""
+    early (Esc), the scene goes back to its frame and nothing is written.  ``rule``:
+    "seen" (a pixel of it seen) or "render" (seen, or shown beyond its pixels under
+    the render engine: shadows, rays; :mod:`.shading`)."""
     scene = context.scene
     previous = scene.frame_current
     per_frame, seen = [], {}
@@ -270,7 +289,9 @@ def analysis(context, frames, path):
             camera, display = scene_camera(context)
             # nothing is hidden
             # the first frame a new engine's answer, later ones from what it taught
-            result, objects = yield from SESSION.compute_steps(context, camera, display, restart=k == 0)
+            view_rule = rule_of(context, "CAMERA") if rule == "render" else None
+            result, objects = yield from SESSION.compute_steps(context, camera, display, restart=k == 0,
+                                                               lights=view_rule.lights if view_rule else None)
             if SESSION.kept_uids is not held:   # the engine's objects changed: their names, once
                 held = SESSION.kept_uids
                 held_names = [o.name for o in objects]
@@ -278,6 +299,8 @@ def analysis(context, frames, path):
                 for n in held_names:
                     seen.setdefault(n, 0)
             vis = result.state == Visibility.VISIBLE          # one array compare, no per-object enum
+            if view_rule is not None:          # shadow casters are the engine's (given the lights)
+                vis |= SESSION.drawn_beyond_depth(view_rule, result.state)
             # an instance with members drawn beside its geometry (wire, bounds, ...) is seen
             # wherever it is drawn: the engine knows only its solid part (conservative by construction)
             wide = {}                                         # collection name -> the answer, once a frame
@@ -303,7 +326,7 @@ def analysis(context, frames, path):
             yield f"frame {k + 1}/{len(frames)}", (k + 1) / len(frames)
     finally:
         scene.frame_set(previous)
-    return frames, path, per_frame, seen, t
+    return frames, path, per_frame, seen, t, rule
 
 
 def report_path(filepath):
@@ -338,8 +361,9 @@ def failed(op, error):
     return {"CANCELLED"}
 
 
-def write_report(path, frames, per_frame, seen):
-    """JSON: per frame the visible objects, per object the frames it is visible in; CSV beside it."""
+def write_report(path, frames, per_frame, seen, rule="seen"):
+    """JSON: per frame the visible objects, per object the frames it is visible in, and
+    the rule that says what "visible" means ("seen" or "render"); CSV beside it."""
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     first, last = {}, {}
     for fr in per_frame:
@@ -349,7 +373,7 @@ def write_report(path, frames, per_frame, seen):
     objects = {n: {"frames_visible": c, "first": first.get(n), "last": last.get(n)}
                for n, c in sorted(seen.items())}
     with open(path, "w", encoding="utf-8") as f:
-        json.dump({"frames": per_frame, "objects": objects, "frame_count": len(frames)}, f, indent=1)
+        json.dump({"frames": per_frame, "objects": objects, "frame_count": len(frames), "rule": rule}, f, indent=1)
     with open(os.path.splitext(path)[0] + ".csv", "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
         w.writerow(["object", "frames_visible", "fraction", "first_frame", "last_frame"])
@@ -381,10 +405,15 @@ def push_undo(message):
 def link_collection(scene, name, object_names):
     """Make collection ``name`` hold exactly ``object_names`` (an earlier analysis's
     objects that this one saw are unlinked: deleting the collection's contents
-    must never delete what the camera sees)."""
+    must never delete what the camera sees).  The collection is excluded in every
+    view layer of every scene that links it: it gives its objects no way into a view
+    layer, so linking changes nothing anyone sees (an object whose own collection is
+    excluded stays out)."""
     coll = bpy.data.collections.get(name) or bpy.data.collections.new(name)
     if coll.name not in scene.collection.children:
+        # excluded before its objects are linked: they never get a base through it
         scene.collection.children.link(coll)
+    exclude_everywhere(coll)
     wanted = set(object_names)
     for obj in [o for o in coll.objects if o.name not in wanted]:
         coll.objects.unlink(obj)
@@ -392,6 +421,20 @@ def link_collection(scene, name, object_names):
         obj = bpy.data.objects.get(n)
         if obj is not None and obj.name not in coll.objects:
             coll.objects.link(obj)
+
+
+def exclude_everywhere(coll):
+    """Exclude ``coll`` in every view layer where it appears (any depth)."""
+    for scene in bpy.data.scenes:
+        for layer in scene.view_layers:
+            stack = [layer.layer_collection]
+            while stack:
+                lc = stack.pop()
+                if lc.collection == coll:
+                    if not lc.exclude:
+                        lc.exclude = True
+                    continue
+                stack.extend(lc.children)
 
 
 CLASSES = (OCC_OT_cull, OCC_OT_restore, OCC_OT_live, OCC_OT_analyze)

@@ -26,10 +26,13 @@ class OCC_PT_panel(bpy.types.Panel):
         row.operator("occ.restore", icon="HIDE_OFF")
         layout.operator("occ.live", text="Stop Live" if s.live else "Live", icon="PLAY",
                         depress=s.live)
+        layout.prop(s, "cull_raytraced")
         layout.prop(s, "show_overlay")
         layout.operator("occ.analyze", icon="RENDER_ANIMATION")
         res = layout.box()
         res.label(text="Last pass")
+        if s.last_rule:
+            res.label(text=s.last_rule, icon="LIGHT")
         for label, value in (("Tested", f"{s.last_tested:,}"), ("Occluded", f"{s.last_occluded:,}"),
                              ("Outside view", f"{s.last_outside:,}"),
                              ("Tris hidden", f"{s.last_triangles_hidden:,}"),

@@ -1,7 +1,7 @@
 """Settings on ``scene.occ``, the per-object "never cull" flag and the hide record."""
 
 import bpy
-from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
 from ..core.strategies import REGISTRY
 
@@ -44,6 +44,10 @@ class OccSettings(bpy.types.PropertyGroup):
         update=_changed)
     exclude_children: BoolProperty(name="Include Child Collections", default=True, update=_changed)
     live: BoolProperty(name="Live", default=False, description="Re-cull when the view changes")
+    cull_raytraced: BoolProperty(
+        name="Cull Under Ray Tracing", default=False, update=_changed,
+        description="Hide occluded objects even where Blender traces rays (Cycles, EEVEE ray tracing): "
+                    "their reflections and the light they give may then vanish")
     show_overlay: BoolProperty(name="Overlay", default=True,
                                description="Draw the culled boxes and the figures of the last pass")
     # the last pass, shown in the panel
@@ -52,6 +56,7 @@ class OccSettings(bpy.types.PropertyGroup):
     last_outside: IntProperty(name="Outside", default=0)
     last_triangles_hidden: IntProperty(name="Triangles Hidden", default=0)
     last_ms: FloatProperty(name="Milliseconds", default=0.0)
+    last_rule: StringProperty(name="Rule", default="", description="What the view draws and the rule it sets")
 
 
 CLASSES = (OccSettings,)

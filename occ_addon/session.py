@@ -15,9 +15,11 @@ from bpy.app.handlers import persistent
 
 from ..core import Camera, Culler, OccError, Visibility
 from ..core.engine import MAX_RESOLUTION
+from ..core.envelope import Envelope
+from ..core.motion import LivePolicy
 from ..core.settings import preset, query_resolution
 from ..core.units import ChunkCache
-from . import extract, visibility
+from . import extract, shading, visibility
 from .extract import Extractor
 from .visibility import ident
 from .worker import EngineThread, drive
@@ -26,6 +28,7 @@ from .worker import EngineThread, drive
 # many (never a user's mesh: index ranges inside the engine's copy): a heavy
 # object is then drawn and tested by its visible parts, not as one box.
 CHUNK_TRIANGLES = 4096
+POLICY = LivePolicy()       # how far a hidden set must hold while the view moves (live.py)
 
 
 class Session:
@@ -46,6 +49,7 @@ class Session:
         self.bad_geometry = []     # of them, those left out for their vertices (known since the last build)
         self.layer = None          # (scene, view layer) of the last pass
         self.busy = None           # the label of a modal operator's work in steps (live passes wait)
+        self.shown = None          # (Camera, Envelope): the view and motion the hidden set holds for
 
     def reset(self):
         """Forget everything (a file was loaded, an undo or redo, or the add-on goes away):
@@ -55,6 +59,7 @@ class Session:
         self.uids = self.kept = self.kept_uids = self.kept_collection = None
         self.bad_geometry = []
         self.last = None
+        self.shown = None
         self.version += 1
 
     def release(self):
@@ -158,17 +163,19 @@ class Session:
         _, res, shown = self._sizes(context, display)
         yield from self.engine_steps(context, res, context.scene.occ.strategy, verify=fresh, display=shown)
 
-    def compute(self, context, camera, display, fresh=True, progress=None, restart=False):
+    def compute(self, context, camera, display, fresh=True, progress=None, restart=False, envelope=None,
+                lights=None):
         """Visibility from ``camera`` at ``display`` resolution, without hiding anything.
         ``fresh``: the strategy forgets what earlier passes taught it that would cost
         accuracy (a Cull click, a camera cut, analyze, a scene change); only a live
         pass right after a small view change keeps all of it.  ``restart``: the answer
         is a new engine's first pass, whatever came before (a Cull click, an analysis's
         first frame: the same click gives the same answer).  ``progress``: called with
-        the steps' ``(label, fraction)``."""
-        return drive(self.compute_steps(context, camera, display, fresh, restart), progress)
+        the steps' ``(label, fraction)``.  ``envelope``: hide only what stays hidden
+        while the view moves that far (:mod:`..core.envelope`)."""
+        return drive(self.compute_steps(context, camera, display, fresh, restart, envelope, lights), progress)
 
-    def compute_steps(self, context, camera, display, fresh=True, restart=False):
+    def compute_steps(self, context, camera, display, fresh=True, restart=False, envelope=None, lights=None):
         """:meth:`compute` in steps (see :meth:`engine_steps`)."""
         options, res, shown = self._sizes(context, display)
         # a fresh pass (a click, analyze, a scene change) also checks what the add-on
@@ -176,26 +183,43 @@ class Session:
         culler, objects = yield from self.engine_steps(context, res, context.scene.occ.strategy,
                                                        verify=fresh or restart, display=shown)
         culler.options = options
+        if envelope == "rest":
+            envelope = POLICY.rest(culler.scene_size)
+        lights = lights or None
         if restart:
             culler.strategy.reset()
         elif fresh:
             culler.strategy.forget()
-        return self.worker.run(culler.cull, camera), objects
+        return self.worker.run(culler.cull, camera, envelope=envelope, lights=lights), objects
 
-    def cull(self, context, camera, display, fresh=False, progress=None, restart=False):
-        """One pass: cull from ``camera`` at ``display`` resolution and apply it."""
+    def cull(self, context, camera, display, fresh=False, progress=None, restart=False, envelope=None,
+             show_only=False):
+        """One pass: cull from ``camera`` at ``display`` resolution and apply it.
+
+        ``envelope``: the pass hides only what stays hidden for every view of it
+        (:attr:`shown` then holds the view and the envelope the hidden set is good
+        for: live mode checks every redraw against it).  ``show_only``: a pass
+        during motion: it shows what it finds visible and hides nothing new (what
+        stays hidden is hidden in this pass too, so it holds for its envelope)."""
         settings = context.scene.occ
         t = time.perf_counter()
         visibility.reconcile()                 # what the user showed is the user's
         context.view_layer.update()            # edits still pending reach the handler now, not below
-        result, objects = self.compute(context, camera, display, fresh, progress, restart)
+        view_rule = shading.rule(context)
+        result, objects = self.compute(context, camera, display, fresh, progress, restart, envelope,
+                                       view_rule.lights)
         state = result.state
         culled = state != Visibility.VISIBLE
         protected = self.protected(context, objects, culled)
+        protected |= self.drawn_beyond_depth(view_rule, state)
+        settings.last_rule = view_rule.why
         hide = np.isin(visibility.uids(), self.kept_uids[culled & ~protected])
         self.applying = True
         try:
-            visibility.apply(hide)
+            if show_only:
+                visibility.release(~hide)
+            else:
+                visibility.apply(hide)
             # Showing an object again makes the depsgraph report it, and every
             # object sharing its mesh, as changed geometry.  Nothing else can have
             # changed since the update above, so evaluate now and let the handler
@@ -212,8 +236,22 @@ class Session:
         settings.last_ms = ms
         self.last = {"state": state, "protected": protected, "bounds": self.culler.scene.bounds,
                      "occupancy": result.occupancy, "stats": result.stats, "ms": ms}
+        used = result.stats.get("envelope_distance")
+        self.shown = None if used is None else (camera, Envelope(used, result.stats["envelope_angle_deg"]))
         self.version += 1
         return result, objects
+
+    def drawn_beyond_depth(self, view_rule, state):
+        """``(k,) bool``: what the view shows of the engine's objects beyond their depth
+        (:mod:`.shading`): everything under ray tracing (unless the user opted in),
+        every occluded object under X-ray.  (Shadow casters under scene lights are
+        the engine's: the pass was given the lights.)"""
+        n = len(state)
+        if view_rule.mode == "raytraced" and not bpy.context.scene.occ.cull_raytraced:
+            return np.ones(n, dtype=bool)
+        if view_rule.mode == "xray":
+            return state == Visibility.OCCLUDED
+        return np.zeros(n, dtype=bool)
 
     def protected(self, context, objects, culled):
         """``(k,) bool`` over the engine's objects: never hidden.  The user's
@@ -394,8 +432,33 @@ def on_frame_change(scene, depsgraph):
     SESSION.extractor.visibility_changed()
     if depsgraph is not None:
         _mark(depsgraph, edits=False)
+    _guard_camera(scene)
     for f in LISTENERS:
         f()
+
+
+_camera_motion = {"view": None, "step": (0.0, 0.0)}
+
+
+def _guard_camera(scene):
+    """Live from the scene camera, a new frame (playback, scrubbing) moves it: where it
+    is about to leave the hidden set's envelope, everything is shown before the frame
+    is drawn (the live pass that follows hides again)."""
+    if SESSION.shown is None or SESSION.busy or not scene.occ.live or scene.occ.source != "CAMERA":
+        return
+    try:
+        camera, _ = scene_camera(bpy.context, scene)
+    except OccError:
+        camera = None
+    prev = _camera_motion["view"]
+    if camera is not None and prev is not None and np.array_equal(prev.projection, camera.projection):
+        from ..core.motion import view_change
+        _camera_motion["step"] = view_change(prev, camera)
+    _camera_motion["view"] = camera
+    centre, envelope = SESSION.shown
+    if camera is None or not POLICY.safe(centre, envelope, camera, *_camera_motion["step"]):
+        SESSION.shown = None
+        visibility.restore()
 
 
 def _mark(depsgraph, edits=True):

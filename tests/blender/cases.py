@@ -1060,10 +1060,149 @@ def case_instance_wire_member_analyzed():
               and "target" in never, (r, sorted(truth), sorted(named), sorted(never)))
 
 
+def case_never_visible_adds_no_path():
+    """Linking into "Never Visible" changes nothing anyone sees: the collection is
+    excluded in every view layer, so an object whose own collection the user then
+    excludes is not drawn through it."""
+    scene = new_scene()
+    own = bpy.data.collections.new("Own")
+    scene.collection.children.link(own)
+    box("target", (3, -1, 0), (4, 1, 1), own)
+    update()
+    report = os.path.join(WORK, "never_visible_path.json")
+    bpy.ops.occ.analyze(filepath=report, frame_start=1, frame_end=1, link_never_visible=True)
+    never = bpy.data.collections["Never Visible"]
+    linked = "target" in never.objects
+    scene.view_layers[0].layer_collection.children["Own"].exclude = True
+    update()
+    check("never_visible_no_path", linked and not drawn("target")
+          and "target" not in bpy.context.view_layer.objects,
+          (linked, drawn("target"), [c.name for c in bpy.data.objects["target"].users_collection]))
+    excluded = all(vl.layer_collection.children["Never Visible"].exclude for vl in scene.view_layers)
+    check("never_visible_excluded_everywhere", excluded, "")
+
+
+def _render(path):
+    """Render the scene camera's view into ``path`` and read it back, ``(h, w, 4) float``."""
+    scene = bpy.context.scene
+    scene.render.filepath = path
+    scene.render.image_settings.file_format = "PNG"
+    bpy.ops.render.render(write_still=True)
+    img = bpy.data.images.load(path, check_existing=False)
+    px = np.array(img.pixels[:], dtype=np.float64).reshape(img.size[1], img.size[0], img.channels)
+    bpy.data.images.remove(img)
+    return px
+
+
+def _lit_scene():
+    """Casters that show only through their shadows: a slab far above the view under a
+    sun from above, a post behind a pillar under a low sun, a board beside the view
+    between a point light and the floor in view, the same for an area light; an
+    emissive box and a mirror-like box behind the wall."""
+    scene = new_scene()
+    scene.render.resolution_x, scene.render.resolution_y = 160, 90
+    cam = scene.camera
+    cam.location = (-10.0, 0.0, 3.0)
+    cam.rotation_euler = (math.radians(73.0), 0.0, -math.pi / 2)
+    bpy.data.objects.remove(bpy.data.objects["wall"])
+    box("floor", (-30, -30, -0.2), (30, 30, 0.0))
+    box("slab", (-2, -2, 14), (2, 2, 14.5))
+    box("pillar", (0, -0.6, 0), (0.6, 0.6, 3.5))
+    box("post", (3, -0.15, 0), (3.3, 0.15, 2.4))
+    box("board", (-3, 7, 1), (1, 7.4, 3))
+    box("panel", (-3, -7.4, 1), (1, -7, 3))
+    box("wall", (6, -8, 0), (6.5, 8, 6))
+    glow = box("glow", (8, -1, 0), (9, 1, 1))
+    mat = bpy.data.materials.new("glow")
+    mat.use_nodes = True
+    bsdf = mat.node_tree.nodes.get("Principled BSDF")
+    if bsdf is not None and "Emission Strength" in bsdf.inputs:
+        bsdf.inputs["Emission Color"].default_value = (1.0, 0.5, 0.2, 1.0)
+        bsdf.inputs["Emission Strength"].default_value = 50.0
+    glow.data.materials.append(mat)
+    box("mirror_target", (8, 3, 0), (9, 4, 2))
+
+    def light(name, kind, location, rotation=(0.0, 0.0, 0.0), **kw):
+        data = bpy.data.lights.new(name, kind)
+        for k, v in kw.items():
+            setattr(data, k, v)
+        obj = bpy.data.objects.new(name, data)
+        scene.collection.objects.link(obj)
+        obj.location, obj.rotation_euler = location, rotation
+        return obj
+
+    light("sun_top", "SUN", (0, 0, 20), energy=3.0)
+    light("sun_low", "SUN", (0, 0, 20), (math.radians(80.0), 0.0, 0.0), energy=3.0)   # from -y, low
+    light("bulb", "POINT", (-1, 9.5, 4.5), energy=3000.0)
+    light("panel_light", "AREA", (-1, -9.5, 4.5), (math.radians(-40.0), 0.0, 0.0), energy=3000.0, size=0.5)
+    scene.display.shading.show_shadows = True
+    scene.display.light_direction = (0.0, 1.0, 0.0)            # Workbench's light (view space): from above
+    update()
+    return scene
+
+
+def case_lit_renders():
+    """What the add-on hides under scene lights changes no pixel of Blender's own render
+    (EEVEE, one sample; Workbench with shadows), beyond the renderer's run-to-run noise
+    measured first; and the check can fail: hiding the slab alone changes pixels."""
+    for engine in ("BLENDER_EEVEE", "BLENDER_WORKBENCH"):
+        scene = _lit_scene()
+        scene.render.engine = engine
+        if engine == "BLENDER_EEVEE":
+            scene.eevee.taa_render_samples = 1
+        tag = engine.split("_")[1].lower()
+        a = _render(os.path.join(WORK, f"lit_{tag}_a.png"))
+        b = _render(os.path.join(WORK, f"lit_{tag}_b.png"))
+        noise = float(np.abs(a - b).max())
+        r, err = cull()
+        hidden = sorted(o.name for o in bpy.data.objects if o.occ_culled)
+        for o in bpy.data.objects:
+            o.hide_render = bool(o.occ_culled)
+        c = _render(os.path.join(WORK, f"lit_{tag}_c.png"))
+        changed = int((np.abs(c - a) > noise + 1.0 / 255.0).any(axis=2).sum())
+        check(f"lit_{tag}_no_pixel_changed", r == {"FINISHED"} and changed == 0 and hidden,
+              (r, err[-300:], hidden, changed, noise, scene.occ.last_rule))
+        for o in bpy.data.objects:
+            o.hide_render = o.name == "slab"
+        d = _render(os.path.join(WORK, f"lit_{tag}_d.png"))
+        check(f"lit_{tag}_slab_shadow_shows", int((np.abs(d - a) > noise + 1.0 / 255.0).any(axis=2).sum()) > 0,
+              noise)
+
+
+def case_view_rules():
+    """Ray tracing hides nothing unless the user opts in; X-ray hides nothing occluded."""
+    scene = new_scene()
+    box("target", (3, -1, 0), (4, 1, 1))
+    scene.render.engine = "CYCLES"
+    update()
+    r, _ = cull()
+    check("rules_cycles_hides_nothing", r == {"FINISHED"} and not hidden_by_addon("target")
+          and "Cycles" in scene.occ.last_rule, (r, scene.occ.last_rule))
+    scene.occ.cull_raytraced = True
+    cull()
+    check("rules_cycles_opt_in_hides", hidden_by_addon("target"), scene.occ.last_rule)
+    scene = new_scene()
+    box("target", (3, -1, 0), (4, 1, 1))
+    scene.eevee.use_raytracing = True
+    update()
+    cull()
+    check("rules_eevee_raytracing_hides_nothing", not hidden_by_addon("target"), scene.occ.last_rule)
+    scene = new_scene()
+    box("target", (3, -1, 0), (4, 1, 1))
+    box("outside", (3, 30, 0), (4, 31, 1))
+    scene.render.engine = "BLENDER_WORKBENCH"
+    scene.display.shading.show_xray = True
+    update()
+    cull()
+    check("rules_xray_hides_nothing_occluded", not hidden_by_addon("target") and hidden_by_addon("outside"),
+          (hidden_by_addon("target"), hidden_by_addon("outside"), scene.occ.last_rule))
+
+
 CASES = (case1, case2, case3, case4, case4_collections, case5, case6, case7, case8, case10, case11, case12,
          case_hidden_edits, case_display_resolution, case_report_path,
          case_steps, case_instanced_child_edited, case_instance_source_deleted, case_click_restarts,
-         case_instance_wire_member_analyzed, case_wire_collection_instance)
+         case_instance_wire_member_analyzed, case_wire_collection_instance, case_never_visible_adds_no_path,
+         case_view_rules, case_lit_renders)
 # Cases whose failure was a crash of Blender: each runs only when named (a process of its own).
 ALONE = (case_undo_after_collect,)
 

@@ -48,6 +48,11 @@ CHECKS = [
     "instance_wire_member_analyzed_seen", "instance_bounds_member_analyzed_seen",
     "wire_instance_wire_never_hidden", "wire_instance_wire_truth",
     "wire_instance_bounds_never_hidden", "wire_instance_bounds_truth",
+    "never_visible_no_path", "never_visible_excluded_everywhere",
+    "rules_cycles_hides_nothing", "rules_cycles_opt_in_hides", "rules_eevee_raytracing_hides_nothing",
+    "rules_xray_hides_nothing_occluded",
+    "lit_eevee_no_pixel_changed", "lit_eevee_slab_shadow_shows",
+    "lit_workbench_no_pixel_changed", "lit_workbench_slab_shadow_shows",
 ]
 
 

@@ -1,0 +1,138 @@
+"""What the culled view draws beyond depth: shadows, rays, X-ray; and the rule it sets.
+
+- Solid (Workbench), Wireframe, Material Preview without scene lights: only what
+  is drawn shows; the depth rule alone.
+- X-ray (Solid or Wireframe, or Workbench's own for the camera): what is behind
+  shows through, so nothing occluded is hidden (what is outside the view still is).
+- Scene lights (Material Preview or Rendered with scene lights, EEVEE for the
+  camera; Solid with shadows, whose light is ``scene.display.light_direction`` in
+  view space):
+  an object also shows through its shadow, so every object whose shadow volume
+  may hold a point that is seen is kept (:mod:`..core.lights`).  A world that
+  extracts a sun from an image (``world.use_sun_shadow`` with an image or sky
+  texture) shadows from a direction nobody can read here: nothing is hidden.
+- Ray tracing (Cycles, any engine this add-on does not know, EEVEE with ray
+  tracing on): reflections and light from hidden objects reach the screen, so
+  nothing is hidden unless the user opts in (``scene.occ.cull_raytraced``).
+"""
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..core.lights import Light
+
+EEVEE = ("BLENDER_EEVEE", "BLENDER_EEVEE_NEXT")
+WORKBENCH = "BLENDER_WORKBENCH"
+SUN_WIDEN = math.radians(2.0)   # shadow-map filtering blurs an edge: the sun's disc taken this much wider
+RADIUS_WIDEN = 0.05             # and a light's emitter this much larger (of its distance scale, below)
+
+
+@dataclass
+class ViewRule:
+    """``mode``: "depth", "xray", "lit" or "raytraced"; ``lights`` for "lit"; ``why``
+    says it in words (the panel, the report)."""
+
+    mode: str
+    why: str
+    lights: list = field(default_factory=list)
+
+
+def _view_shading(context):
+    from .session import find_viewport
+    found = find_viewport(context)
+    return None if found is None else found[0].spaces.active.shading
+
+
+def rule(context, source=None):
+    """The rule for what ``source`` ("VIEWPORT" or "CAMERA", default the setting) draws."""
+    scene = context.scene
+    source = source or scene.occ.source
+    engine = scene.render.engine
+    if source == "CAMERA":
+        return _render_rule(scene, engine, True, True)
+    shading = _view_shading(context)
+    if shading is None:                        # headless: what the camera renders
+        return _render_rule(scene, engine, True, True)
+    kind = shading.type
+    if kind == "WIREFRAME":
+        if shading.show_xray_wireframe and shading.xray_alpha_wireframe > 0.0:
+            return ViewRule("xray", "Wireframe with X-ray shows what is behind")
+        return ViewRule("depth", "Wireframe")
+    if kind == "SOLID":
+        return _workbench_rule(scene, shading, "Solid")
+    if kind == "MATERIAL":
+        return _eevee_rule(scene, shading.use_scene_lights, shading.use_scene_world, "Material Preview")
+    return _render_rule(scene, engine, shading.use_scene_lights_render, shading.use_scene_world_render)
+
+
+def _render_rule(scene, engine, scene_lights, scene_world):
+    if engine in EEVEE:
+        return _eevee_rule(scene, scene_lights, scene_world, "EEVEE")
+    if engine == WORKBENCH:
+        return _workbench_rule(scene, scene.display.shading, "Workbench")
+    name = "Cycles" if engine == "CYCLES" else engine
+    return ViewRule("raytraced", f"{name} traces rays: reflections and light from hidden objects show")
+
+
+def _workbench_rule(scene, shading, label):
+    if shading.show_xray and shading.xray_alpha < 1.0:
+        return ViewRule("xray", f"{label} with X-ray shows what is behind")
+    if shading.show_shadows:
+        # Workbench's light turns with the view (measured: its direction is in view
+        # space); which way it points is not read here: both ways
+        d = np.array(scene.display.light_direction, dtype=np.float64)
+        lights = [Light("sun", direction=d, angle=SUN_WIDEN, in_view=True),
+                  Light("sun", direction=-d, angle=SUN_WIDEN, in_view=True)]
+        return ViewRule("lit", f"{label} with shadows: shadow casters kept", lights)
+    return ViewRule("depth", label)
+
+
+def _eevee_rule(scene, scene_lights, scene_world, label):
+    if getattr(scene.eevee, "use_raytracing", False) or getattr(scene.eevee, "use_ssr", False):
+        return ViewRule("raytraced", f"{label} with ray tracing: reflections of hidden objects show")
+    lights = []
+    if scene_world and _world_sun(scene.world):
+        return ViewRule("lit", f"{label}: the world casts sun shadows from its image", [Light("everywhere")])
+    if scene_lights:
+        lights = scene_lights_of(scene)
+    if lights:
+        return ViewRule("lit", f"{label} with scene lights: shadow casters kept", lights)
+    return ViewRule("depth", label)
+
+
+def _world_sun(world):
+    if world is None or not getattr(world, "use_sun_shadow", False) or not world.use_nodes:
+        return False
+    return any(n.type in ("TEX_ENVIRONMENT", "TEX_SKY") for n in world.node_tree.nodes)
+
+
+def scene_lights_of(scene):
+    """Every light object drawn in the scene's view layer that casts shadows, as
+    :class:`..core.lights.Light` (world space)."""
+    out = []
+    layer = scene.view_layers[0] if scene.view_layers else None
+    for o in scene.objects:
+        if o.type != "LIGHT" or not o.data.use_shadow:
+            continue
+        if layer is not None and not o.visible_get(view_layer=layer):
+            continue
+        light = o.data
+        m = np.array(o.matrix_world, dtype=np.float64)
+        pos = m[:3, 3]
+        axis = -m[:3, 2] / max(np.linalg.norm(m[:3, 2]), 1e-300)   # lights shine down their -Z
+        scale = float(np.abs(np.linalg.norm(m[:3, :3], axis=0)).max())
+        reach = light.cutoff_distance if getattr(light, "use_custom_distance", False) else math.inf
+        if light.type == "SUN":
+            out.append(Light("sun", direction=axis, angle=light.angle + SUN_WIDEN))
+            continue
+        radius = float(light.shadow_soft_size) * scale
+        if light.type == "AREA":
+            sx = light.size * scale
+            sy = (light.size_y if light.shape in ("RECTANGLE", "ELLIPSE") else light.size) * scale
+            radius = max(radius, 0.5 * math.hypot(sx, sy))
+        radius = radius * (1.0 + RADIUS_WIDEN) + RADIUS_WIDEN * max(scale, 1e-3)
+        kind = {"POINT": "point", "SPOT": "spot", "AREA": "area"}.get(light.type, "point")
+        out.append(Light(kind, position=pos, radius=radius, reach=reach))
+    return out

@@ -1,0 +1,141 @@
+"""The motion envelope: what a pass hides stays hidden from every view of the envelope."""
+
+import math
+
+import numpy as np
+import pytest
+
+from core import Camera, Culler, OccError, Visibility
+from core.envelope import Envelope, corner_half_angle, envelope_camera, sample_views
+from core.umbra import convex_polygons, hidden_by_polygons
+from tests import scenes
+
+
+def _window_wall_scene():
+    """A wall at x = 10 with a 2 x 2 window, a small plate at x = 3 that covers the
+    window from the origin, and a panel behind the window (hidden from the origin,
+    seen through the window once the eye steps aside)."""
+    boxes = [((10, -20, -20), (10.2, -1, 20)), ((10, 1, -20), (10.2, 20, 20)),
+             ((10, -1, -20), (10.2, 1, -1)), ((10, -1, 1), (10.2, 1, 20)),
+             ((3, -0.45, -0.45), (3.05, 0.45, 0.45)), ((14, -1.5, -1.5), (14.3, 1.5, 1.5))]
+    scene = scenes.boxes_scene(boxes, ["wall_a", "wall_b", "wall_c", "wall_d", "plate", "panel"])
+    camera = scenes.cam((0, 0, 0), (1, 0, 0), near=0.1, far=100, fov_y_deg=50, aspect=1.0)
+    return scene, camera
+
+
+def _seen_from(culler, views):
+    seen = np.zeros(len(culler), dtype=bool)
+    for v in views:
+        seen |= culler.truth(v)
+    return seen
+
+
+@pytest.mark.parametrize("distance, hidden", [(0.05, True), (0.3, False), (1.0, False)])
+def test_plate_before_a_window_hides_only_while_the_window_stays_covered(ctx, distance, hidden):
+    scene, camera = _window_wall_scene()
+    with Culler(scene, resolution=(128, 128), ctx=ctx) as c:
+        assert c.cull(camera, fresh=True).state[5] == Visibility.OCCLUDED     # the point pass hides it
+        result = c.cull(camera, envelope=(distance, 0.0))
+        views = sample_views(camera, Envelope(distance, 0.0), 120, np.random.default_rng(1))
+        seen = _seen_from(c, views)
+    assert (result.state[5] != Visibility.VISIBLE) == hidden
+    assert seen[5] == (not hidden)              # the case is real: a view of the envelope sees it
+    assert not (seen & ~result.visible).any()
+
+
+def test_a_wall_hides_from_every_eye_of_the_ball(ctx):
+    scene = scenes.boxes_scene([((5, -30, -30), (5.5, 30, 30)), ((9, -1, -1), (10, 1, 1))], ["wall", "crate"])
+    camera = scenes.cam((0, 0, 0), (1, 0, 0), near=0.1, far=100, fov_y_deg=60, aspect=1.5)
+    with Culler(scene, resolution=(96, 64), ctx=ctx) as c:
+        result = c.cull(camera, envelope=(2.0, 10.0))
+    assert result.state.tolist() == [Visibility.VISIBLE, Visibility.OCCLUDED]
+
+
+def test_eye_beyond_a_near_wall_sees_behind_it(ctx):
+    """A wall closer than D: an eye of the ball stands behind it, so nothing is hidden."""
+    scene = scenes.boxes_scene([((1, -30, -30), (1.1, 30, 30)), ((9, -1, -1), (10, 1, 1))], ["wall", "crate"])
+    camera = scenes.cam((0, 0, 0), (1, 0, 0), near=0.05, far=100, fov_y_deg=60, aspect=1.5)
+    with Culler(scene, resolution=(96, 64), ctx=ctx) as c:
+        assert c.cull(camera, fresh=True).state[1] == Visibility.OCCLUDED
+        assert c.cull(camera, envelope=(1.5, 0.0)).state[1] == Visibility.VISIBLE
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_random_cities_hide_nothing_any_view_of_the_envelope_sees(ctx, seed):
+    scene, cams, _ = scenes.random_city(seed, 300)
+    rng = np.random.default_rng(seed)
+    hidden_total = 0
+    with Culler(scene, resolution=(160, 90), ctx=ctx) as c:
+        for camera in cams:
+            for env in (Envelope(0.5, 5.0), Envelope(2.0, 10.0)):
+                result = c.cull(camera, envelope=env)
+                seen = _seen_from(c, sample_views(camera, env, 12, rng))
+                assert not (seen & ~result.visible).any(), (seed, env)
+                hidden_total += int((~result.visible).sum())
+    assert hidden_total > 0                      # the envelope hides something: the check can fail
+
+
+def test_a_turn_beyond_the_lens_view_culls_nothing_it_may_see(ctx):
+    scene, cams, _ = scenes.random_city(5, 200)
+    camera = cams[0]
+    with Culler(scene, resolution=(160, 90), ctx=ctx) as c:
+        result = c.cull(camera, envelope=(0.0, 20.0))
+        views = sample_views(camera, Envelope(0.0, 20.0), 30, np.random.default_rng(5))
+        seen = _seen_from(c, views)
+    assert not (seen & (result.state == Visibility.VIEW_CULLED)).any()
+
+
+def test_zero_envelope_is_at_most_the_point_pass(ctx):
+    scene, cams, _ = scenes.random_city(7, 200)
+    with Culler(scene, resolution=(160, 90), ctx=ctx) as c:
+        for camera in cams:
+            truth = c.truth(camera)
+            env = c.cull(camera, envelope=(0.0, 0.0))
+            assert not (truth & ~env.visible).any()
+            assert (~env.visible).sum() > 0
+
+
+def test_orthographic_views_hide_no_occluded_object(ctx):
+    scene, cams, _ = scenes.slit_wall(3)
+    with Culler(scene, resolution=scenes.SLIT_RESOLUTION, ctx=ctx) as c:
+        assert c.cull(cams[0], fresh=True).state[3] == Visibility.OCCLUDED
+        assert (c.cull(cams[0], envelope=(0.1, 0.0)).state != Visibility.OCCLUDED).all()
+        assert (c.cull(cams[0], envelope=(0.1, 1.0)).state == Visibility.VISIBLE).all()
+
+
+def test_square_view_holds_the_lens_turned_any_way():
+    camera = Camera.look_at((0, 0, 0), (0, 1, 0), fov_y_deg=60, aspect=16 / 9)
+    half = corner_half_angle(camera)
+    assert half == pytest.approx(math.atan(math.tan(math.radians(30)) * math.hypot(1, 16 / 9)))
+    view = envelope_camera(camera, Envelope(0, 10), 360)
+    assert view.cull.projection[1, 1] == pytest.approx(1 / math.tan(half + math.radians(10)))
+    inner = view.hi - view.lo + 1
+    assert inner >= 360 and view.lo >= 4 and view.side == inner + 2 * view.lo
+    # the render square's pixels at the cull square's edge are the cull square's edge
+    assert view.render.projection[1, 1] * view.side == pytest.approx(view.cull.projection[1, 1] * inner)
+    assert envelope_camera(camera, Envelope(0, 40), 360) is None      # wider than 80 degrees
+
+
+@pytest.mark.parametrize("text", ["2", "a,b", "-1,10", "1,90", "nan,1", "1,2,3"])
+def test_bad_envelopes_get_one_clear_error(text):
+    with pytest.raises(OccError, match="envelope"):
+        Envelope.parse(text)
+
+
+def test_a_box_mesh_gives_its_six_faces():
+    polys, areas = convex_polygons(scenes.UNIT_BOX_V, scenes.UNIT_BOX_F)
+    assert len(polys) == 6
+    np.testing.assert_allclose(areas, 1.0)
+
+
+def test_a_square_hides_what_its_umbra_holds():
+    square = np.array([[[-2, -2, -10], [2, -2, -10], [2, 2, -10], [-2, 2, -10]]], dtype=float)
+    box = np.array([[[-0.5, -0.5, -14], [0.5, 0.5, -13]]])
+    assert hidden_by_polygons(box, square, 0.5).tolist() == [True]
+    # the plane through the square's edge x = 2 and the corner (0.5, y, -14) passes
+    # 23 / sqrt(18.25) = 5.384 from the eye: a ball of radius 5.3 stays on the
+    # square's side, one of 5.5 holds an eye that looks past the edge at that corner
+    assert hidden_by_polygons(box, square, 5.3).tolist() == [True]
+    assert hidden_by_polygons(box, square, 5.5).tolist() == [False]
+    # a ball that reaches the square's plane can stand behind it
+    assert hidden_by_polygons(box, square, 10.5).tolist() == [False]
