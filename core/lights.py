@@ -70,16 +70,48 @@ def in_world(lights, camera, turn_deg=0.0):
 REL = 1e-9
 
 
-def _exit(c, direction, lo, hi):
-    """How far each corner ``c`` ``(n, 8, 3)`` goes along ``direction`` (``(3,)`` or
-    ``(n, 8, 3)``, unit) before it leaves the box ``lo, hi``, ``(n, 8)``, at least 0:
-    past that no shadow falls on anything."""
-    d = np.broadcast_to(direction, c.shape)
+def _sun_bounds(direction, half_angle):
+    """Largest and smallest component of a unit vector within ``half_angle`` of
+    ``direction`` along each axis: ``(3,)`` each."""
+    theta_pos = np.arccos(np.clip(direction, -1.0, 1.0))      # angle to +axis
+    theta_neg = np.pi - theta_pos                               # angle to -axis
+    up = np.cos(np.maximum(theta_pos - half_angle, 0.0))
+    down = -np.cos(np.maximum(theta_neg - half_angle, 0.0))
+    return up, down
+
+
+def _emitter_bounds(boxes, position, radius):
+    """For rays from any point of the ball ``B(position, radius)`` through any point of
+    each box: bounds on each component of their unit direction, ``(n, 3)`` largest
+    and smallest, and whether the ball touches the box (no bound then)."""
+    near = np.maximum(np.maximum(boxes[:, MIN] - position, position - boxes[:, MAX]), 0.0)
+    dmin = np.linalg.norm(near, axis=1) - radius                 # nearest emitter-box distance
+    far = np.maximum(np.abs(boxes[:, MIN] - position), np.abs(boxes[:, MAX] - position))
+    dmax = np.linalg.norm(far, axis=1) + radius                  # farthest
+    top = boxes[:, MAX] - (position - radius)                    # largest p_i - L'_i
+    bottom = boxes[:, MIN] - (position + radius)                 # smallest
+    touch = dmin <= 0.0
+    safe = np.where(touch, 1.0, dmin)[:, None]
+    # a positive numerator is largest over the smallest length, a negative one over the largest
+    up = np.where(top > 0, top / safe, top / dmax[:, None])
+    down = np.where(bottom < 0, bottom / safe, bottom / dmax[:, None])
+    return np.clip(up, -1.0, 1.0), np.clip(down, -1.0, 1.0), touch
+
+
+def _swept(boxes, up, down, lo, hi, cap):
+    """Boxes swept along every direction whose components lie in ``[down, up]``
+    (``(n, 3)`` or ``(3,)``) until they leave the box ``lo, hi``: the sweep is no
+    longer than the distance to the wall the directions all head for, over their
+    slowest speed towards it (at most ``cap``)."""
+    up = np.broadcast_to(up, boxes[:, MIN].shape)
+    down = np.broadcast_to(down, boxes[:, MIN].shape)
     with np.errstate(divide="ignore", invalid="ignore"):
-        t_hi = np.where(d > 0, (hi - c) / d, np.inf)
-        t_lo = np.where(d < 0, (lo - c) / d, np.inf)
-    t = np.minimum(t_hi, t_lo).min(axis=2)
-    return np.maximum(t, 0.0) * (1.0 + 1e-6) + 1e-9
+        t_pos = np.where(down > 0, (hi - boxes[:, MIN]) / down, np.inf)     # all head for the +wall
+        t_neg = np.where(up < 0, (boxes[:, MAX] - lo) / -up, np.inf)       # all head for the -wall
+    t = np.minimum(np.minimum(t_pos, t_neg).min(axis=1), cap)
+    grow_hi = t[:, None] * np.maximum(up, 0.0)
+    grow_lo = t[:, None] * np.minimum(down, 0.0)
+    return np.stack([boxes[:, MIN] + grow_lo, boxes[:, MAX] + grow_hi], axis=1)
 
 
 def shadow_boxes(boxes, lights, scene_box):
@@ -87,13 +119,14 @@ def shadow_boxes(boxes, lights, scene_box):
     ``scene_box`` ``(2, 3)`` (where anything a shadow can fall on stands): returns
     ``(m, 2, 3)`` boxes and ``(m,)`` the index of the box each belongs to.
 
-    Sun: the box swept along the light's direction until it leaves the scene box,
-    grown sideways by the sweep's length times the sine of half the sun's disc.
-    Point, spot, area (an emitter of radius ``r`` at ``L``): every corner ``c`` swept
-    from ``c`` along ``c - L`` as far, grown by the spread of rays from the emitter's
-    other points, ``T r / (d - r)`` (``d``: the box's distance from ``L``); a box the
-    emitter touches shadows the whole scene box.  A box beyond a light's reach casts
-    nothing from it.  Every shadow volume lies in its box: conservative."""
+    Every ray of the light through the box has a unit direction whose components lie
+    in bounds (:func:`_sun_bounds`: a sun's disc; :func:`_emitter_bounds`: rays from
+    any point of a spherical emitter through any point of the box).  Along an axis
+    where they all have one sign, every ray leaves the scene box within the distance
+    to that wall over the slowest speed; the shadow lies within the box swept that
+    far along the component bounds (:func:`_swept`).  An emitter touching the box
+    shadows the whole scene box; a box beyond a light's reach casts nothing from it.
+    Conservative by construction: no point of a shadow lies outside its box."""
     b = np.asarray(boxes, dtype=np.float64).reshape(-1, 2, 3)
     sb = np.asarray(scene_box, dtype=np.float64)
     n = len(b)
@@ -102,52 +135,25 @@ def shadow_boxes(boxes, lights, scene_box):
         return np.zeros((0, 2, 3)), np.zeros(0, dtype=np.int64)
     lo = np.minimum(sb[MIN], b[:, MIN].min(axis=0))
     hi = np.maximum(sb[MAX], b[:, MAX].max(axis=0))
-    # per box, the farthest any of its points is from any point of the scene box:
-    # a sweep that long leaves the scene box whatever the direction
-    reach_out = np.maximum(np.abs(hi - b[:, MIN]), np.abs(b[:, MAX] - lo))
-    sweep_all = np.linalg.norm(reach_out, axis=1) * (1.0 + 1e-6) + 1e-9
-    c = corners(b)                                                  # (n, 8, 3)
+    cap = float(np.linalg.norm(hi - lo)) * (1.0 + 1e-6) + 1e-9      # no segment in the scene box is longer
     idx = np.arange(n)
     for light in lights:
         if light.kind == "everywhere":
-            box = np.repeat(np.array([lo, hi])[None], n, axis=0)
-            out.append(box)
+            out.append(np.repeat(np.array([lo, hi])[None], n, axis=0))
             owner.append(idx)
             continue
         if light.kind == "sun":
-            # the sun's disc turns the sweep by up to half its angle: a little longer at most
-            t = np.minimum(_exit(c, light.direction, lo, hi) / max(math.cos(0.5 * light.angle), 1e-3),
-                           sweep_all[:, None])
-            far = c + t[..., None] * light.direction
-            sweep = t.max(axis=1)
-            # the sun's disc: directions within half its angle, a sideways spread
-            grow = (sweep * math.sin(0.5 * light.angle) + REL * sweep)[:, None]
-            ends = np.concatenate([c, far], axis=1)
-            box = np.stack([ends.min(axis=1) - grow, ends.max(axis=1) + grow], axis=1)
+            up, down = _sun_bounds(light.direction, 0.5 * light.angle)
+            box = _swept(b, up, down, lo, hi, cap)
             keep = idx
         else:
             gap = np.maximum(np.maximum(b[:, MIN] - light.position, light.position - b[:, MAX]), 0.0)
-            dist = np.linalg.norm(gap, axis=1)
-            keep = np.flatnonzero(dist <= light.reach + light.radius)
+            keep = np.flatnonzero(np.linalg.norm(gap, axis=1) <= light.reach + light.radius)
             if not len(keep):
                 continue
-            cc = c[keep]
-            ray = cc - light.position
-            length = np.linalg.norm(ray, axis=2, keepdims=True)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                unit = np.where(length > 0.0, ray / length, 0.0)
-            t = np.minimum(_exit(cc, unit, lo, hi), sweep_all[keep][:, None])
-            ends = np.concatenate([cc, cc + t[..., None] * unit], axis=1)
-            d = dist[keep]
-            sw = t.max(axis=1)
-            # rays from the emitter's other points turn by up to asin(r / d): that far sideways
-            with np.errstate(divide="ignore"):
-                spread = np.where(d > light.radius, sw * light.radius / np.maximum(d - light.radius, 1e-300),
-                                  np.inf)
-            grow = spread + REL * sw
-            box = np.stack([ends.min(axis=1) - grow[:, None], ends.max(axis=1) + grow[:, None]], axis=1)
-            touching = ~np.isfinite(spread)
-            box[touching] = np.array([lo, hi])
+            up, down, touch = _emitter_bounds(b[keep], light.position, light.radius)
+            box = _swept(b[keep], up, down, lo, hi, cap)
+            box[touch] = np.array([lo, hi])
         box = np.stack([np.maximum(box[:, MIN], lo), np.minimum(box[:, MAX], hi)], axis=1)
         out.append(box)
         owner.append(keep)

@@ -227,3 +227,58 @@ def test_closed_pipe_is_not_a_traceback(wall_scene, tmp_path):
     err = p.stderr.read().decode()
     p.wait(timeout=120)
     assert "Traceback" not in err, err
+
+
+def test_cull_with_an_envelope_keeps_what_a_step_aside_shows(wall_scene):
+    path, cam, _ = wall_scene
+    point = json.loads(run("cull", str(path), "--camera", str(cam), "--json", "-q").stdout)
+    wide = json.loads(run("cull", str(path), "--camera", str(cam), "--json", "-q", "--envelope", "1,5").stdout)
+    far = json.loads(run("cull", str(path), "--camera", str(cam), "--json", "-q", "--envelope", "21,5").stdout)
+    assert "behind" not in point["frames"][0]["visible"]
+    assert "behind" not in wide["frames"][0]["visible"]          # a 10 x 10 wall still hides a ball 1 m aside
+    assert "behind" in far["frames"][0]["visible"]               # 21 m on, an eye stands past the wall
+    for frames in (wide, far):
+        assert frames["frames"][0]["stats"]["envelope_distance"] in (1.0, 21.0)
+
+
+@pytest.mark.parametrize("args, message", [
+    (("--envelope", "2"), "envelope must look like"),
+    (("--envelope", "2,95"), "between 0 and 90"),
+    (("--display", "100x100"), "at least the query resolution"),
+    (("--display", "wide"), "resolution must look like"),
+])
+def test_cull_bad_envelope_and_display_are_one_line(wall_scene, args, message):
+    path, cam, _ = wall_scene
+    p = run("cull", str(path), "--camera", str(cam), *args)
+    assert p.returncode == 2 and message in p.stderr and len(p.stderr.strip().splitlines()) == 1, p.stderr
+
+
+def test_cull_at_display_resolution_is_conservative_there(wall_scene):
+    path, cam, _ = wall_scene
+    p = run("cull", str(path), "--camera", str(cam), "--json", "-q", "--resolution", "64x36",
+            "--display", "640x360")
+    assert p.returncode == 0, p.stderr
+    truth = json.loads(run("truth", str(path), "--camera", str(cam), "--json", "-q",
+                           "--resolution", "640x360").stdout)
+    for f, t in zip(json.loads(p.stdout)["frames"], truth["frames"], strict=True):
+        assert set(t["visible"]) <= set(f["visible"])
+
+
+def test_motion_counts_no_visible_object_hidden(tmp_path):
+    p = run("motion", "city-small", "--frames", "3", "--motions", "dolly,walk", "--resolution", "160x90",
+            "--json", "-q")
+    assert p.returncode == 0, p.stderr[-2000:]
+    report = json.loads(p.stdout)
+    assert set(report["motions"]) == {"dolly", "walk"}
+    for row in report["motions"].values():
+        assert row["false_negatives"] == 0 and row["passes"] >= 1 and row["steps"] > 0
+    assert any(row["hidden_mean"] > 0 for row in report["motions"].values())   # it culls: the count can fail
+
+
+def test_bench_has_an_envelope_row(tmp_path):
+    p = run("bench", "city-small", "--strategies", "vfc", "--frames", "2", "--resolution", "160x90",
+            "--envelope", "1,5", "--json", "-q")
+    assert p.returncode == 0, p.stderr[-2000:]
+    rows = json.loads(p.stdout)["strategies"]
+    row = rows["envelope 1,5"]
+    assert row["false_negatives"] == 0 and row["hidden_kept"] > 0.0   # it may hide more than a point pass

@@ -139,3 +139,16 @@ def test_a_square_hides_what_its_umbra_holds():
     assert hidden_by_polygons(box, square, 5.5).tolist() == [False]
     # a ball that reaches the square's plane can stand behind it
     assert hidden_by_polygons(box, square, 10.5).tolist() == [False]
+
+
+def test_motion_replays_hide_nothing_the_truth_sees(ctx):
+    from core.motion import motions, replay
+    scene, cams, _ = scenes.random_city(4, 250)
+    with Culler(scene, resolution=(160, 90), ctx=ctx) as c:
+        hidden = 0
+        for name in ("orbit", "walk"):
+            rows, passes = replay(c, motions(cams[:2], c.scene_size, name)[:45])
+            assert sum(r["false_negatives"] for r in rows) == 0, name
+            assert passes
+            hidden += sum(r["hidden"] for r in rows)
+    assert hidden > 0
