@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .bounds import MAX, MIN, corners
+from .bounds import MAX, MIN
 
 KINDS = ("sun", "point", "spot", "area", "everywhere")
 

@@ -1198,11 +1198,64 @@ def case_view_rules():
           (hidden_by_addon("target"), hidden_by_addon("outside"), scene.occ.last_rule))
 
 
+def case_camera_moves_between_ticks():
+    """Live from the scene camera while it moves (playback): every frame, before it is
+    drawn, the hidden set either still holds for the new view (its envelope) or is
+    shown; a pass every few frames (the live timer's) hides again.  The same walk with
+    the hidden set left as it was shows a visible object hidden: the check can fail."""
+    def build():
+        scene = new_scene()
+        scene.render.resolution_x, scene.render.resolution_y = 160, 90
+        bpy.data.objects.remove(bpy.data.objects["wall"])
+        for k in range(-6, 7):                           # a row of pillars with gaps
+            box(f"pillar{k}", (0, 2.0 * k - 0.6, -2), (0.5, 2.0 * k + 0.6, 6))
+        for k in range(-12, 13):                         # targets behind them, seen through the gaps in turn
+            box(f"target{k}", (4, 1.0 * k - 0.2, 0), (4.4, 1.0 * k + 0.2, 1))
+        cam = scene.camera
+        edit = bpy.context.preferences.edit
+        before, edit.keyframe_new_interpolation_type = edit.keyframe_new_interpolation_type, "LINEAR"
+        for frame, y in ((1, -4.0), (41, 4.0)):
+            cam.location = (-10.0, y, 1.0)
+            cam.keyframe_insert("location", frame=frame)
+        edit.keyframe_new_interpolation_type = before
+        scene.frame_set(1)
+        update()
+        return scene
+
+    session = addon("session")
+    for guarded in (True, False):
+        scene = build()
+        scene.occ.live = guarded                          # the flag only: headless there is no timer
+        camera, display = session.scene_camera(bpy.context)
+        session.SESSION.cull(bpy.context, camera, display, fresh=True, restart=True, envelope="rest")
+        hid_any = bool(hidden_by_addon_any())
+        bad = []
+        for f in range(2, 42):
+            scene.frame_set(f)
+            update()
+            wrong = hidden_but_seen()
+            if wrong:
+                bad.append((f, wrong))
+            if guarded and f % 5 == 0:                     # the live timer's pass
+                camera, display = session.scene_camera(bpy.context)
+                session.SESSION.cull(bpy.context, camera, display, envelope="rest")
+        scene.occ.live = False
+        bpy.ops.occ.restore()
+        if guarded:
+            check("camera_moves_guarded_no_visible_hidden", hid_any and not bad, (hid_any, bad[:3]))
+        else:
+            check("camera_moves_unguarded_would_hide_visible", bool(bad), "")
+
+
+def hidden_by_addon_any():
+    return [o.name for o in bpy.data.objects if o.occ_culled and o.hide_viewport]
+
+
 CASES = (case1, case2, case3, case4, case4_collections, case5, case6, case7, case8, case10, case11, case12,
          case_hidden_edits, case_display_resolution, case_report_path,
          case_steps, case_instanced_child_edited, case_instance_source_deleted, case_click_restarts,
          case_instance_wire_member_analyzed, case_wire_collection_instance, case_never_visible_adds_no_path,
-         case_view_rules, case_lit_renders)
+         case_view_rules, case_lit_renders, case_camera_moves_between_ticks)
 # Cases whose failure was a crash of Blender: each runs only when named (a process of its own).
 ALONE = (case_undo_after_collect,)
 

@@ -53,6 +53,7 @@ CHECKS = [
     "rules_xray_hides_nothing_occluded",
     "lit_eevee_no_pixel_changed", "lit_eevee_slab_shadow_shows",
     "lit_workbench_no_pixel_changed", "lit_workbench_slab_shadow_shows",
+    "camera_moves_guarded_no_visible_hidden", "camera_moves_unguarded_would_hide_visible",
 ]
 
 
