@@ -420,6 +420,7 @@ def on_depsgraph_update(scene, depsgraph):
         return
     visibility.reconcile()
     _mark(depsgraph)
+    _guard_camera(scene)            # the scene camera moved by an edit: as for a new frame
     for f in LISTENERS:
         f()
 
@@ -441,9 +442,9 @@ _camera_motion = {"view": None, "step": (0.0, 0.0)}
 
 
 def _guard_camera(scene):
-    """Live from the scene camera, a new frame (playback, scrubbing) moves it: where it
-    is about to leave the hidden set's envelope, everything is shown before the frame
-    is drawn (the live pass that follows hides again)."""
+    """Live from the scene camera, a new frame (playback, scrubbing) or an edit moves
+    it: where it is about to leave the hidden set's envelope, everything is shown
+    before the frame is drawn (the live pass that follows hides again)."""
     if SESSION.shown is None or SESSION.busy or not scene.occ.live or scene.occ.source != "CAMERA":
         return
     try:
