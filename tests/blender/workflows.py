@@ -65,7 +65,7 @@ KINDS = {
     "rename_replace": 1, "duplicate": 2, "link": 2, "move_collection": 2, "frame": 4,
     "never_cull": 2, "exclude_setting": 2, "undo": 3, "redo": 1, "save_reload": 1,
     "addon_toggle": 1, "live": 2, "analyze": 1, "display_type": 2, "bad_value": 1,
-    "mesh_edit": 3, "object_scale": 2, "settings": 2,
+    "mesh_edit": 3, "object_scale": 2, "settings": 2, "camera_nudge": 4,
 }
 # Scene features, switched off like step kinds: a geometry-nodes instancer whose
 # instances stand far from its mesh, props animated by keyframes, props carried by
@@ -833,6 +833,13 @@ def do_step(w, kind):
     if kind == "camera_move":
         place_camera(w, cam)
         return f"camera to {tuple(round(x, 2) for x in cam.location)}"
+    if kind == "camera_nudge":                      # a small move between live ticks (checked before them)
+        import mathutils
+        step = mathutils.Vector([rng.gauss(0.0, 1.0) for _ in range(3)])
+        step.length = rng.choice([0.02, 0.2, 1.0, 3.0])
+        cam.location += step
+        cam.rotation_euler.z += math.radians(rng.uniform(-8.0, 8.0))
+        return f"camera nudged by {step.length:.2f} to {tuple(round(x, 2) for x in cam.location)}"
     if kind == "camera_scale":
         s = rng.choice([(1, 1, 1), (1, 1, 1), (0.01, 0.01, 0.01), (-1, 1, 1), (2, 2, 2), (1, 0.5, 3),
                         (100, 100, 100), (1, 1, 0)])
@@ -1247,6 +1254,10 @@ def run_seed(w, steps, verbose=False):
                 problems += w.pending
                 w.pending = []
                 live = live_on()
+                if live and kind == "camera_nudge":
+                    # before the live timer runs again: the hidden set on screen holds for
+                    # the moved camera, or was shown when the camera left its envelope
+                    problems += check_cull(w)
                 if live:
                     drive_live()
                 if addon_enabled():
