@@ -233,7 +233,7 @@ def extended_depth(ids, depth, camera, envelope):
     # tangent-plane coordinates of pixel centres; one pixel = dt of tangent
     dt = 2.0 * tan_half / s
     c = (np.arange(s) + 0.5) * dt - tan_half
-    t = np.hypot(c[None, :], c[:, None])
+    t = np.hypot(c[None, :], c[:, None]).astype(np.float32)
     tan_px = (dt / (1.0 + t * t)).astype(np.float32)   # angle of one pixel there, radians (at most)
     brk = ~ok
     if envelope.distance > 0.0:
@@ -258,13 +258,17 @@ def extended_depth(ids, depth, camera, envelope):
         cand = np.flatnonzero((free & (-zlo > envelope.distance * guard)).ravel())
         if not len(cand):
             continue
-        nearest = -zlo.ravel()[cand].astype(np.float64)
-        alpha = np.arcsin(np.clip(envelope.distance / nearest, 0.0, 1.0))
-        # the window's angle in pixels where it is widest on screen: at its outer
-        # corner, where a tangent step per radian is 1 + tan^2
-        reach = np.arctan(t.ravel()[cand] + h * dt * math.sqrt(2.0)) + alpha
-        fits = reach < 0.5 * math.pi - 1e-6
-        need = alpha * (1.0 + np.tan(np.where(fits, reach, 0.0)) ** 2) / dt + 1.0   # + the pixel's own footprint
+        nearest = -zlo.ravel()[cand]
+        # the parallax angle alpha = asin(D / r), bounded by tan(alpha) = D / sqrt(r^2 - D^2)
+        # (tan >= the angle: a larger window, conservative); the window's angle in pixels
+        # where it is widest on screen, at its outer corner (tangent T), where a tangent
+        # step per radian is 1 + tan^2(atan T + alpha): all without trigonometry
+        ta = envelope.distance / np.sqrt(nearest * nearest - envelope.distance ** 2)
+        tt = t.ravel()[cand] + np.float32(h * dt * math.sqrt(2.0))
+        denom = 1.0 - tt * ta
+        fits = denom > 1e-6
+        r = (tt + ta) / np.where(fits, denom, 1.0)
+        need = ta * (1.0 + r * r) * (1.0 + 1e-5) / dt + 1.0      # + the pixel's own footprint; float32 slack
         good = cand[fits & (need <= h)]
         # float32 rounds the farthest depth by 6e-8 of itself: far below the depth guard
         ext.ravel()[good] = zhi.ravel()[good]
