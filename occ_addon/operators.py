@@ -141,9 +141,11 @@ class OCC_OT_cull(Stepped, bpy.types.Operator):
         changed meanwhile)."""
         try:
             camera, display = camera_for(context)
-            # from the viewport the hidden set holds for a small motion; live mode
-            # (or, without it, showing everything) takes over when the view leaves it
-            envelope = "rest" if context.scene.occ.source == "VIEWPORT" else None
+            # the hidden set holds for a small motion of the view (of the scene camera
+            # too while live: playback and edits move it); live mode (or, without it,
+            # showing everything) takes over when the view leaves it
+            s = context.scene.occ
+            envelope = "rest" if s.source == "VIEWPORT" or s.live else None
             SESSION.cull(context, camera, display, fresh=True, progress=progress, restart=True, envelope=envelope)
             overlay.install()
         except Exception as e:  # every failure is a report, never a traceback

@@ -1116,6 +1116,11 @@ def do_analyze(w):
         # with it (the flag lived only through the collection: without it, excluding
         # its own collection had dropped the base already)
         forget_lost_bases(w)
+        # the add-on excludes its collection in every view layer (it adds no way into one)
+        for vl in bpy.context.scene.view_layers:
+            for path, lc in layer_collections(vl):
+                if lc.collection.name == "Never Visible":
+                    w.model["lc"][(vl.name, path)] = [lc.hide_viewport, True]
         # the add-on makes the collection an undo step of its own (the history is never empty here)
         mirror_undo_push(w)
     return f"analyze {first}..{first + 2}{' collecting never visible' if collect else ''} -> {sorted(r)}"
