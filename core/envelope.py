@@ -19,16 +19,21 @@ centre eye ``p``, in directions (a projection plane at infinity):
   holds that whole angle for every ``r`` past the window's nearest surface, the ray
   starts in front of that surface (``p'`` is nearer than it) and ends behind it (the
   occludee is farther than the window's farthest surface), so it crosses it: the ray
-  is blocked.  Continuity ends at an object's outline (object-ID change), at a depth
-  jump larger than a continuous surface makes between two pixels at that depth (see
-  ``_jumps``), at empty pixels and at the image border; a window holding any of these
-  covers nothing.  Fusion is free: every window is one surface, so occluders of many
-  objects hide together only where they meet with no gap the eye could look through.
+  is blocked.  Continuity ends at a depth jump that no plane or crease makes between
+  two pixels (see ``_jumps``), at empty pixels and at the image border; a window
+  holding any of these covers nothing.  Fusion is free: occluders of many objects
+  hide together where their pixels meet with no such jump (flush walls, a facade of
+  many objects), since a ray cannot pass between two surfaces that meet.
 - **Frustum.**  A point seen from ``p'`` with a direction within ``A`` of ``d``, any
   roll, lies within ``theta + A`` of ``d`` seen from ``p'`` (``theta``: the angle of the
   lens's corner ray), hence in the cone of that half-angle from ``p`` once its box is
   grown by ``D``.  The image from ``p`` is a square frustum around that cone; a grown
   box outside it is VIEW_CULLED.
+
+Near occluders move too far across the screen for any window; big convex polygons of
+them are tested in object space instead (:mod:`core.umbra`), and an object is hidden
+when either proof hides it.  Shadows under scene lights are boxes tested the same way
+(:mod:`core.lights`).
 
 Per window size (half-sizes 1, 3, 7, ... pixels) the image is reduced to: any break in
 the window, the nearest and the farthest depth; a pixel takes the farthest depth of
@@ -49,7 +54,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import umbra
-from .bounds import MAX, MIN, corners, transform_boxes
+from .bounds import MAX, MIN, corners
 from .camera import Camera, perspective
 from .errors import OccError
 from .frustum import classify, planes_from_matrix
@@ -552,4 +557,4 @@ def _rotation(axis, angle):
 
 
 __all__ = ["Envelope", "EnvelopeView", "envelope_pass", "envelope_camera", "extended_depth", "sample_views",
-           "corner_half_angle", "transform_boxes"]
+           "corner_half_angle"]
