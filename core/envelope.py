@@ -74,10 +74,13 @@ SPLITS = 2                 # a box that starts before the covered depth and ends
 
 @dataclass(frozen=True)
 class Envelope:
-    """Eye within ``distance`` scene units, direction within ``angle_deg`` degrees."""
+    """Eye within ``distance`` scene units, direction within ``angle_deg`` degrees (any
+    roll); with ``any_roll=False``, the camera's whole frame turned by at most
+    ``angle_deg`` (roll included: what live mode measures), a narrower view to test."""
 
     distance: float
     angle_deg: float
+    any_roll: bool = True
 
     def __post_init__(self):
         d, a = float(self.distance), float(self.angle_deg)
@@ -101,9 +104,9 @@ class Envelope:
     def holds(self, camera, view):
         """Whether ``view`` (a Camera with the same lens) lies inside this envelope
         around ``camera``."""
-        move = float(np.linalg.norm(view.eye - camera.eye))
-        cos = float(np.clip(view.direction @ camera.direction, -1.0, 1.0))
-        return move <= self.distance and math.degrees(math.acos(cos)) <= self.angle_deg
+        from .motion import view_change
+        move, turn = view_change(camera, view, frame=not self.any_roll)
+        return move <= self.distance and turn <= self.angle_deg
 
 
 def corner_half_angle(camera):
@@ -127,34 +130,69 @@ def _lens(camera):
 
 @dataclass(frozen=True)
 class EnvelopeView:
-    """The square views of an envelope.  ``cull``: the square around the cone that
-    holds every view of the envelope (a grown box outside it is VIEW_CULLED);
-    ``render``: the same square widened by a margin of pixels, so that windows at the
-    cone's edge find surface beyond it (``side`` pixels a side; the cull square is
-    pixels ``lo .. hi`` of it on both axes)."""
+    """The views of an envelope.  ``cull``: the frustum that holds every view of the
+    envelope (a grown box outside it is VIEW_CULLED); ``render``: the same widened by a
+    margin of pixels, so that windows at its edge find surface beyond it (``size =
+    (width, height)`` pixels, square in tangent units; the cull frustum is pixels
+    ``lo[0] .. hi[0]`` across and ``lo[1] .. hi[1]`` up)."""
 
     cull: Camera
     render: Camera
-    side: int
-    lo: int
-    hi: int
+    size: tuple
+    lo: tuple
+    hi: tuple
+
+
+def _half_angles(camera, envelope):
+    """Half-angles ``(x, y)`` in radians of a symmetric frustum around the view axis
+    that holds every view of the envelope.
+
+    Any roll: the cone of the lens's corner ray plus the turn, in a square.  A frame
+    turned by at most ``A``: every corner ray stays within ``A`` of where it was, in a
+    cap whose horizontal angle spans ``asin(sin A / cos b)`` either side of the
+    corner's (``b``: the corner's angle out of the horizontal plane), the same upward;
+    the turned frustum is the cone over its turned corners, so a frustum holding the
+    four caps holds it."""
+    a = math.radians(envelope.angle_deg)
+    if envelope.any_roll:
+        half = corner_half_angle(camera) + a
+        return half, half
+    inv = np.linalg.inv(camera.projection)
+    ndc = np.array([(x, y, -1.0, 1.0) for x in (-1, 1) for y in (-1, 1)])
+    p = ndc @ inv.T
+    p = p[:, :3] / p[:, 3:]
+    u = p / np.linalg.norm(p, axis=1, keepdims=True)
+    out = []
+    for axis, other in ((0, 1), (1, 0)):
+        angle = np.abs(np.arctan2(u[:, axis], -u[:, 2]))                # the corner's angle along this axis
+        lat = np.arcsin(np.clip(np.abs(u[:, other]), 0.0, 1.0))       # out of that plane
+        room = np.cos(lat) - math.sin(a)
+        if (room <= 0.0).any():
+            return math.pi / 2, math.pi / 2                            # the cap reaches the pole: too wide
+        out.append(float((angle + np.arcsin(np.clip(math.sin(a) / np.cos(lat), 0.0, 1.0))).max()))
+    return out[0], out[1]
 
 
 def envelope_camera(camera, envelope, query_height):
     """The :class:`EnvelopeView` from the camera's eye that holds every view of the
     envelope (at the query's angular pixel size at the centre), or None when the
     turn makes it wider than :data:`MAX_HALF_DEG`."""
-    half = corner_half_angle(camera) + math.radians(envelope.angle_deg)
-    if half >= math.radians(MAX_HALF_DEG):
+    hx, hy = _half_angles(camera, envelope)
+    if max(hx, hy) >= math.radians(MAX_HALF_DEG):
         return None
     near, far, tan_y = _lens(camera)
-    inner = int(np.clip(math.ceil(query_height * math.tan(half) / tan_y), MIN_SIDE, MAX_SIDE))
-    margin = max(MARGIN_PX, math.ceil(MARGIN_REL * inner))
-    side = inner + 2 * margin
-    wide = math.atan(math.tan(half) * side / inner)
-    cull = Camera(camera.view, perspective(math.degrees(2.0 * half), 1.0, near, far + envelope.distance))
-    render = Camera(camera.view, perspective(math.degrees(2.0 * wide), 1.0, near, far + envelope.distance))
-    return EnvelopeView(cull, render, side, margin, margin + inner - 1)
+    tx, ty = math.tan(hx), math.tan(hy)
+    scale = min(1.0, MAX_SIDE / (query_height * max(tx, ty) / tan_y))   # pixels: at most MAX_SIDE a side
+    inner_y = max(MIN_SIDE, math.ceil(query_height * ty / tan_y * scale))
+    inner_x = max(MIN_SIDE, math.ceil(inner_y * tx / ty))
+    margin = max(MARGIN_PX, math.ceil(MARGIN_REL * max(inner_x, inner_y)))
+    w, h = inner_x + 2 * margin, inner_y + 2 * margin
+    # square pixels in tangent units: the render frustum reaches margin pixels past the cull one
+    rx, ry = tx * w / inner_x, ty * h / inner_y
+    clip = (near, far + envelope.distance)
+    cull = Camera(camera.view, perspective(math.degrees(2.0 * hy), tx / ty, *clip))
+    render = Camera(camera.view, perspective(math.degrees(2.0 * math.atan(ry)), rx / ry, *clip))
+    return EnvelopeView(cull, render, (w, h), (margin, margin), (margin + inner_x - 1, margin + inner_y - 1))
 
 
 def _shift_max(a, h, axis, fill):
@@ -228,16 +266,18 @@ def extended_depth(ids, depth, camera, envelope):
     ids, depth: the ID and window-depth images from :meth:`GLRenderer.ids_and_depth`
     of ``camera`` (the envelope's square view)."""
     near, far, tan_half = _lens(camera)
-    s = ids.shape[0]
+    rows, cols = ids.shape
+    s = min(rows, cols)
     d = depth.astype(np.float64)                       # float64 here: 1/z steps are compared below
     ok = (ids >= 0) & (d < 1.0)
     ndc = 2.0 * d - 1.0
     with np.errstate(divide="ignore", invalid="ignore"):
         z = np.where(ok, 2.0 * near * far / (far + near - ndc * (far - near)), np.inf)
     # tangent-plane coordinates of pixel centres; one pixel = dt of tangent
-    dt = 2.0 * tan_half / s
-    c = (np.arange(s) + 0.5) * dt - tan_half
-    t = np.hypot(c[None, :], c[:, None]).astype(np.float32)
+    dt = 2.0 * tan_half / rows                          # square pixels in tangent units
+    cy = (np.arange(rows) + 0.5) * dt - tan_half
+    cx = (np.arange(cols) + 0.5) * dt - 0.5 * cols * dt
+    t = np.hypot(cx[None, :], cy[:, None]).astype(np.float32)
     tan_px = (dt / (1.0 + t * t)).astype(np.float32)   # angle of one pixel there, radians (at most)
     brk = ~ok
     if envelope.distance > 0.0:
@@ -283,7 +323,7 @@ def extended_depth(ids, depth, camera, envelope):
 
 
 def _pyramid(ext):
-    """Max pyramid of a square image (level k: 2^k x 2^k blocks); sizes round up."""
+    """Max pyramid of an image (level k: 2^k x 2^k blocks); sizes round up."""
     levels = [ext]
     a = ext
     while a.shape[0] > 1 or a.shape[1] > 1:
@@ -356,7 +396,7 @@ def classify_boxes(rel, view, levels, depth_step_at, splits=SPLITS):
     outside, _ = classify(planes_from_matrix(view.cull.relative_view_projection()), rel)
     state[outside] = Visibility.VIEW_CULLED
     clip = view.render.relative_view_projection()
-    side = view.side
+    size = np.asarray(view.size, dtype=np.float64)
     near, _, _ = _lens(view.render)
     inside = np.flatnonzero(~outside)
     c = corners(rel[inside])                                 # (k, 8, 3) camera-relative
@@ -369,11 +409,12 @@ def classify_boxes(rel, view, levels, depth_step_at, splits=SPLITS):
     h = np.concatenate([cc, np.ones(cc.shape[:2] + (1,))], axis=2) @ clip.T
     ndc = h[..., :2] / h[..., 3:4]
     lo, hi = ndc.min(axis=1), ndc.max(axis=1)
-    # pixel i's footprint is [i, i + 1) of u = (ndc + 1) / 2 * side: every pixel a
+    # pixel i's footprint is [i, i + 1) of u = (ndc + 1) / 2 * size: every pixel a
     # direction of the box falls in, rounded outward
-    u0 = np.floor((lo + 1.0) * 0.5 * side).astype(np.int64)
-    u1 = np.floor((hi + 1.0) * 0.5 * side).astype(np.int64)
-    rects = np.clip(np.concatenate([u0, u1], axis=1), view.lo, view.hi) - view.lo   # the pyramid's pixels
+    u0 = np.floor((lo + 1.0) * 0.5 * size).astype(np.int64)
+    u1 = np.floor((hi + 1.0) * 0.5 * size).astype(np.int64)
+    first, last = np.array(view.lo * 2), np.array(view.hi * 2)
+    rects = np.clip(np.concatenate([u0, u1], axis=1), first, last) - first    # the pyramid's pixels
     far_occ = _rect_max(levels, rects)
     zm = zmin[front]
     # ties and the depth buffer's rounding count as visible
@@ -451,14 +492,14 @@ class _Tester:
         shown = np.zeros(len(scene), dtype=bool)
         shown[culler.units.object[~out_units]] = True
         objects = np.flatnonzero(shown & ~scene.invalid)
-        side = self.view.side
-        ids, depth = culler.renderer.ids_and_depth(self.view.render, (side, side), objects)
+        w, h = self.view.size
+        ids, depth = culler.renderer.ids_and_depth(self.view.render, (w, h), objects)
         stats["gl_calls"] = culler.renderer.counters["gl_calls"]
         stats["blocking_reads"] = culler.renderer.counters["blocking_reads"]
         self.ext = extended_depth(ids, depth, self.view.render, envelope)
-        lo, hi = self.view.lo, self.view.hi + 1
-        self.levels = _pyramid(self.ext[lo:hi, lo:hi])      # the cull square's: rectangles read no margin
-        stats["query_rect_pixels"] = int(side * side)
+        (x0, y0), (x1, y1) = self.view.lo, self.view.hi
+        self.levels = _pyramid(self.ext[y0:y1 + 1, x0:x1 + 1])   # the cull frustum's: rectangles read no margin
+        stats["query_rect_pixels"] = int(w * h)
 
     def states(self, boxes):
         """VISIBLE, OCCLUDED or VIEW_CULLED for world boxes ``(k, 2, 3)``."""
@@ -522,13 +563,15 @@ def envelope_pass(culler, camera, envelope, display=None, lights=None):
     stats["invalid_objects"] = int(scene.invalid.sum())
     stats["envelope_distance"] = envelope.distance
     stats["envelope_angle_deg"] = envelope.angle_deg
+    stats["envelope_any_roll"] = envelope.any_roll
     return state, stats
 
 
 def sample_views(camera, envelope, count, rng):
     """``count`` random views of the envelope around a look-at ``camera``: eyes
-    uniform in the ball, directions uniform in the cone, any roll; the same
-    projection (for tests and the motion benchmark)."""
+    uniform in the ball, directions uniform in the cone and any roll (or, with
+    ``any_roll=False``, the frame turned about a random axis by up to the angle); the
+    same projection (for tests and the motion benchmark)."""
     eye, d = camera.eye, camera.direction
     r = camera.view[:3, :3]
     out = []
@@ -538,9 +581,12 @@ def sample_views(camera, envelope, count, rng):
         a = math.radians(envelope.angle_deg) * math.sqrt(rng.random())
         axis = np.cross(d, rng.normal(size=3))
         axis /= max(np.linalg.norm(axis), 1e-300)
-        rot = _rotation(axis, a)
-        roll = _rotation(d, math.pi * (2.0 * rng.random() - 1.0))
-        world = rot @ roll @ r.T                         # camera axes in world space, turned
+        if envelope.any_roll:
+            rot = _rotation(axis, a) @ _rotation(d, math.pi * (2.0 * rng.random() - 1.0))
+        else:
+            axis = rng.normal(size=3)
+            rot = _rotation(axis / max(np.linalg.norm(axis), 1e-300), math.radians(envelope.angle_deg) * rng.random())
+        world = rot @ r.T                                # camera axes in world space, turned
         view = np.eye(4)
         view[:3, :3] = world.T
         view[:3, 3] = -world.T @ (eye + v)

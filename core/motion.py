@@ -46,27 +46,36 @@ class LivePolicy:
         horizon = latency_s + self.hold_s
         d = max(speed * horizon + self.margin_steps * step_move, self.rest_rel * scene_size)
         a = max(turn_deg_s * horizon + self.margin_steps * step_turn_deg, self.rest_deg)
-        return Envelope(d, min(a, MAX_ANGLE_DEG))
+        # the turn measured is the frame's (roll included): a narrower view than any roll
+        return Envelope(d, min(a, MAX_ANGLE_DEG), any_roll=False)
 
     def rest(self, scene_size):
         """The envelope of a pass made at rest: what the first steps of a motion need
         before the check before each redraw sees them."""
-        return Envelope(self.rest_rel * scene_size, self.rest_deg)
+        return Envelope(self.rest_rel * scene_size, self.rest_deg, any_roll=False)
 
     def safe(self, centre, envelope, view, step_move, step_turn_deg):
         """Whether ``view`` and the next step (as large as ``margin_steps`` of the last)
         stay inside ``envelope`` around ``centre``."""
         if not np.array_equal(centre.projection, view.projection):
             return False                                          # another lens: the envelope says nothing
-        move, turn = view_change(centre, view)
+        move, turn = view_change(centre, view, frame=not envelope.any_roll)
         return (move + self.margin_steps * step_move <= envelope.distance
                 and turn + self.margin_steps * step_turn_deg <= envelope.angle_deg)
 
 
-def view_change(a, b):
-    """Eye distance and angle between view directions (degrees) of two cameras."""
+def view_change(a, b, frame=True):
+    """Eye distance and turn (degrees) between two cameras: the angle of the rotation
+    from one camera frame to the other (roll included), or with ``frame=False`` only
+    the angle between their view directions."""
     move = float(np.linalg.norm(a.eye - b.eye))
-    cos = float(np.clip(a.direction @ b.direction, -1.0, 1.0))
+    if frame:
+        ra, rb = a.view[:3, :3], b.view[:3, :3]
+        ra = ra / np.linalg.norm(ra, axis=1, keepdims=True)      # rows: the camera's axes
+        rb = rb / np.linalg.norm(rb, axis=1, keepdims=True)
+        cos = float(np.clip((np.trace(ra @ rb.T) - 1.0) / 2.0, -1.0, 1.0))
+    else:
+        cos = float(np.clip(a.direction @ b.direction, -1.0, 1.0))
     return move, math.degrees(math.acos(cos))
 
 

@@ -237,7 +237,8 @@ class Session:
         self.last = {"state": state, "protected": protected, "bounds": self.culler.scene.bounds,
                      "occupancy": result.occupancy, "stats": result.stats, "ms": ms}
         used = result.stats.get("envelope_distance")
-        self.shown = None if used is None else (camera, Envelope(used, result.stats["envelope_angle_deg"]))
+        self.shown = None if used is None else (camera, Envelope(used, result.stats["envelope_angle_deg"],
+                                                                 result.stats.get("envelope_any_roll", True)))
         self.version += 1
         return result, objects
 

@@ -109,11 +109,38 @@ def test_square_view_holds_the_lens_turned_any_way():
     assert half == pytest.approx(math.atan(math.tan(math.radians(30)) * math.hypot(1, 16 / 9)))
     view = envelope_camera(camera, Envelope(0, 10), 360)
     assert view.cull.projection[1, 1] == pytest.approx(1 / math.tan(half + math.radians(10)))
-    inner = view.hi - view.lo + 1
-    assert inner >= 360 and view.lo >= 4 and view.side == inner + 2 * view.lo
-    # the render square's pixels at the cull square's edge are the cull square's edge
-    assert view.render.projection[1, 1] * view.side == pytest.approx(view.cull.projection[1, 1] * inner)
+    assert view.cull.projection[0, 0] == pytest.approx(view.cull.projection[1, 1])      # a square
+    inner = view.hi[1] - view.lo[1] + 1
+    assert inner >= 360 and view.lo[1] >= 4 and view.size[1] == inner + 2 * view.lo[1]
+    # the render frustum's pixels at the cull frustum's edge are the cull frustum's edge
+    assert view.render.projection[1, 1] * view.size[1] == pytest.approx(view.cull.projection[1, 1] * inner)
     assert envelope_camera(camera, Envelope(0, 40), 360) is None      # wider than 80 degrees
+
+
+def test_a_frame_turn_needs_less_than_any_roll():
+    camera = Camera.look_at((0, 0, 0), (0, 1, 0), fov_y_deg=60, aspect=16 / 9)
+    rolled = envelope_camera(camera, Envelope(0, 5), 360)
+    framed = envelope_camera(camera, Envelope(0, 5, any_roll=False), 360)
+    assert framed.size[0] * framed.size[1] < 0.6 * rolled.size[0] * rolled.size[1]
+    # the lens's own half-angles plus at least the turn, on both axes
+    assert 1 / framed.cull.projection[1, 1] >= math.tan(math.radians(35))
+    assert 1 / framed.cull.projection[0, 0] >= math.tan(math.atan(16 / 9 * math.tan(math.radians(30)))
+                                                         + math.radians(5))
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_frame_turns_hide_nothing_a_turned_view_sees(ctx, seed):
+    scene, cams, _ = scenes.random_city(seed + 20, 300)
+    rng = np.random.default_rng(seed)
+    hidden = 0
+    with Culler(scene, resolution=(160, 90), ctx=ctx) as c:
+        for camera in cams:
+            env = Envelope(0.5, 6.0, any_roll=False)
+            result = c.cull(camera, envelope=env)
+            seen = _seen_from(c, sample_views(camera, env, 20, rng))
+            assert not (seen & ~result.visible).any()
+            hidden += int((~result.visible).sum())
+    assert hidden > 0
 
 
 @pytest.mark.parametrize("text", ["2", "a,b", "-1,10", "1,90", "nan,1", "1,2,3"])
