@@ -33,6 +33,7 @@ POLL_S = 0.1          # timer period
 DEBOUNCE_S = 0.15     # the view (or the scene) must rest this long before a pass
 CUT_DEG = 10.0        # a view turned further than this between passes is a cut: the strategy starts fresh
 CUT_MOVE = 0.05       # and so is one moved further than this fraction of the scene's size
+REST_LOOK_S = 0.05    # a view unchanged for this long between two looks has stopped moving
 
 _state = {"last_view": None, "changed_at": None, "dirty_at": None, "passed_view": None}
 # the view's motion, measured between successive looks (redraws and ticks)
@@ -46,11 +47,13 @@ def observe(camera):
     prev, t = _motion["view"], _motion["t"]
     if prev is not None and np.array_equal(prev.projection, camera.projection):
         move, turn = view_change(prev, camera)
-        if move or turn:
-            dt = max(now - t, 1e-3)
-            _motion["step"] = (move, turn)
-            _motion["speeds"] = (_motion["speeds"] + [move / dt])[-3:]
-            _motion["turns"] = (_motion["turns"] + [turn / dt])[-3:]
+        if not (move or turn) and now - t < REST_LOOK_S:
+            return                                    # another redraw of the same view: no news
+        dt = max(now - t, 1e-3)
+        # a view that held still since the last look has stopped: no step to allow for
+        _motion["step"] = (move, turn)
+        _motion["speeds"] = (_motion["speeds"] + [move / dt])[-3:]
+        _motion["turns"] = (_motion["turns"] + [turn / dt])[-3:]
     _motion.update(view=camera, t=now)
 
 
