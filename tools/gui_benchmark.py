@@ -122,6 +122,7 @@ def run():
     results["live_pass_matrices_ms"] = [p[1] for p in parts]
     results["live_pass_engine_ms"] = [p[2] for p in parts]
     results["engine_rebuilt_during_live_passes"] = sess.culler is not engine
+    yield from live_motion(win, area, region, rv3d, sess, frames, core)
     with bpy.context.temp_override(window=win, area=area, region=region):
         bpy.ops.occ.restore()
     results["redraw_ms_restored"] = redraw_ms(win, area, region)
@@ -137,6 +138,39 @@ def run():
     results["speedup"] = results["redraw_ms_without"] / max(results["redraw_ms_with"], 1e-9)
     yield from modal_operators(win, area, region, sess, frames)
     del addon
+
+
+def live_motion(win, area, region, rv3d, sess, frames, core):
+    """Live mode in the window while the view turns a few degrees a redraw: after each
+    redraw and the events that follow it (the redraw guard's timer, live ticks), the
+    add-on's hidden set holds for the view on screen (inside the envelope it was made
+    for), or nothing is hidden."""
+    live = sys.modules[f"{ADDON}.occ_addon.live"]
+    ctx = {"window": win, "area": area, "region": region}
+    f = frames[len(frames) // 2]
+    base = core.Camera.look_at(f["eye"], f["target"], f["up"]).view
+    with bpy.context.temp_override(**ctx):
+        live.start(bpy.context)
+    for _ in range(8):                                # at rest: the first live pass
+        yield
+    rested = sess.shown is not None
+    held, passes_before = [], sess.version
+    for k in range(1, 13):
+        a = np.radians(2.0 * k)                        # the view turns 2 degrees a step
+        turn = np.array([[np.cos(a), -np.sin(a), 0, 0], [np.sin(a), np.cos(a), 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
+        rv3d.view_matrix = mathutils.Matrix((base @ turn).tolist())
+        with bpy.context.temp_override(**ctx):
+            bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
+        yield
+        with bpy.context.temp_override(**ctx):
+            camera, _ = sys.modules[f"{ADDON}.occ_addon.session"].viewport_camera(bpy.context)
+        hidden = sum(1 for o in bpy.data.objects if o.occ_culled and o.hide_viewport)
+        shown = sess.shown
+        held.append(hidden == 0 or (shown is not None and shown[1].holds(shown[0], camera)))
+    with bpy.context.temp_override(**ctx):
+        live.stop(bpy.context)
+    results["live_motion"] = {"rested_with_envelope": rested, "held": held,
+                              "passes": sess.version - passes_before}
 
 
 def modal_operators(win, area, region, sess, frames):

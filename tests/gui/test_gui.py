@@ -83,6 +83,16 @@ def test_live_passes_reuse_the_engine(gui_run):
     assert results["engine_rebuilt_during_live_passes"] is False
 
 
+def test_live_hidden_set_holds_while_the_view_turns(gui_run):
+    """After every redraw of a turning view, what live mode hides holds for that view
+    (inside its envelope) or nothing is hidden; passes are made during the motion."""
+    results, _, _ = gui_run
+    motion = results["live_motion"]
+    assert motion["rested_with_envelope"], motion
+    assert all(motion["held"]) and len(motion["held"]) == 12, motion
+    assert motion["passes"] >= 1, motion
+
+
 def test_redraws_timed_and_screenshots_written(gui_run):
     results, _, out = gui_run
     for key in ("redraw_ms_without", "redraw_ms_with", "redraw_ms_restored", "redraw_ms_nothing_drawn"):
