@@ -259,12 +259,13 @@ def _jumps(z, ok, tan_px, distance, w_tol):
     return out
 
 
-def extended_depth(ids, depth, camera, envelope):
+def extended_depth(ids, depth, camera, envelope, near_eff=0.0):
     """Per pixel, the farthest depth behind which every ray from the envelope is
     blocked, ``(s, s) float64`` view-space distance along the axis (``inf``: open).
 
     ids, depth: the ID and window-depth images from :meth:`GLRenderer.ids_and_depth`
-    of ``camera`` (the envelope's square view)."""
+    of ``camera`` (the envelope's square view).  ``near_eff``: surfaces nearer than
+    this cover nothing (an eye of the envelope may clip them with its near plane)."""
     near, far, tan_half = _lens(camera)
     rows, cols = ids.shape
     s = min(rows, cols)
@@ -273,6 +274,9 @@ def extended_depth(ids, depth, camera, envelope):
     ndc = 2.0 * d - 1.0
     with np.errstate(divide="ignore", invalid="ignore"):
         z = np.where(ok, 2.0 * near * far / (far + near - ndc * (far - near)), np.inf)
+    # a surface an eye of the envelope clips with its near plane is a hole, not a cover
+    ok &= z > near_eff
+    z = np.where(ok, z, np.inf)
     # tangent-plane coordinates of pixel centres; one pixel = dt of tangent
     dt = 2.0 * tan_half / rows                          # square pixels in tangent units
     cy = (np.arange(rows) + 0.5) * dt - tan_half
@@ -481,6 +485,13 @@ class _Tester:
         self.orthographic = camera.is_orthographic
         if self.orthographic:
             return
+        # an eye of the envelope clips what its near plane cuts: a point at distance r from
+        # the centre eye lies at least (r - D) cos(theta) deep in the view of any eye that
+        # sees along it (theta: the lens's corner angle), so nothing nearer than this
+        # occludes for every eye
+        near, _, _ = _lens(camera)
+        self.near_eff = (envelope.distance + near / max(math.cos(corner_half_angle(camera)), 1e-6)) \
+            * (1.0 + tol.near_guard_rel)
         self.view = envelope_camera(camera, envelope, height)
         if self.view is None:
             return
@@ -496,7 +507,7 @@ class _Tester:
         ids, depth = culler.renderer.ids_and_depth(self.view.render, (w, h), objects)
         stats["gl_calls"] = culler.renderer.counters["gl_calls"]
         stats["blocking_reads"] = culler.renderer.counters["blocking_reads"]
-        self.ext = extended_depth(ids, depth, self.view.render, envelope)
+        self.ext = extended_depth(ids, depth, self.view.render, envelope, self.near_eff)
         (x0, y0), (x1, y1) = self.view.lo, self.view.hi
         self.levels = _pyramid(self.ext[y0:y1 + 1, x0:x1 + 1])   # the cull frustum's: rectangles read no margin
         stats["query_rect_pixels"] = int(w * h)
@@ -525,7 +536,7 @@ class _Tester:
             if self.polygons is None:
                 self.polygons = occluder_polygons(self.culler, self.eye)
             hidden = hidden_by_polygons(boxes[test] - self.eye, self.polygons, env.distance,
-                                        self.camera.view[:3, :3])
+                                        self.camera.view[:3, :3], self.near_eff)
             state[test[hidden]] = Visibility.OCCLUDED
         return state
 

@@ -114,12 +114,14 @@ def _tangent_rects(points, rot):
     return np.concatenate([t.min(axis=1), t.max(axis=1)], axis=1), front
 
 
-def hidden_by_polygons(boxes, polys, distance, rot=None):
+def hidden_by_polygons(boxes, polys, distance, rot=None, near_eff=0.0):
     """``(m,) bool``: boxes (camera-relative, ``(m, 2, 3)``) hidden from every eye
     within ``distance`` of the origin by at least one of the convex polygons
     ``(k, 4, 3)`` (camera-relative; see the module doc).  ``rot``: the view's rotation,
     to pair a box only with polygons whose picture from the centre eye holds its
-    picture (necessary: the centre eye is one of the eyes)."""
+    picture (necessary: the centre eye is one of the eyes).  ``near_eff``: a polygon
+    whose plane passes nearer the centre eye than this occludes nothing (an eye's near
+    plane may cut it)."""
     m, k = len(boxes), len(polys)
     out = np.zeros(m, dtype=bool)
     if not m or not k:
@@ -138,6 +140,7 @@ def hidden_by_polygons(boxes, polys, distance, rot=None):
     mag = np.abs(polys).max(axis=(1, 2))
     margin = distance * (1.0 + tol.near_guard_rel) + tol.box_grow_rel * mag
     good &= h > margin                                        # the whole ball on the near side
+    good &= h > near_eff                                      # and no eye's near plane cuts it
     centre = polys.mean(axis=1)
     # box beyond the plane: its nearest corner along n is farther than the plane
     lo = np.einsum("kj,mj->mk", np.maximum(n, 0.0), boxes[:, MIN]) + \

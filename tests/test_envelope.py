@@ -179,3 +179,15 @@ def test_motion_replays_hide_nothing_the_truth_sees(ctx):
             assert passes
             hidden += sum(r["hidden"] for r in rows)
     assert hidden > 0
+
+
+def test_a_wall_the_near_plane_cuts_hides_nothing(ctx):
+    """A wall 0.2 from the eye with the near plane at 0.5: every eye of the envelope clips
+    it away, so what stands behind it is seen (workflow seed 3210: a camera nudged into
+    a wall's thickness)."""
+    scene = scenes.boxes_scene([((0.2, -30, -30), (0.3, 30, 30)), ((5, -1, -1), (6, 1, 1))], ["wall", "crate"])
+    camera = scenes.cam((0, 0, 0), (1, 0, 0), near=0.5, far=100, fov_y_deg=60, aspect=1.5)
+    with Culler(scene, resolution=(96, 64), ctx=ctx) as c:
+        assert c.truth(camera)[1]
+        for env in (Envelope(0.05, 2.0), Envelope(0.05, 2.0, any_roll=False), Envelope(0.0, 0.0)):
+            assert c.cull(camera, envelope=env).state[1] == Visibility.VISIBLE, env
