@@ -37,7 +37,16 @@ REST_LOOK_S = 0.05    # a view unchanged for this long between two looks has sto
 
 _state = {"last_view": None, "changed_at": None, "dirty_at": None, "passed_view": None}
 # the view's motion, measured between successive looks (redraws and ticks)
-_motion = {"view": None, "t": None, "step": (0.0, 0.0), "speeds": [0.0], "turns": [0.0], "leaving": False}
+_motion = {"view": None, "t": None, "step": (0.0, 0.0), "speeds": [0.0], "turns": [0.0], "leaving": False,
+           "region": None}
+
+
+def track(context):
+    """After a pass from the viewport: the 3D view it was made for is the one the redraw
+    guard watches (a Cull click culls the view it was pressed in, live mode the view a
+    timer finds)."""
+    found = find_viewport(context) if context.scene.occ.source == "VIEWPORT" else None
+    _motion["region"] = None if found is None else found[2].as_pointer()
 
 
 def observe(camera):
@@ -71,10 +80,9 @@ def guard():
     context = bpy.context
     if context.scene is None or context.scene.occ.source != "VIEWPORT":
         return
-    found = find_viewport(context)
-    if found is None or found[2] != context.region_data:
+    rv3d = context.region_data
+    if rv3d is None or rv3d.as_pointer() != _motion["region"]:
         return                                        # another view's redraw
-    rv3d = found[2]
     camera = Camera.from_matrices(np.array(rv3d.view_matrix), np.array(rv3d.window_matrix))
     observe(camera)
     if _unsafe(camera):
@@ -108,6 +116,7 @@ def leave(context, camera, display):
     env = POLICY.envelope(speed, turn, latency, *_motion["step"], SESSION.culler.scene_size)
     try:
         SESSION.cull(context, camera, display, fresh=False, envelope=env, show_only=True)
+        track(context)
         _state["dirty_at"] = None                     # our own pass's updates are not a change
     except OccError as e:
         print(f"occlusion culling: {e}")
@@ -171,6 +180,7 @@ def _tick():
         _state.update(changed_at=None, dirty_at=None)
         try:
             SESSION.cull(context, camera, display, fresh=fresh, envelope="rest")
+            track(context)
             _state["passed_view"] = key
             _state["dirty_at"] = None                 # our own pass's updates are not a change
         except OccError as e:  # the user's to fix (an empty scene, a panoramic camera): show all, keep going

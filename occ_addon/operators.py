@@ -147,6 +147,7 @@ class OCC_OT_cull(Stepped, bpy.types.Operator):
             s = context.scene.occ
             envelope = "rest" if s.source == "VIEWPORT" or s.live else None
             SESSION.cull(context, camera, display, fresh=True, progress=progress, restart=True, envelope=envelope)
+            live.track(context)
             overlay.install()
         except Exception as e:  # every failure is a report, never a traceback
             return failed(self, e)
