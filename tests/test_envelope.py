@@ -85,7 +85,7 @@ def test_a_turn_beyond_the_lens_view_culls_nothing_it_may_see(ctx):
     assert not (seen & (result.state == Visibility.VIEW_CULLED)).any()
 
 
-def test_zero_envelope_is_at_most_the_point_pass(ctx):
+def test_zero_envelope_hides_nothing_the_truth_sees(ctx):
     scene, cams, _ = scenes.random_city(7, 200)
     with Culler(scene, resolution=(160, 90), ctx=ctx) as c:
         for camera in cams:
@@ -191,3 +191,18 @@ def test_a_wall_the_near_plane_cuts_hides_nothing(ctx):
         assert c.truth(camera)[1]
         for env in (Envelope(0.05, 2.0), Envelope(0.05, 2.0, any_roll=False), Envelope(0.0, 0.0)):
             assert c.cull(camera, envelope=env).state[1] == Visibility.VISIBLE, env
+
+
+def test_envelope_holds_at_the_display_resolution(ctx):
+    """Queries at a quarter of the display: the views of the envelope, drawn at the
+    display's resolution, see nothing the pass hides."""
+    scene, cams, _ = scenes.random_city(41, 300)
+    rng = np.random.default_rng(41)
+    hidden = 0
+    with Culler(scene, resolution=(240, 135), display=(960, 540), ctx=ctx) as c:
+        for env in (Envelope(0.5, 3.0, any_roll=False), Envelope(1.0, 5.0)):
+            result = c.cull(cams[0], envelope=env)
+            for view in sample_views(cams[0], env, 4, rng):
+                assert not (c.renderer.visible_truth(view, display=True) & ~result.visible).any(), env
+            hidden += int((~result.visible).sum())
+    assert hidden > 0
