@@ -13,6 +13,13 @@ MIN, MAX = 0, 1
 # x = bit 0, y = bit 1, z = bit 2.
 CORNER_SELECT = np.array([[(c >> a) & 1 for a in range(3)] for c in range(8)], dtype=np.intp)
 
+# The 12 edges of a box as pairs of corner indices (in that bit order).
+BOX_EDGES = np.array([(c, c | b) for c in range(8) for b in (1, 2, 4) if not c & b], dtype=np.intp)
+
+# The 6 faces of a box as corner quads, counter-clockwise seen from outside: the
+# projected outline's area is the sum of the front faces'.
+BOX_FACES = np.array([[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]])
+
 
 def check_boxes(boxes, name="bounds"):
     """Return ``boxes`` as ``(n, 2, 3) float64``; raise :class:`OccError` otherwise."""

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import OccError
+from .tolerance import tol
 
 CAMERA_KEYS = ("eye", "target", "up", "fov_y_deg", "aspect", "near", "far", "ortho_height")
 
@@ -195,6 +196,24 @@ class Camera:
     def view_projection(self):
         """``P @ V`` in float64 (for world-space use, e.g. tests)."""
         return self.projection @ self.view
+
+
+def camera_cut(before, after, scene_size):
+    """Whether the view jumped between two passes: ``before`` is None, or the eye moved
+    more than ``tol.coherence_move_rel`` of the scene's size, the view turned more than
+    ``tol.coherence_turn_deg``, or the projection changed.  The one definition of a camera
+    cut: what a coherent strategy remembers, and what live mode calls a fresh pass."""
+    if before is None:
+        return True
+    if np.linalg.norm(after.eye - before.eye) > tol.coherence_move_rel * max(scene_size, 1e-300):
+        return True
+    r0, r1 = before.view[:3, :3], after.view[:3, :3]
+    # rotation angle of r1 @ r0.T from its trace (rows of a view rotation are orthonormal)
+    cos = np.clip((np.trace(r1 @ r0.T) - 1.0) / 2.0, -1.0, 1.0)
+    if math.degrees(math.acos(cos)) > tol.coherence_turn_deg:
+        return True
+    scale = np.abs(before.projection).max()
+    return bool(np.abs(after.projection - before.projection).max() > tol.coherence_projection_rel * scale)
 
 
 def load_cameras(path):

@@ -8,35 +8,19 @@
 import time
 import warnings
 from copy import copy
-from dataclasses import dataclass
 from types import SimpleNamespace
 
 import numpy as np
 
 from .bounds import MAX, MIN
+from .cull import DEFAULT_STRATEGY, REGISTRY, STAT_KEYS, CullPass, CullResult, Visibility, make_strategy
 from .errors import OccError
 from .hierarchy import build_hierarchy
 from .settings import CullOptions
-from .strategies import DEFAULT_STRATEGY, REGISTRY, make_strategy
-from .traversal import STAT_KEYS, Frame, Visibility
 from .units import ChunkCache
 
 DEFAULT_RESOLUTION = (640, 360)
 MAX_RESOLUTION = 8192          # per side; beyond this llvmpipe and most GPUs refuse targets
-
-
-@dataclass
-class CullResult:
-    """Three states per object, the counters of the pass and its occupancy map."""
-
-    state: np.ndarray
-    stats: dict
-    occupancy: np.ndarray
-
-    @property
-    def visible(self):
-        """``(n,) bool``: objects not culled."""
-        return self.state == Visibility.VISIBLE
 
 
 def parse_resolution(text):
@@ -301,16 +285,16 @@ class Culler:
                               **self._counts(np.zeros(0, np.uint8))}, np.zeros((0, 0), bool))
         if REGISTRY[self.strategy_name].needs_truth and truth is None:
             truth = self.truth(camera)
-        frame = Frame(self.hierarchy, self.renderer, camera, self.options, self.scene_size)
-        self.strategy(frame, chunk=self.options.chunk, truth=truth)
-        stats = frame.finish()
-        state = frame.object_state()
+        cp = CullPass(self.hierarchy, self.renderer, camera, self.options, self.scene_size)
+        self.strategy(cp, chunk=self.options.chunk, truth=truth)
+        stats = cp.finish()
+        state = cp.object_state()
         invalid = self.scene.invalid
         state[invalid] = Visibility.VISIBLE       # conservative: nothing is known about them
         stats["invalid_objects"] = int(invalid.sum())
         stats.update(self._counts(state))
         assert len(state) == n
-        return CullResult(state, stats, frame.om.grid.copy())
+        return CullResult(state, stats, cp.om.grid.copy())
 
     def _envelope_cull(self, camera, envelope, lights=None):
         from .envelope import Envelope, envelope_pass

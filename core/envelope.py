@@ -56,10 +56,10 @@ import numpy as np
 from . import umbra
 from .bounds import MAX, MIN, corners
 from .camera import Camera, perspective
+from .cull import STAT_KEYS, Visibility
 from .errors import OccError
 from .frustum import classify, planes_from_matrix
 from .tolerance import tol
-from .traversal import STAT_KEYS, Visibility
 from .umbra import hidden_by_polygons
 
 MAX_HALF_DEG = 80.0        # widest half-angle of the envelope's square image (tan 80 = 5.7)

@@ -17,17 +17,13 @@ import math
 
 import numpy as np
 
-from .bounds import corners
+from .bounds import BOX_EDGES, corners
 from .frustum import planes_from_matrix
 from .tolerance import tol
 
 X0, Y0, X1, Y1 = range(4)
 DEFAULT_TILES = 512 * 32
 SMALL_SET = 24         # rectangles set one by one below this count (measured: ~1 us each vs ~60 us a grid pass)
-
-
-# The 12 edges of a box as pairs of corner indices (bounds.corners' bit order).
-BOX_EDGES = np.array([(c, c | b) for c in range(8) for b in (1, 2, 4) if not c & b], dtype=np.intp)
 
 
 def project_rects(boxes, clip_matrix, width, height, near=None):
@@ -193,31 +189,6 @@ class OccupancyMap:
         """A debug image ``(rows * scale, cols * scale) uint8``, top row first, 255 = set."""
         img = np.where(self.grid[::-1], 255, 40).astype(np.uint8)
         return np.kron(img, np.ones((scale, scale), dtype=np.uint8))
-
-
-def non_overlapping_first(tile_rects):
-    """The stricter arrangement this project used first: in order, take a rectangle
-    when it overlaps no rectangle taken before it.  Kept for comparison; the test
-    lists use :func:`free_tile_first`, the papers' rule.  Returns ``(k,) bool``.
-    """
-    t = np.asarray(tile_rects)
-    k = len(t)
-    if k == 0:
-        return np.zeros(0, dtype=bool)
-    ov = ((t[:, None, X0] <= t[None, :, X1]) & (t[None, :, X0] <= t[:, None, X1])
-          & (t[:, None, Y0] <= t[None, :, Y1]) & (t[None, :, Y0] <= t[:, None, Y1]))
-    ov &= np.tri(k, k, -1, dtype=bool)       # ov[i, j]: j comes before i and overlaps it
-    taken = np.zeros(k, dtype=bool)
-    dropped = np.zeros(k, dtype=bool)
-    while True:
-        undecided = ~(taken | dropped)
-        if not undecided.any():
-            return taken
-        # taken: every earlier overlapping rectangle is dropped
-        new_taken = undecided & ~np.any(ov & ~dropped[None], axis=1)
-        new_dropped = undecided & np.any(ov & (taken | new_taken)[None], axis=1) & ~new_taken
-        taken |= new_taken
-        dropped |= new_dropped
 
 
 def free_tile_first(tile_rects, rows, cols):

@@ -3,11 +3,7 @@ Blender's ``gpu`` module): box wireframes and the occupancy map as screen quads.
 
 import numpy as np
 
-from .bounds import corners
-
-# The 12 edges of a box as pairs of corner indices (bounds.corners' bit order).
-BOX_EDGES = np.array([(0, 1), (2, 3), (4, 5), (6, 7), (0, 2), (1, 3), (4, 6), (5, 7),
-                      (0, 4), (1, 5), (2, 6), (3, 7)], dtype=np.intp)
+from .bounds import BOX_EDGES, corners
 
 
 def box_lines(boxes):

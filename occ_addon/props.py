@@ -3,7 +3,7 @@
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
-from ..core.strategies import REGISTRY
+from ..core import REGISTRY
 
 # The add-on's default is the best-culling conservative strategy, not the engine's
 # "auto": auto weighs the engine's own drawing against its tests and may hide nothing

@@ -186,7 +186,7 @@ def test_forget_keeps_the_gpu_memory_and_hides_nothing_seen(ctx):
                 m[:, :3, 3] += 6.0
                 c.set_matrices([5], m)
             c.strategy.forget()
-            assert c.strategy.fallback.assumed is None
+            assert c.strategy.fallback.memory.seen is None
             truth = c.truth(cam)
             r = c.cull(cam)
             assert not (truth & ~r.visible).any(), f"pass {k} culled truly visible objects"

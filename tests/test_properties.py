@@ -6,9 +6,10 @@ from hypothesis import strategies as st
 
 from core import Camera
 from core.bounds import MAX, MIN, contains, corners, transform_boxes
-from core.frustum import classify, corners_outside_brute, planes_from_matrix
+from core.frustum import classify, planes_from_matrix
 from core.hierarchy import build_from_tree
-from core.occupancy import OccupancyMap, free_tile_first, non_overlapping_first, project_rects
+from core.occupancy import OccupancyMap, free_tile_first, project_rects
+from tests.reference import classify_gathered, corners_outside_brute, non_overlapping_first
 
 SETTINGS = settings(max_examples=60, deadline=None, derandomize=True)
 seeds = st.integers(0, 2**31 - 1)
@@ -276,12 +277,11 @@ def test_test_list_takes_a_box_that_still_has_a_free_tile():
 def test_fast_classification_equals_the_reference(seed):
     """The engine's per-pass plane test (two matrix products) answers exactly as
     core.frustum.classify (gathered p- and n-vertices), masks included."""
-    from core.traversal import classify_fast
     rng = np.random.default_rng(seed)
     cam = random_camera(rng)
     boxes = random_boxes(rng, 200) - cam.eye
     planes = planes_from_matrix(cam.relative_view_projection())
     masks = rng.integers(0, 64, len(boxes)).astype(np.uint8)
     for m in (None, masks):
-        a, b = classify(planes, boxes, m), classify_fast(planes, boxes, m)
+        a, b = classify_gathered(planes, boxes, m), classify(planes, boxes, m)
         assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])

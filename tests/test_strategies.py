@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from core import Culler, Visibility
-from core.strategies import DEFAULT_STRATEGY, REGISTRY, STRATEGIES, Auto, Strategy, make_strategy
+from core.cull import DEFAULT_STRATEGY, REGISTRY, STRATEGIES, Auto, CullPass, Strategy, make_strategy
 from tests import scenes
 
 
@@ -122,9 +122,8 @@ def test_outline_pixels_of_a_box_facing_the_camera(ctx):
     """A box seen straight on rasterises its front face's area, in pixels."""
     scene = scenes.boxes_scene([((0, -20, -20), (0.2, 20, 20))])
     cam = scenes.cam((-10, 0, 0), (0, 0, 0), up=(0, 0, 1), aspect=1.0, far=100, ortho_height=8.0)
-    from core.traversal import Frame
     with Culler(scene, (64, 64), strategy="vfc", ctx=ctx) as c:
-        f = Frame(c.hierarchy, c.renderer, cam, c.options, c.scene_size)
+        f = CullPass(c.hierarchy, c.renderer, cam, c.options, c.scene_size)
         box = np.array([[[5.0, -1.0, -1.0], [6.0, 1.0, 1.0]]]) - cam.eye        # 2 x 2 units = 16 x 16 px
         assert f.outline_pixels(box)[0] == pytest.approx(256.0)
 
@@ -151,7 +150,7 @@ def test_two_pass_uses_at_most_two_batches_once_coherent(ctx):
 def test_coherent_default_stays_within_its_read_budget(ctx, strategy):
     """om_coherent (and auto through it) make at most COHERENT_READS multiple
     queries a pass, fresh or not, and still keep every visible object."""
-    from core.strategies import COHERENT_READS, Auto
+    from core.cull.occupancy_queries import COHERENT_READS
     for seed in (3, 7, 11):
         scene, cams, _ = scenes.random_city(seed, 400)
         with Culler(scene, (160, 120), strategy=strategy, ctx=ctx) as c:

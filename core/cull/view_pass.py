@@ -1,63 +1,19 @@
-"""Per-frame state shared by the strategies: camera-relative boxes, frustum flags,
-screen rectangles, front-to-back distances, the occupancy map and the counters.
-
-Results are three states per object (as in Masked Occlusion Culling):
-VISIBLE, OCCLUDED (a query proved it hidden) and VIEW_CULLED (outside the frustum).
-"""
+"""One culling pass (:class:`CullPass`): everything a strategy reads and the counters
+it fills: camera-relative boxes, frustum flags, screen rectangles, front-to-back
+distances, the occupancy map and the guard that keeps every query conservative."""
 
 import time
-from enum import IntEnum
 
 import numpy as np
 
-from .bounds import MAX, MIN, corners
-from .frustum import ALL_PLANES, planes_from_matrix
-from .occupancy import OccupancyMap, project_rects
-from .tolerance import tol
+from ..bounds import BOX_FACES, MAX, MIN, corners
+from ..frustum import classify, planes_from_matrix
+from ..occupancy import OccupancyMap, project_rects
+from ..tolerance import tol
+from .result import STAT_KEYS, Visibility
 
 
-class Visibility(IntEnum):
-    VISIBLE = 0
-    OCCLUDED = 1
-    VIEW_CULLED = 2
-
-
-STAT_KEYS = ("queries", "queries_skipped", "near_visible", "multiple_queries", "samples_passed",
-             "query_rect_pixels", "triangles_drawn", "units_drawn", "nodes_visited",
-             "query_raster_pixels", "triangles_occluded", "occlusion_pass", "fresh", "invalid_objects",
-             "gl_calls", "blocking_reads",
-             "frustum_ms", "traversal_ms", "query_ms", "draw_ms", "gl_ms", "cpu_ms", "total_ms")
-
-# The 6 faces of a box as corner quads (bounds.corners' bit order), counter-clockwise
-# seen from outside: the projected outline's area is the sum of the front faces'.
-BOX_FACES = np.array([[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]])
-
-
-def classify_fast(planes, boxes, masks=None):
-    """:func:`core.frustum.classify` with the p- and n-vertex dot products as two
-    small matrix products (``max(n, 0) . MAX + min(n, 0) . MIN``) instead of
-    gathered corners: the same answers (same tolerance), a few times faster on the
-    thousands of nodes a pass reaches.  Returns ``(outside (n,) bool, remaining (n,) uint8)``."""
-    b = boxes
-    n = len(b)
-    normal = planes[:, :3]
-    pos, neg = np.maximum(normal, 0.0).T, np.minimum(normal, 0.0).T          # (3, 6)
-    lo, hi = b[:, MIN], b[:, MAX]
-    dp = hi @ pos + lo @ neg + planes[:, 3]                                   # p-vertex distances
-    dn = lo @ pos + hi @ neg + planes[:, 3]                                   # n-vertex distances
-    scale = np.abs(b).reshape(n, 6).max(axis=1, initial=0.0)[:, None] + np.abs(planes[:, 3])
-    if masks is None:
-        masks = np.full(n, ALL_PLANES, dtype=np.uint8)
-    active = (masks[:, None] & PLANE_BITS) != 0
-    outside = np.any(active & (dp < -tol.plane_rel * scale), axis=1)
-    inside_bits = np.bitwise_or.reduce(np.where(active & (dn >= 0.0), PLANE_BITS, 0), axis=1)
-    return outside, (masks & ~inside_bits.astype(np.uint8)).astype(np.uint8)
-
-
-PLANE_BITS = (np.uint8(1) << np.arange(6, dtype=np.uint8))[None]
-
-
-class Frame:
+class CullPass:
     """One culling pass: everything a strategy reads and the counters it fills.
 
     Node arrays are indexed by hierarchy node and filled only for the nodes the
@@ -73,9 +29,9 @@ class Frame:
     infinite values: kept visible by the engine, never occluders).
     """
 
-    def __init__(self, hierarchy, renderer, camera, options, scene_size):
-        self.h = hierarchy
-        self.r = renderer
+    def __init__(self, tree, renderer, camera, options, scene_size):
+        self.tree = tree
+        self.renderer = renderer
         self.camera = camera
         self.options = options
         self.threshold = int(options.visible_threshold)
@@ -94,8 +50,8 @@ class Frame:
         self.eye = np.asarray(renderer.eye, dtype=np.float64)
         self.planes = planes_from_matrix(self.clip)
         self.scene_size = scene_size
-        n = len(hierarchy)
-        self.is_leaf = hierarchy.is_leaf
+        n = len(tree)
+        self.is_leaf = tree.is_leaf
         # calloc'd: untouched pages cost nothing, so these are O(reached) in practice
         self.reached = np.zeros(n, dtype=bool)
         self.in_frustum = np.zeros(n, dtype=bool)
@@ -124,7 +80,7 @@ class Frame:
 
     def boxes(self, nodes):
         """Camera-relative boxes of ``nodes``, ``(k, 2, 3) float64``."""
-        return self.h.bounds[nodes] - self.eye
+        return self.tree.bounds[nodes] - self.eye
 
     # --- reaching nodes --------------------------------------------------------
     def reach(self, nodes, masks=None, geometry=True):
@@ -139,14 +95,14 @@ class Frame:
         if masks is not None and not masks.any():      # inside every plane already (plane masking)
             outside, remaining = np.zeros(len(nodes), dtype=bool), masks
         else:
-            outside, remaining = classify_fast(self.planes, b, masks)
+            outside, remaining = classify(self.planes, b, masks)
         keep = nodes[~outside]
         self.reached[nodes] = True
         self.in_frustum[keep] = True
         self.mask[keep] = remaining[~outside]
         # leaves inside the frustum start VISIBLE; strategies demote to OCCLUDED
         leaves = keep[self.is_leaf[keep]]
-        self.state[self.h.leaf_unit[leaves]] = Visibility.VISIBLE
+        self.state[self.tree.leaf_unit[leaves]] = Visibility.VISIBLE
         if geometry and len(keep):
             self._geometry(keep, b[~outside])
         self.t_reach += time.perf_counter() - t
@@ -154,7 +110,7 @@ class Frame:
 
     def _geometry(self, nodes, b):
         self.has_geometry[nodes] = True
-        self.rects[nodes], self.crosses[nodes] = project_rects(b, self.clip, self.r.width, self.r.height,
+        self.rects[nodes], self.crosses[nodes] = project_rects(b, self.clip, self.renderer.width, self.renderer.height,
                                                                self.planes[4])
         self.tiles[nodes] = self.om.tile_rects(self.rects[nodes])
         # Front-to-back key: distance from the eye (the origin here) to the box's
@@ -170,8 +126,8 @@ class Frame:
         """Reach the children of ``nodes`` (reached nodes) with their parents' plane
         masks; returns those inside the frustum."""
         nodes = np.asarray(nodes, dtype=np.int64)
-        kids = self.h.children(nodes)
-        masks = np.repeat(self.mask[nodes], self.h.child_count[nodes])
+        kids = self.tree.children(nodes)
+        masks = np.repeat(self.mask[nodes], self.tree.child_count[nodes])
         return self.reach(kids, masks, geometry)
 
     def frustum_leaves(self, geometry=False):
@@ -209,7 +165,7 @@ class Frame:
         the leaves proven visible between two queries go out in one draw call."""
         if not len(leaves):
             return
-        units = self.h.leaf_unit[leaves]
+        units = self.tree.leaf_unit[leaves]
         self._to_draw.append(units)
         self.stats["units_drawn"] += len(units)
         self.state[units] = Visibility.VISIBLE
@@ -222,7 +178,7 @@ class Frame:
         units = self._to_draw[0] if len(self._to_draw) == 1 else np.concatenate(self._to_draw)
         self._to_draw = []
         t = time.perf_counter()
-        self.stats["triangles_drawn"] += self.r.draw(units)
+        self.stats["triangles_drawn"] += self.renderer.draw(units)
         self.t_draw += time.perf_counter() - t
 
     def guard(self, b):
@@ -304,7 +260,7 @@ class Frame:
             t = time.perf_counter()
             # Sample counts only where a threshold needs them: a flag per box is a plain
             # store, a count an atomic add per fragment (8-15x slower on an NVIDIA H200)
-            samples = self.r.query(grown[asked], counts=self.threshold > 0)
+            samples = self.renderer.query(grown[asked], counts=self.threshold > 0)
             self.t_query += time.perf_counter() - t
             r = self.rects[nodes[asked]]
             self.stats["queries"] += len(r)
@@ -325,8 +281,8 @@ class Frame:
         areas.  ``b`` are camera-relative boxes entirely in front of the near plane."""
         c = corners(b)
         hom = c @ self.clip[[0, 1, 3], :3].T + self.clip[[0, 1, 3], 3]          # x, y, w
-        sx = hom[..., 0] / hom[..., 2] * (0.5 * self.r.width)
-        sy = hom[..., 1] / hom[..., 2] * (0.5 * self.r.height)
+        sx = hom[..., 0] / hom[..., 2] * (0.5 * self.renderer.width)
+        sy = hom[..., 1] / hom[..., 2] * (0.5 * self.renderer.height)
         x, y = sx[:, BOX_FACES], sy[:, BOX_FACES]                               # (k, 6, 4)
         signed = 0.5 * (x * np.roll(y, -1, axis=2) - np.roll(x, -1, axis=2) * y).sum(axis=2)
         return np.abs(signed).sum(axis=1) * 0.5     # front and back faces cover the outline once each
@@ -334,20 +290,20 @@ class Frame:
     def occlude(self, nodes):
         """Mark every unit below ``nodes`` OCCLUDED (those inside the frustum;
         leaves not reached yet are classified here, so the others stay VIEW_CULLED)."""
-        leaves = self.h.leaves_below(nodes)
+        leaves = self.tree.leaves_below(nodes)
         if not len(leaves):
             return
         todo = leaves[~self.reached[leaves]]
         if len(todo):
             t = time.perf_counter()
-            outside, _ = classify_fast(self.planes, self.boxes(todo))
+            outside, _ = classify(self.planes, self.boxes(todo))
             self.in_frustum[todo[~outside]] = True
             self.reached[todo] = True
             self.t_reach += time.perf_counter() - t
         leaves = leaves[self.in_frustum[leaves]]
-        units = self.h.leaf_unit[leaves]
+        units = self.tree.leaf_unit[leaves]
         self.state[units] = Visibility.OCCLUDED
-        self.stats["triangles_occluded"] += int(self.r.tri_counts[units].sum())
+        self.stats["triangles_occluded"] += int(self.renderer.tri_counts[units].sum())
 
     def object_state(self):
         """Per object: the most visible state of its units, ``(n,) uint8``."""
@@ -366,7 +322,7 @@ class Frame:
         """Send what is collected and wait for the GPU (timed as drawing)."""
         self.flush()
         t = time.perf_counter()
-        self.r.finish()
+        self.renderer.finish()
         self.t_draw += time.perf_counter() - t
 
     def finish(self):
@@ -381,7 +337,7 @@ class Frame:
         # CPU time of the pass outside GL calls (what a faster GPU cannot shorten)
         s["gl_ms"] = s["query_ms"] + s["draw_ms"] + 1e3 * self.t_begin
         s["cpu_ms"] = max(0.0, s["total_ms"] - s["gl_ms"])
-        counters = getattr(self.r, "counters", None)
+        counters = getattr(self.renderer, "counters", None)
         if counters is not None:              # renderers that count their GL calls
             s["gl_calls"] = int(counters.get("gl_calls", 0))
             s["blocking_reads"] = int(counters.get("blocking_reads", 0))
