@@ -6,6 +6,7 @@ Every function works on all boxes at once; none loops over boxes in Python.
 import numpy as np
 
 from .errors import OccError
+from .sah import corner_area
 
 MIN, MAX = 0, 1
 
@@ -84,8 +85,7 @@ def segment_union(boxes, starts, counts):
 def surface_area(boxes):
     """Surface area of each box, ``(n, 2, 3)`` -> ``(n,)``; empty (inverted) boxes give 0."""
     b = check_boxes(boxes)
-    d = np.maximum(b[:, MAX] - b[:, MIN], 0.0)
-    return 2.0 * (d[:, 0] * d[:, 1] + d[:, 1] * d[:, 2] + d[:, 2] * d[:, 0])
+    return corner_area(b[:, MIN], b[:, MAX])
 
 
 def contains(outer, inner, atol=0.0):

@@ -15,7 +15,7 @@ chains of single-child groups collapse, and a group wider than ``max_children``
 is split by a binned surface-area heuristic over its items' boxes until every
 inner node has at most ``max_children`` children; every wide group of one
 tree depth, and every part of one split level, is split at once
-(:func:`_split_segments`, the vectorised :func:`_sah_split`).  Other builders
+(:func:`_split_segments`, over :mod:`core.sah`).  Other builders
 (:mod:`core.subdivision`) can replace the skeleton above objects, and heavy
 objects can carry a subtree of chunks below them (:func:`graft_tree`).
 """
@@ -26,39 +26,25 @@ from itertools import chain
 
 import numpy as np
 
-from .bounds import MAX, MIN, check_boxes, segment_union, surface_area
+from .bounds import MAX, MIN, check_boxes, segment_union
 from .errors import OccError
+from .sah import sweep
+from .tree import FlatTree
 
 SAH_BINS = 16
 
 
 @dataclass(eq=False)
-class Hierarchy:
-    bounds: np.ndarray
-    first_child: np.ndarray
-    child_count: np.ndarray
-    leaf_unit: np.ndarray
-    parent: np.ndarray
-    depth: np.ndarray
+class Hierarchy(FlatTree):
+    """The culling hierarchy: a :class:`~core.tree.FlatTree` whose leaves are draw units
+    (``leaf_unit``, ``-1`` for inner nodes)."""
 
-    def __len__(self):
-        return len(self.first_child)
+    leaf_unit: np.ndarray = None
 
     @cached_property
     def is_leaf(self):
         """``(N,) bool`` (computed once: a refit changes boxes, never the structure)."""
         return self.leaf_unit >= 0
-
-    def children(self, nodes):
-        """All children of ``nodes`` (in order), ``(k,) int64``; leaves contribute none."""
-        nodes = np.asarray(nodes, dtype=np.int64)
-        counts = self.child_count[nodes]
-        total = int(counts.sum())
-        if total == 0:
-            return np.zeros(0, dtype=np.int64)
-        starts = np.repeat(self.first_child[nodes], counts)
-        offsets = np.arange(total) - np.repeat(np.cumsum(counts) - counts, counts)
-        return starts + offsets
 
     def leaves_below(self, nodes):
         """Leaf nodes in the subtrees of ``nodes`` (the nodes themselves if leaves)."""
@@ -82,59 +68,10 @@ class Hierarchy:
                     self.bounds, self.first_child[inner], self.child_count[inner])
 
 
-def _sah_split(boxes):
-    """Best binned-SAH partition of items with boxes ``(k, 2, 3)``, k >= 2.
-
-    Returns a ``(k,) bool`` mask of the left side, never all-True or all-False.
-    The rule for one group; the builder runs :func:`_split_segments`, which must
-    choose the same (tests/test_hierarchy_build.py compares them).
-    """
-    k = len(boxes)
-    centre = 0.5 * (boxes[:, MIN] + boxes[:, MAX])
-    lo, hi = centre.min(axis=0), centre.max(axis=0)
-    extent = hi - lo
-    best_cost, best = np.inf, None
-    for axis in np.flatnonzero(extent > 0.0):
-        bins = np.minimum(((centre[:, axis] - lo[axis]) / extent[axis] * SAH_BINS).astype(np.int64),
-                          SAH_BINS - 1)
-        count = np.bincount(bins, minlength=SAH_BINS)
-        bmin = np.full((SAH_BINS, 3), np.inf)
-        bmax = np.full((SAH_BINS, 3), -np.inf)
-        np.minimum.at(bmin, bins, boxes[:, MIN])
-        np.maximum.at(bmax, bins, boxes[:, MAX])
-        # prefix (left of split s = bins < s) and suffix unions, splits s = 1..B-1
-        lmin, lmax = np.minimum.accumulate(bmin)[:-1], np.maximum.accumulate(bmax)[:-1]
-        rmin = np.minimum.accumulate(bmin[::-1])[::-1][1:]
-        rmax = np.maximum.accumulate(bmax[::-1])[::-1][1:]
-        lcount = np.cumsum(count)[:-1]
-        rcount = k - lcount
-        la = surface_area(np.stack([lmin, lmax], axis=1))
-        ra = surface_area(np.stack([rmin, rmax], axis=1))
-        cost = np.where((lcount > 0) & (rcount > 0), la * lcount + ra * rcount, np.inf)
-        s = int(np.argmin(cost))
-        if cost[s] < best_cost:
-            best_cost, best = cost[s], bins <= s
-    if best is None:              # all centres coincide: split the list in half
-        best = np.arange(k) < k // 2
-    return best
-
-
-def _scan(ufunc, a):
-    """``ufunc.accumulate(a, axis=0)`` for a short first axis (whole slabs: much faster)."""
-    out = a.copy()
-    for i in range(1, len(out)):
-        ufunc(out[i - 1], out[i], out=out[i])
-    return out
-
-
-def _area(lo, hi):
-    """:func:`core.bounds.surface_area` of boxes given as corner arrays ``(..., 3)`` (the same sums)."""
-    d = np.maximum(hi - lo, 0.0)
-    return 2.0 * (d[..., 0] * d[..., 1] + d[..., 1] * d[..., 2] + d[..., 2] * d[..., 0])
-
-
 def _split_segments(box, start, length):
-    """The :func:`_sah_split` of many segments at once (the same choice, bins and ties).
+    """The binned-SAH split of many segments at once: per segment, the left side of the
+    cheapest split ``S(L)|L| + S(R)|R|`` over ``SAH_BINS`` bins of the centres on all
+    three axes (ties: lowest axis, then lowest split; all centres equal: the first half).
 
     box: ``(k, 2, 3)`` item boxes; segment i is ``box[start[i]:start[i] + length[i]]``,
     lengths >= 2, segments disjoint.  Returns ``(rows, left)``: the rows of the
@@ -165,16 +102,12 @@ def _split_segments(box, start, length):
     bmin[ks[run]] = np.minimum.reduceat(np.take(b[:, MIN], item, axis=0), run, axis=0)
     bmax[ks[run]] = np.maximum.reduceat(np.take(b[:, MAX], item, axis=0), run, axis=0)
     bmin, bmax = bmin.reshape(b_, p, 3, 3), bmax.reshape(b_, p, 3, 3)
-    # prefix (left of split s = bins < s) and suffix unions, splits s = 1..B-1, per (segment, axis)
-    lmin, lmax = _scan(np.minimum, bmin[:-1]), _scan(np.maximum, bmax[:-1])
-    rmin, rmax = _scan(np.minimum, bmin[:0:-1])[::-1], _scan(np.maximum, bmax[:0:-1])[::-1]
-    lcount = np.cumsum(count[:-1], axis=0)
-    rcount = length[:, None] - lcount
-    la, ra = _area(lmin, lmax), _area(rmin, rmax)
+    # both sides of every split, per (segment, axis)
+    la, lcount, ra, rcount = sweep(bmin, bmax, count)
     cost = np.where((lcount > 0) & (rcount > 0) & ok, la * lcount + ra * rcount, np.inf)
     cost = cost.transpose(1, 2, 0)                              # (segment, axis, split)
     cost = cost.reshape(p, -1)
-    best = np.argmin(cost, axis=1)           # first minimum: lowest axis, then lowest split, as _sah_split
+    best = np.argmin(cost, axis=1)           # first minimum: lowest axis, then lowest split
     found = cost[np.arange(p), best] < np.inf
     axis, s = best // (b_ - 1), best % (b_ - 1)
     left = bins[np.arange(len(rows)), axis[seg]] <= s[seg]

@@ -43,6 +43,8 @@ import numpy as np
 
 from .bounds import MAX, MIN, check_boxes, surface_area
 from .errors import OccError
+from .sah import corner_area, sweep
+from .tree import FlatTree
 
 BUILDERS = ("pHBVO", "DBVS", "octree", "balanced")
 SAH_BINS = 32
@@ -58,19 +60,13 @@ PLAN_SAMPLE = 8 * SAH_SAMPLE
 
 
 @dataclass(eq=False)
-class Tree:
-    order: np.ndarray
-    bounds: np.ndarray
-    first_child: np.ndarray
-    child_count: np.ndarray
-    item_start: np.ndarray
-    item_count: np.ndarray
-    parent: np.ndarray
-    depth: np.ndarray
-    build_seconds: float = 0.0
+class Tree(FlatTree):
+    """A builder's tree: a :class:`~core.tree.FlatTree` over a permutation of the items."""
 
-    def __len__(self):
-        return len(self.first_child)
+    order: np.ndarray = None
+    item_start: np.ndarray = None
+    item_count: np.ndarray = None
+    build_seconds: float = 0.0
 
 
 class ItemBoxes:
@@ -125,17 +121,8 @@ def _sah_plane(slo, shi, n):
     bmax[present] = np.maximum.reduceat(shi[:, item], start, axis=1).T
     bmin, bmax = bmin.reshape(3, SAH_BINS, 3), bmax.reshape(3, SAH_BINS, 3)
     count = count.reshape(3, SAH_BINS)
-
-    def area(lo_, hi_):
-        d = np.maximum(hi_ - lo_, 0.0)
-        return 2.0 * (d[..., 0] * d[..., 1] + d[..., 1] * d[..., 2] + d[..., 2] * d[..., 0])
-
-    la = area(np.minimum.accumulate(bmin, axis=1), np.maximum.accumulate(bmax, axis=1))[:, :-1]
-    ra = area(np.minimum.accumulate(bmin[:, ::-1], axis=1), np.maximum.accumulate(bmax[:, ::-1], axis=1))
-    ra = ra[:, ::-1][:, 1:]
-    lc = np.cumsum(count, axis=1)[:, :-1]
-    rc = m - lc
-    whole = max(area(slo.min(axis=1), shi.max(axis=1)), 1e-300)
+    la, lc, ra, rc = (a.T for a in sweep(bmin.transpose(1, 0, 2), bmax.transpose(1, 0, 2), count.T))
+    whole = max(corner_area(slo.min(axis=1), shi.max(axis=1)), 1e-300)
     cost = np.where((lc > 0) & (rc > 0) & (ext > 0.0)[:, None],
                     TRAVERSAL_COST + (la * lc + ra * rc) / whole * (n / m), np.inf)
     axis, s = np.unravel_index(int(np.argmin(cost)), cost.shape)

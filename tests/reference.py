@@ -3,8 +3,9 @@ for clarity, not speed, and never shipped."""
 
 import numpy as np
 
-from core.bounds import MAX, MIN, check_boxes, corners
+from core.bounds import MAX, MIN, check_boxes, corners, surface_area
 from core.frustum import ALL_PLANES
+from core.hierarchy import SAH_BINS
 from core.occupancy import X0, X1, Y0, Y1
 from core.tolerance import tol
 
@@ -66,3 +67,40 @@ def non_overlapping_first(tile_rects):
         new_dropped = undecided & np.any(ov & (taken | new_taken)[None], axis=1) & ~new_taken
         taken |= new_taken
         dropped |= new_dropped
+
+
+def sah_split(boxes):
+    """Best binned-SAH partition of items with boxes ``(k, 2, 3)``, k >= 2.
+
+    Returns a ``(k,) bool`` mask of the left side, never all-True or all-False.
+    The rule for one group, written plainly; the builder's vectorised
+    :func:`core.hierarchy._split_segments` must choose the same.
+    """
+    k = len(boxes)
+    centre = 0.5 * (boxes[:, MIN] + boxes[:, MAX])
+    lo, hi = centre.min(axis=0), centre.max(axis=0)
+    extent = hi - lo
+    best_cost, best = np.inf, None
+    for axis in np.flatnonzero(extent > 0.0):
+        bins = np.minimum(((centre[:, axis] - lo[axis]) / extent[axis] * SAH_BINS).astype(np.int64),
+                          SAH_BINS - 1)
+        count = np.bincount(bins, minlength=SAH_BINS)
+        bmin = np.full((SAH_BINS, 3), np.inf)
+        bmax = np.full((SAH_BINS, 3), -np.inf)
+        np.minimum.at(bmin, bins, boxes[:, MIN])
+        np.maximum.at(bmax, bins, boxes[:, MAX])
+        # prefix (left of split s = bins < s) and suffix unions, splits s = 1..B-1
+        lmin, lmax = np.minimum.accumulate(bmin)[:-1], np.maximum.accumulate(bmax)[:-1]
+        rmin = np.minimum.accumulate(bmin[::-1])[::-1][1:]
+        rmax = np.maximum.accumulate(bmax[::-1])[::-1][1:]
+        lcount = np.cumsum(count)[:-1]
+        rcount = k - lcount
+        la = surface_area(np.stack([lmin, lmax], axis=1))
+        ra = surface_area(np.stack([rmin, rmax], axis=1))
+        cost = np.where((lcount > 0) & (rcount > 0), la * lcount + ra * rcount, np.inf)
+        s = int(np.argmin(cost))
+        if cost[s] < best_cost:
+            best_cost, best = cost[s], bins <= s
+    if best is None:              # all centres coincide: split the list in half
+        best = np.arange(k) < k // 2
+    return best

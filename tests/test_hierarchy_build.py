@@ -6,7 +6,8 @@ import pytest
 
 from core import hierarchy
 from core.bounds import MAX, MIN
-from core.hierarchy import Hierarchy, _Builder, _sah_split, build_from_tree, build_hierarchy
+from core.hierarchy import Hierarchy, _Builder, build_from_tree, build_hierarchy
+from tests.reference import sah_split
 
 
 class _Recursive(_Builder):
@@ -28,7 +29,7 @@ class _Recursive(_Builder):
                 if len(parts[big]) < 2:
                     break
                 arr = parts.pop(big)
-                left = _sah_split(np.array([self.boxes[i] for i in arr]))
+                left = sah_split(np.array([self.boxes[i] for i in arr]))
                 parts += [arr[left], arr[~left]]
             items = [self.group(p.tolist()) for p in parts]
         box = np.array([self.boxes[i] for i in items])
@@ -150,7 +151,7 @@ def test_chunked_objects_same_tree_as_recursive_rule(monkeypatch):
     _same(h, build_hierarchy(ub, units, parent, obj, 4))
 
 
-def test_split_segments_matches_sah_split():
+def test_split_segments_matchessah_split():
     rng = np.random.default_rng(3)
     for shape in ("random", "zero", "same", "dup", "rows"):
         lengths = np.array([2, 3, 17, 40, 100])
@@ -161,5 +162,5 @@ def test_split_segments_matches_sah_split():
         at = 0
         for i in order:
             assert np.array_equal(rows[at:at + lengths[i]], np.arange(starts[i], starts[i] + lengths[i]))
-            assert np.array_equal(left[at:at + lengths[i]], _sah_split(box[rows[at:at + lengths[i]]]))
+            assert np.array_equal(left[at:at + lengths[i]], sah_split(box[rows[at:at + lengths[i]]]))
             at += lengths[i]
