@@ -11,14 +11,18 @@ from copy import copy
 from types import SimpleNamespace
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from .bounds import MAX, MIN
+from .camera import Camera
 from .cull import DEFAULT_STRATEGY, REGISTRY, STAT_KEYS, CullPass, CullResult, Visibility, make_strategy
 from .errors import OccError
 from .hierarchy import build_hierarchy
+from .scene import Scene
 from .settings import CullOptions
 from .units import ChunkCache
 
+Resolution = tuple[int, int]
 DEFAULT_RESOLUTION = (640, 360)
 MAX_RESOLUTION = 8192          # per side; beyond this llvmpipe and most GPUs refuse targets
 
@@ -88,7 +92,7 @@ class Culler:
     """A scene uploaded once, culled from any number of cameras.
 
     resolution: query resolution ``(W, H)``; strategy: a name of
-    :data:`core.strategies.STRATEGIES`; options: :class:`core.settings.CullOptions`
+    :data:`core.cull.STRATEGIES`; options: :class:`core.settings.CullOptions`
     (occupancy tiles, visible threshold, pixel guard, chunk); max_tests: first
     frame's stage-2 rounds of om_multi; max_children: widest inner node;
     exact_bounds: object boxes from transformed vertices instead of transformed
@@ -109,10 +113,11 @@ class Culler:
     never drawn as occluders, and named in a warning and in ``invalid_names``.
     """
 
-    def __init__(self, scene, resolution=DEFAULT_RESOLUTION, strategy=DEFAULT_STRATEGY,
-                 options=None, max_tests=8, max_children=8, exact_bounds=False,
-                 hierarchy="tree", chunk_triangles=None, chunk_min_triangles=None, ctx=None,
-                 chunk_cache=None, display=None):
+    def __init__(self, scene: Scene, resolution: Resolution = DEFAULT_RESOLUTION, strategy: str = DEFAULT_STRATEGY,
+                 options: CullOptions | None = None, max_tests: int = 8, max_children: int = 8,
+                 exact_bounds: bool = False, hierarchy: str = "tree", chunk_triangles: int | None = None,
+                 chunk_min_triangles: int | None = None, ctx=None, chunk_cache: ChunkCache | None = None,
+                 display: Resolution | None = None) -> None:
         self.resolution = check_resolution(resolution)
         self.display = None if display is None else check_resolution(display)
         self.strategy_name = strategy
@@ -120,7 +125,7 @@ class Culler:
         self.strategy = make_strategy(strategy, max_tests)
         self.options = options or CullOptions()
         self.exact_bounds = exact_bounds
-        self.builder = hierarchy
+        self.hierarchy_builder = hierarchy
         self.max_children = max_children
         self.chunking = (chunk_triangles, chunk_min_triangles)
         self.chunk_cache = chunk_cache if chunk_cache is not None else ChunkCache()
@@ -129,7 +134,7 @@ class Culler:
     def _build(self, scene, ctx, previous=None):
         t = time.perf_counter()
         self.scene = scene
-        self.units = make_units(scene, self.builder, *self.chunking, cache=self.chunk_cache)
+        self.units = make_units(scene, self.hierarchy_builder, *self.chunking, cache=self.chunk_cache)
         self.scene_size = _scene_size(scene.bounds)
         self._warn_invalid()
         refit = previous is not None and _same_structure(previous, scene, self.units)
@@ -139,12 +144,12 @@ class Culler:
             self.hierarchy.refit(self.unit_bounds())
         else:
             object_tree = None
-            if self.builder != "tree" and len(scene):
+            if self.hierarchy_builder != "tree" and len(scene):
                 from .subdivision import build_tree
                 ob, ok = scene.bounds, ~scene.invalid
                 # invalid objects: a point at the scene's middle (the refit below gives them no extent)
                 ob[~ok] = 0.5 * (ob[ok].min(axis=(0, 1)) + ob[ok].max(axis=(0, 1))) if ok.any() else 0.0
-                object_tree = build_tree(ob, self.builder, leaf_size=1,
+                object_tree = build_tree(ob, self.hierarchy_builder, leaf_size=1,
                                          max_children=max(2, self.max_children), pull_up=False)
             self.hierarchy = build_hierarchy(self.unit_bounds(), self.units.of_object, scene.tree_parent,
                                              scene.tree_object, self.max_children, self.units.trees, object_tree)
@@ -193,7 +198,7 @@ class Culler:
             arrays += [h.bounds, h.first_child, h.child_count, h.leaf_unit, h.parent, h.depth]
         return sum(a.nbytes for a in arrays) / 2**20
 
-    def replace_scene(self, scene):
+    def replace_scene(self, scene: Scene) -> None:
         """A new version of the scene (objects added, removed or edited), on the same
         GL context and settings.  Meshes that are the very same arrays as before keep
         their chunk subtrees (see :class:`core.units.ChunkCache`); when the objects,
@@ -216,12 +221,25 @@ class Culler:
     def __len__(self):
         return len(self.scene)
 
-    def set_strategy(self, name, max_tests=8):
+    def set_strategy(self, name: str, max_tests: int = 8) -> None:
         """Switch strategy without re-uploading the scene."""
         self.strategy = make_strategy(name, max_tests)
         self.strategy_name, self.max_tests = name, max_tests
 
-    def set_matrices(self, indices, matrices):
+    def set_options(self, options: CullOptions) -> None:
+        """New accuracy settings (tiles, threshold, guard, chunk) for the next passes."""
+        self.options = options
+
+    def forget(self, everything: bool = False) -> None:
+        """A fresh pass is asked (a click, a camera cut, a scene edit): the strategy drops
+        what it learnt that could cost accuracy (:meth:`core.cull.Strategy.forget`), or,
+        with ``everything``, all of it (the next pass is a new engine's first)."""
+        if everything:
+            self.strategy.reset()
+        else:
+            self.strategy.forget()
+
+    def set_matrices(self, indices: ArrayLike, matrices: ArrayLike) -> None:
         """Objects moved: new world matrices ``(k, 4, 4)`` for ``indices``; refits the hierarchy."""
         idx = np.asarray(indices, dtype=np.int64).reshape(-1)
         m = np.asarray(matrices, dtype=np.float64).reshape(-1, 4, 4)
@@ -239,7 +257,7 @@ class Culler:
         if self.hierarchy is not None:
             self.hierarchy.refit(self.unit_bounds())
 
-    def unit_bounds(self):
+    def unit_bounds(self) -> NDArray[np.float64]:
         """World boxes of the draw units, ``(u, 2, 3)``; :data:`EMPTY_BOX` for the
         units of invalid objects."""
         invalid = self.scene.invalid
@@ -251,7 +269,7 @@ class Culler:
         ub[invalid[self.units.object]] = EMPTY_BOX
         return ub
 
-    def truth(self, camera):
+    def truth(self, camera: Camera) -> NDArray[np.bool_]:
         """Exact visible set at the query resolution from an object-ID buffer, ``(n,) bool``.
 
         Invalid objects (NaN or infinite values) count as visible: nothing can be
@@ -264,7 +282,8 @@ class Culler:
         out[ids[ids >= 0]] = True
         return out
 
-    def cull(self, camera, truth=None, fresh=False, envelope=None, lights=None):
+    def cull(self, camera: Camera, truth: NDArray[np.bool_] | None = None, fresh: bool = False,
+             envelope=None, lights=None) -> CullResult:
         """One culling pass from ``camera``; ``truth`` is needed by the oracle only;
         ``fresh``: forget what earlier passes taught the strategy (its answer is
         then that of a new engine's first pass); ``envelope``: ``(D, A)`` or a
@@ -304,7 +323,7 @@ class Culler:
         stats.update(self._counts(state))
         return CullResult(state, stats, np.zeros((0, 0), bool))
 
-    def scene_bounds(self):
+    def scene_bounds(self) -> NDArray[np.float64]:
         """``(2, 3)``: the box of every valid object (where any shadow can fall)."""
         ok = ~self.scene.invalid
         if not ok.any():
@@ -323,7 +342,7 @@ class Culler:
             "triangles_visible": int(tri[state == Visibility.VISIBLE].sum()),
         }
 
-    def close(self):
+    def close(self) -> None:
         self.renderer.release()
 
     def __enter__(self):

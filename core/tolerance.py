@@ -60,6 +60,11 @@ class Tolerance:
     # pass hides).
     coherence_turn_deg: float = 3.0
     coherence_projection_rel: float = 1e-9
+    # The guard's floors (CullPass.guard and its GLSL twin, core/gl/glsl/guard.glsl):
+    # of a division by a length, and of the nearest eye depth relative to the farthest
+    # corner's distance (a box whose nearest point is at the eye still grows finitely).
+    guard_tiny: float = 1e-300
+    guard_near_w_rel: float = 1e-12
 
 
 tol = Tolerance()

@@ -412,3 +412,30 @@ def test_huge_and_infinite_boxes_keep_their_samples(ctx, path):
     with np.errstate(over="raise"):
         assert r.query(big - cam.eye).tolist() == [64, 32, 64, 32]
     r.release()
+
+
+class _Attached:
+    def __init__(self, renderer):
+        self.renderer, self.released = renderer, 0
+
+    def release(self):
+        self.released += 1
+
+
+@pytest.mark.parametrize("path", PATHS)
+def test_each_path_is_a_renderer_and_keeps_its_attachments(ctx, path):
+    """Both paths implement the Renderer interface; an attachment is made once per key
+    (nothing kept when its factory raises) and released with the renderer."""
+    from core.gl import Renderer
+    r = GLRenderer(boxes_scene([((-4, -4, 0), (0, 4, 1))]), 8, 8, ctx=ctx, path=path)
+    assert isinstance(r, Renderer) and r.path == path
+    a = r.attachment("probe", _Attached)
+    assert r.attachment("probe", _Attached) is a and a.renderer is r
+
+    def refuse(_renderer):
+        raise RuntimeError("no")
+    with pytest.raises(RuntimeError):
+        r.attachment("other", refuse)
+    assert r.attachment("other", _Attached) is not a
+    r.release()
+    assert a.released == 1

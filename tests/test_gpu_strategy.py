@@ -1,4 +1,4 @@
-"""The GPU-resident strategy (``gpu``, core/gl/gpucull.py): zero false negatives
+"""The GPU-resident strategy (``gpu``, core/gl/gpucull.py and its shaders): zero false negatives
 against the object-ID truth, exact states on tiny targets, its GL calls and reads
 per pass, the fallback where its path cannot run, and ``auto`` using it.
 
@@ -301,8 +301,13 @@ def test_falls_back_to_om_coherent_on_the_41_path(ctx, monkeypatch):
 def test_a_driver_that_refuses_the_shaders_falls_back_with_a_warning(ctx, monkeypatch):
     """Shaders the driver does not compile (here a real compile error): a warning that
     says so, om_coherent's answers, no false negative."""
-    from core.gl import gpucull
-    monkeypatch.setattr(gpucull, "PREPARE", gpucull.PREPARE.replace("void main() {", "void main() { oops;", 1))
+    from core.gl import gpucull, shaders
+    read = shaders.read
+
+    def broken(name):
+        text = read(name)
+        return text.replace("void main() {", "void main() { oops;", 1) if name == gpucull.PREPARE else text
+    monkeypatch.setattr(shaders, "read", broken)
     scene, cams, _ = scenes.random_city(5, 200)
     with Culler(scene, (64, 48), strategy="gpu", ctx=ctx) as c:
         if not on_43(c):

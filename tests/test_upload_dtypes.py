@@ -5,8 +5,7 @@ import numpy as np
 import pytest
 
 from core import Scene
-from core.gl import GLRenderer
-from core.gl import renderer as R
+from core.gl import GLRenderer, upload
 from core.subdivision import build_tree
 from core.units import chunked
 
@@ -41,8 +40,8 @@ def test_scene_widens_other_dtypes():
 def test_upload_blocks_match_whole_arrays(ctx, monkeypatch, block):
     """Small meshes batched, heavy ones in blocks, a chunked one in its face order: the
     VBO and IBO read back equal the old whole-array upload (float64 recentring, then float32)."""
-    monkeypatch.setattr(R, "UPLOAD_BLOCK", block)
-    monkeypatch.setattr(R._upload_blocks, "__defaults__", (block,))
+    monkeypatch.setattr(upload, "UPLOAD_BLOCK", block)
+    monkeypatch.setattr(upload.upload_blocks, "__defaults__", (block,))
     rng = np.random.default_rng(2)
     meshes = (_meshes(rng, [(5, 3), (9, 12), (300, 900), (2, 1)], np.float32, np.int32)
               + _meshes(rng, [(40, 70)], np.float64, np.int64))

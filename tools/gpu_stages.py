@@ -23,7 +23,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from core import Camera, Culler, load_scene  # noqa: E402
 from core.gl import gpucull as G  # noqa: E402
-from core.jobs import resolve_cameras, resolve_scene  # noqa: E402
+from core.lab.jobs import resolve_cameras, resolve_scene  # noqa: E402
 
 
 def timed_run(times):

@@ -4,28 +4,40 @@ the papers' one-query-at-a-time traversals."""
 import heapq
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ..errors import OccError
 from .result import Visibility
+from .view_pass import CullPass
 
 
 class Strategy:
-    """Base of the strategies: stateless unless a subclass keeps something."""
+    """What every strategy is: called once per pass on a :class:`CullPass`, it draws what
+    it finds visible, marks what it proves occluded and counts in ``cp.stats``.
 
-    def __call__(self, cp, chunk=16, truth=None):
+    What it keeps between passes is its own, and three calls tell it what changed:
+
+    - :meth:`reset`: everything learnt is void (a new scene, ``cull(fresh=True)``): the
+      next pass is a new engine's first;
+    - :meth:`forget`: a fresh pass is asked (the add-on: a click, a camera cut, an edit):
+      drop what could cost accuracy, keep what only orders the work;
+    - :meth:`moved`: objects moved: drop what their old places proved.
+
+    By default each drops everything.  A strategy that keeps nothing is stateless.
+    """
+
+    def __call__(self, cp: CullPass, chunk: int = 16, truth: NDArray[np.bool_] | None = None) -> None:
         raise NotImplementedError
 
-    def reset(self):
-        """Forget what earlier passes taught (objects moved, a camera cut, a new scene)."""
+    def reset(self) -> None:
+        """Everything learnt is void: the next pass is a new engine's first."""
 
-    # A fresh pass asked (the add-on: a camera cut, a scene change): forget what would
-    # cost accuracy; by default everything
-    forget = reset
+    def forget(self) -> None:
+        """A fresh pass is asked: by default, :meth:`reset`."""
+        self.reset()
 
-    def moved(self, objects=None):
-        """Objects moved (``Culler.set_matrices``; ``objects``: their indices, None:
-        any): by default, forget everything; a strategy whose memory only orders its
-        work may keep it."""
+    def moved(self, objects: NDArray[np.int64] | None = None) -> None:
+        """Objects moved (``objects``: their indices, None: any): by default, :meth:`reset`."""
         self.reset()
 
 

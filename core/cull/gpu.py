@@ -142,7 +142,7 @@ class Gpu(Strategy):
     @staticmethod
     def _record(cp, words):
         """The states and counters of the pass from the units' words."""
-        from ..gl import gpucull as G
+        from ..gl import layout as G
         state = (words & G.STATE).astype(np.uint8)
         cp.state[:] = state
         drawn = (words & (G.DRAWN1 | G.DRAWN2)) != 0

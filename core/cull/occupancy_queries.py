@@ -71,8 +71,6 @@ class OmMulti(Strategy):
         """Drop the memory of visible leaves (objects moved, or a fresh pass asked)."""
         self.memory.reset()
 
-    forget = reset
-
     def _draw_remembered(self, cp):
         if not self.memory.holds(cp):
             return
@@ -141,8 +139,6 @@ class TwoPass(Strategy):
 
     def reset(self):
         self.memory.reset()
-
-    forget = reset
 
     def __call__(self, cp, chunk=16, truth=None):
         self.memory.start(cp)

@@ -221,11 +221,11 @@ class CullPass:
             far_abs = np.maximum(np.abs(b[:, MIN]), np.abs(b[:, MAX]))
             far_norm = np.sqrt((far_abs * far_abs).sum(axis=1))
             near_norm = np.sqrt((near_abs * near_abs).sum(axis=1))
-            v_min = near_abs / np.maximum(far_norm, 1e-300)[:, None]
-            v_max = np.minimum(far_abs / np.maximum(near_norm, 1e-300)[:, None], 1.0)
+            v_min = near_abs / np.maximum(far_norm, tol.guard_tiny)[:, None]
+            v_max = np.minimum(far_abs / np.maximum(near_norm, tol.guard_tiny)[:, None], 1.0)
             # moving a point by s along its ray lowers its eye depth by s * w / |p| >= s * near_w / far_norm
             tie = (tol.depth_guard_steps * self.depth_step * far_w ** 2
-                   * far_norm / np.maximum(near_w, 1e-300 + 1e-12 * far_norm))
+                   * far_norm / np.maximum(near_w, tol.guard_tiny + tol.guard_near_w_rel * far_norm))
         else:
             lateral = np.full(k, pixels * self.pixel_world)
             v_min = v_max = np.broadcast_to(np.abs(self.camera.direction), (k, 3))

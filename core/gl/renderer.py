@@ -7,16 +7,19 @@ and per draw unit an index range.  Matrices are made camera-relative in float64
 scene 1e6 units from the origin renders as well as one at it; this is done in
 ``draw`` for the units drawn, never for the whole scene per frame.
 
-Two GL paths (see :mod:`core.gl.context`; ``OCC_GL=4.1`` forces the second):
+Two GL paths (see :mod:`core.gl.context`; ``OCC_GL=4.1`` forces the second), two
+implementations of the :class:`Renderer` interface on one base class
+(:class:`BaseRenderer`, what both share: geometry, targets, reduction, truth):
 
-- 4.3: a ``draw`` is one ``glMultiDrawElementsIndirect`` whose commands and per-draw
-  MVPs go up in one buffer write (a ring of draw data, picked by baseInstance).  A
-  query batch is ONE instanced draw of all its boxes (corners expanded in the vertex
-  shader), early depth test ``<=``, no depth or colour write; every passing fragment
-  adds one to its box's counter in a storage buffer (or, with ``counts=False``, sets
-  its flag), read back once per batch; each pending batch owns its buffer.
-- 4.1 (macOS): one draw per unit with a uniform MVP, one occlusion query object per
-  box, one blocking read per box.
+- 4.3 (:class:`core.gl.renderer_43.Renderer43`): a ``draw`` is one
+  ``glMultiDrawElementsIndirect`` whose commands and per-draw MVPs go up in one buffer
+  write (a ring of draw data, picked by baseInstance).  A query batch is ONE instanced
+  draw of all its boxes (corners expanded in the vertex shader), early depth test
+  ``<=``, no depth or colour write; every passing fragment adds one to its box's
+  counter in a storage buffer (or, with ``counts=False``, sets its flag), read back
+  once per batch; each pending batch owns its buffer.
+- 4.1 (macOS, :class:`core.gl.renderer_41.Renderer41`): one draw per unit with a
+  uniform MVP, one occlusion query object per box, one blocking read per box.
 
 Both give the same samples per box: the samples of the box's front faces (chosen
 from the sign of the view-projection's determinant, so a mirrored camera works) that
@@ -35,34 +38,33 @@ pixel (measured at the box's farthest point); the renderer does not grow boxes.
 orphans, uniform writes, query begin/end, reads, memory barriers, finish; state
 toggles are set only when they change and not counted), ``blocking_reads``,
 ``query_fragments`` (samples passed in query draws), ``draws``, ``query_batches``.
+
+Hooks for passes built on the renderer (:mod:`core.gl.gpucull`): :meth:`~BaseRenderer.count_gl`,
+:meth:`~BaseRenderer.use_draw_target`, :meth:`~BaseRenderer.use_query_target`,
+:meth:`~BaseRenderer.mark_drawn`, :meth:`~BaseRenderer.reduce`, and
+:meth:`~BaseRenderer.attachment` (GPU objects made once per renderer and released with it).
 """
 
 import weakref
+from typing import Callable, Protocol, TypeVar, runtime_checkable
 
 import numpy as np
 
-from ..bounds import corners, transform_boxes
+from ..bounds import transform_boxes
 from ..errors import OccError
-from . import shaders as S
+from . import shaders
 from .context import choose_path, create_context
+from .layout import BOX_TRIANGLES  # noqa: F401  (re-exported: the renderer's box triangles)
+from .upload import box_vertices, upload_blocks
 
-GL_BUFFER_UPDATE_BARRIER_BIT = 0x200   # shader writes visible to buffer reads/maps
-SSBO_ALIGN = 256                        # >= GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT everywhere
-CMD_BYTES = 20                          # one DrawElementsIndirectCommand
-# Per-draw instance record of the 4.3 stream: column-major MVP and object id.
-RECORD = np.dtype([("mvp", "<f4", (16,)), ("id", "<u4")])
-STREAM_ALIGN = 340                      # lcm(CMD_BYTES, RECORD.itemsize): a chunk starts on both
 # GL state this package set last, per context: renderers sharing a context share it.
 _CONTEXT_STATE = weakref.WeakKeyDictionary()
 F32_SAFE = 1e30                         # far inside float32's range, after a projection too
 NDC_CORNERS = np.array([(x, y, z, 1.0) for z in (-1, 1) for y in (-1, 1) for x in (-1, 1)])
 COUNTER_KEYS = ("gl_calls", "blocking_reads", "query_fragments", "draws", "query_batches")
-BOX_TRIANGLES = S.BOX_TRIANGLES
+T = TypeVar("T")
 
-
-def box_vertices(boxes):
-    """Triangle-list vertices of boxes: ``(k, 2, 3)`` -> ``(k * 36, 3) float32``."""
-    return corners(boxes)[:, BOX_TRIANGLES].reshape(-1, 3).astype(np.float32)
+__all__ = ["BaseRenderer", "GLRenderer", "PendingQuery", "Renderer", "box_vertices"]
 
 
 def _view_extent(clip):
@@ -77,11 +79,11 @@ def _view_extent(clip):
     return float(min(2.0 * r, F32_SAFE)) if np.isfinite(r) else F32_SAFE
 
 
-def _ceil_to(x, m):
+def ceil_to(x, m):
     return -(-x // m) * m
 
 
-def _pow2(x, least=64):
+def pow2(x, least=64):
     return max(least, 1 << int(np.ceil(np.log2(max(x, 1)))))
 
 
@@ -97,7 +99,7 @@ class PendingQuery:
     def __init__(self, read, drop=None):
         self._read, self._drop, self._samples = read, drop, None
 
-    def result(self):
+    def result(self) -> np.ndarray:
         """Samples passed per box, ``(k,) int64`` (0 = hidden); blocks the first time."""
         if self._samples is None:
             self._samples = self._read()
@@ -114,87 +116,102 @@ class PendingQuery:
 _DONE_EMPTY = np.zeros(0, dtype=np.int64)
 
 
-class _Slot:
-    """A 4.3 query batch's own buffer: float32 boxes (lo, hi) at 0, uint counters after."""
+@runtime_checkable
+class Renderer(Protocol):
+    """What the engine, the strategies and the truth passes use of a renderer (both
+    GL paths implement it; see the module doc)."""
 
-    def __init__(self, ctx, progs, cap):
-        self.cap = cap
-        self.unfenced = False           # shader writes not yet behind a memory barrier
-        self.counts_at = _ceil_to(cap * 24, SSBO_ALIGN)
-        self.buffer = ctx.buffer(reserve=self.counts_at + 4 * cap)
-        # one vertex array per box program (sample counters, flags) on the same buffer
-        self.vaos = {kind: ctx.vertex_array(p, [(self.buffer, "3f 3f/i", "in_lo", "in_hi")])
-                     for kind, p in progs.items()}
+    path: str                       # "4.3" or "4.1"
+    width: int                      # the query resolution
+    height: int
+    display: tuple                  # the display resolution (w, h), >= the query resolution
+    reduces: bool                   # display != query resolution
+    n: int                          # objects
+    units: object                   # core.units draw units
+    tri_counts: np.ndarray          # (units,) triangles of each unit
+    counters: dict                  # module doc; reset by begin_frame
+    own_ctx: bool                   # release() releases the context too
+    eye: np.ndarray                 # (3,) float64, this frame's
+    clip: np.ndarray                # (4, 4) float64 camera-relative view-projection, this frame's
+    world: np.ndarray               # (n, 4, 4) float64 world matrices, mesh centre folded in
+    model: np.ndarray               # (n, 4, 4) float64 world matrices as given
 
-
-UPLOAD_BLOCK = 1 << 16      # rows per block of the geometry upload (~1.5 MB of float64 vertices)
-
-
-def _upload_blocks(meshes, centres, vstart, orders, block=UPLOAD_BLOCK):
-    """The vertex and index buffers' contents in order, as ``("v", (k, 3) float32)`` and
-    ``("i", (j,) uint32)`` blocks of about ``block`` rows: vertices recentred on their
-    mesh's centre in float64, then rounded to float32 (the precision rule: small
-    offsets from the centre, whatever the data's own dtype); faces in chunk order where
-    a mesh is chunked, as absolute indices.  Small meshes go in batches (a few numpy
-    calls per batch, not per mesh); a heavy mesh goes block by block."""
-    def batch_out(ms):
-        vs = [meshes[m][0] for m in ms]
-        vn = np.array([len(v) for v in vs], dtype=np.int64)
-        v = np.concatenate(vs) - np.repeat(centres[ms], vn, axis=0)
-        fs = [meshes[m][1] if orders[m] is None else meshes[m][1][orders[m]] for m in ms]
-        fn = np.array([len(f) for f in fs], dtype=np.int64)
-        f = np.concatenate(fs).astype(np.int64) + np.repeat(vstart[ms], fn)[:, None]
-        return ("v", v.astype(np.float32)), ("i", f.astype(np.uint32).ravel())
-
-    batch, rows = [], 0
-    for m, (v, f) in enumerate(meshes):
-        if len(v) <= block and len(f) <= block:
-            batch.append(m)
-            rows += max(len(v), len(f))
-            if rows >= block:
-                yield from batch_out(batch)
-                batch, rows = [], 0
-            continue
-        if batch:
-            yield from batch_out(batch)
-            batch, rows = [], 0
-        for b in range(0, len(v), block):
-            yield "v", (v[b:b + block] - centres[m]).astype(np.float32)
-        order = orders[m]
-        for b in range(0, len(f), block):
-            rows_f = f[b:b + block] if order is None else f[order[b:b + block]]
-            yield "i", (rows_f.astype(np.int64) + vstart[m]).astype(np.uint32).ravel()
-    if batch:
-        yield from batch_out(batch)
+    def activate(self) -> None: ...
+    def set_matrices(self, indices, matrices) -> None: ...
+    def begin_frame(self, camera) -> None: ...
+    def draw(self, units, rects=None) -> int: ...
+    def query(self, boxes_rel, counts: bool = True) -> np.ndarray: ...
+    def query_async(self, boxes_rel, counts: bool = True) -> PendingQuery: ...
+    def finish(self) -> None: ...
+    def read_depth(self, display: bool = False) -> np.ndarray: ...
+    def object_ids(self, camera, objects=None, display: bool = False) -> np.ndarray: ...
+    def ids_and_depth(self, camera, size, objects=None) -> tuple: ...
+    def visible_truth(self, camera, display: bool = False) -> np.ndarray: ...
+    def release(self) -> None: ...
 
 
-class GLRenderer:
+def GLRenderer(scene, width: int, height: int, ctx=None, units=None, display=None,  # noqa: N802
+               path: str | None = None) -> "BaseRenderer":
+    """The renderer of ``scene`` on ``ctx`` (a new context when None, released with the
+    renderer) for GL ``path`` (default ``OCC_GL``, else the best the context has): a
+    :class:`~core.gl.renderer_43.Renderer43` or :class:`~core.gl.renderer_41.Renderer41`.
+    A factory named as the class it was, so call sites construct it as before."""
+    from .renderer_41 import Renderer41
+    from .renderer_43 import Renderer43
+    check_resolution(width, height, display)      # before a context is made
+    own = ctx is None
+    ctx = create_context() if own else ctx
+    cls = {"4.3": Renderer43, "4.1": Renderer41}[choose_path(ctx, path)]
+    r = cls(scene, width, height, ctx=ctx, units=units, display=display)
+    r.own_ctx = own
+    return r
+
+
+def check_resolution(width, height, display=None):
+    """``((w, h), (dw, dh))`` the query and display resolutions; an :class:`OccError`
+    naming the sizes where one is empty or the display is smaller than the query's."""
+    if width < 1 or height < 1:
+        raise OccError(f"resolution must be at least 1x1, got {width}x{height}")
+    w, h = int(width), int(height)
+    dw, dh = (w, h) if display is None else (int(display[0]), int(display[1]))
+    if dw < w or dh < h:
+        raise OccError(f"display resolution {dw}x{dh} must be at least the query resolution {w}x{h}")
+    return (w, h), (dw, dh)
+
+
+class BaseRenderer:
     """The scene on the GPU: depth drawing at the display resolution, queries and ID
-    truth at ``width x height`` (the query resolution).  See the module doc."""
+    truth at ``width x height`` (the query resolution).  What both GL paths share;
+    a subclass per path draws units, issues query batches and owns its programs
+    (the methods marked "per path").  See the module doc."""
 
-    def __init__(self, scene, width, height, ctx=None, units=None, display=None, path=None):
-        if width < 1 or height < 1:
-            raise OccError(f"resolution must be at least 1x1, got {width}x{height}")
-        from ..units import whole_objects
+    path = ""                       # per path: "4.3" or "4.1"
 
-        self.width, self.height = int(width), int(height)
-        dw, dh = (self.width, self.height) if display is None else (int(display[0]), int(display[1]))
-        if dw < self.width or dh < self.height:
-            raise OccError(f"display resolution {dw}x{dh} must be at least the query "
-                           f"resolution {self.width}x{self.height}")
-        self.display = (dw, dh)
+    def __init__(self, scene, width: int, height: int, ctx=None, units=None, display=None):
+        (self.width, self.height), self.display = check_resolution(width, height, display)
         self.reduces = self.display != (self.width, self.height)
         self.own_ctx = ctx is None
         self.ctx = ctx if ctx is not None else create_context()
-        self.path = choose_path(self.ctx, path)
-        ctx = self.ctx
+        choose_path(self.ctx, self.path)              # an error where the context lacks the path
         self.activate()
         self.counters = dict.fromkeys(COUNTER_KEYS, 0)
+        self._upload_geometry(scene, units)
+        self._init_path()
+        if self.reduces:
+            self._init_reduction()
+        self._init_targets()
+        self._init_frame_state()
+
+    # --- set-up ------------------------------------------------------------------------
+    def _upload_geometry(self, scene, units):
+        """The vertex and index buffers (written block by block into buffers of their
+        final size: no whole-scene or whole-mesh float64 / int64 copy), each unit's
+        indirect command, and the objects' matrices."""
+        from ..units import whole_objects
         n = len(scene)
         self.n = n
         self.units = units if units is not None else whole_objects(scene)
         self.tri_counts = self.units.count
-        # --- geometry, uploaded once -------------------------------------------
         centres = 0.5 * (scene.mesh_bounds[:, 0] + scene.mesh_bounds[:, 1])
         vcount = np.array([len(v) for v, _ in scene.meshes], dtype=np.int64)
         icount = np.array([3 * len(f) for _, f in scene.meshes], dtype=np.int64)
@@ -202,12 +219,10 @@ class GLRenderer:
         istart = np.cumsum(icount) - icount
         if vcount.sum() >= 2**32:
             raise OccError("scenes of more than 4 billion vertices are not supported")
-        # written block by block into buffers of their final size: no whole-scene or
-        # whole-mesh float64 / int64 copy (a few MB of temporaries at any size)
-        self.vbo = ctx.buffer(reserve=max(12 * int(vcount.sum()), 12))
-        self.ibo = ctx.buffer(reserve=max(4 * int(icount.sum()), 4))
+        self.vbo = self.ctx.buffer(reserve=max(12 * int(vcount.sum()), 12))
+        self.ibo = self.ctx.buffer(reserve=max(4 * int(icount.sum()), 4))
         at = {"v": 0, "i": 0}
-        for which, data in _upload_blocks(scene.meshes, centres, vstart, self.units.face_order):
+        for which, data in upload_blocks(scene.meshes, centres, vstart, self.units.face_order):
             buf = self.vbo if which == "v" else self.ibo
             buf.write(data, offset=at[which])
             at[which] += data.nbytes
@@ -222,27 +237,35 @@ class GLRenderer:
         self.object_offset = np.repeat(np.eye(4)[None], max(n, 1), axis=0)
         if n:
             self.object_offset[:n, :3, 3] = centres[scene.mesh_of]
+        self.world = np.repeat(np.eye(4)[None], max(n, 1), axis=0)
+        self.model = self.world.copy()
         self.set_matrices(np.arange(n), scene.matrices)
-        # --- programs, vertex arrays, query resources ---------------------------
-        if self.path == "4.3":
-            self._init_43()
+
+    def _init_path(self):
+        """Per path: programs, vertex arrays and query resources."""
+        raise NotImplementedError
+
+    def _init_reduction(self):
+        """The display -> query depth reduction's program: one textureGather per 2 x 2
+        display pixels where the display is an even multiple of the query resolution,
+        else the general loop."""
+        (dw, dh), (w, h) = self.display, (self.width, self.height)
+        if dw % w == 0 and dh % h == 0 and (dw // w) % 2 == 0 and (dh // h) % 2 == 0:
+            self.reduce_prog = self.program("fullscreen.vert.glsl", "reduce_gather.frag.glsl",
+                                            RX=dw // w, RY=dh // h)
+            self.reduce_prog["u_texel"].value = (1.0 / dw, 1.0 / dh)
         else:
-            self._init_41()
-        if self.reduces:
-            (dw, dh), (w, h) = self.display, (self.width, self.height)
-            if dw % w == 0 and dh % h == 0 and (dw // w) % 2 == 0 and (dh // h) % 2 == 0:
-                self.reduce_prog = self._program(S.FULLSCREEN_VERTEX, S.REDUCE_GATHER_FRAGMENT
-                                                 % {"rx": dw // w, "ry": dh // h})
-                self.reduce_prog["u_texel"].value = (1.0 / dw, 1.0 / dh)
-            else:
-                self.reduce_prog = self._program(S.FULLSCREEN_VERTEX, S.REDUCE_FRAGMENT)
-                self.reduce_prog["u_display"].value = self.display
-                self.reduce_prog["u_query"].value = (w, h)
-            self.reduce_prog["u_depth"].value = 0
-            self.reduce_vao = ctx.vertex_array(self.reduce_prog, [])
-        # --- targets ------------------------------------------------------------
-        size = (self.width, self.height)
-        self.depth_tex = ctx.depth_texture(size)          # what queries test against
+            self.reduce_prog = self.program("fullscreen.vert.glsl", "reduce.frag.glsl")
+            self.reduce_prog["u_display"].value = self.display
+            self.reduce_prog["u_query"].value = (w, h)
+        self.reduce_prog["u_depth"].value = 0
+        self.reduce_vao = self.ctx.vertex_array(self.reduce_prog, [])
+
+    def _init_targets(self):
+        """The query-resolution depth (what queries test against) and, with a larger
+        display, the display's depth and the reduction's target."""
+        ctx = self.ctx
+        self.depth_tex = ctx.depth_texture((self.width, self.height))
         self.query_fbo = ctx.framebuffer(depth_attachment=self.depth_tex)
         self.query_fbo.depth_mask = False                  # query boxes never write depth
         if self.reduces:
@@ -256,6 +279,8 @@ class GLRenderer:
             self.display_tex = self.depth_tex
             self.fbo = ctx.framebuffer(depth_attachment=self.depth_tex)
         self.id_fbos = {}
+
+    def _init_frame_state(self):
         self.eye = np.zeros(3)
         self.clip = np.eye(4)
         self.front_face = "ccw"
@@ -264,62 +289,30 @@ class GLRenderer:
         self._dirty = None             # query-pixel rectangle drawn at display resolution since
                                        # the last reduction, [x0, y0, x1, y1] inclusive, or None
         self._state = _CONTEXT_STATE.setdefault(self.ctx, {})
+        self._attachments = {}
 
-    # --- set-up per path -----------------------------------------------------------
-    def _program(self, vertex, fragment):
-        return self.ctx.program(vertex_shader=S.source(vertex, self.path),
-                                fragment_shader=S.source(fragment, self.path))
+    def program(self, vertex: str, fragment: str, **defines):
+        """A program of ``core/gl/glsl`` files for this path; ``defines`` go before each."""
+        return self.ctx.program(vertex_shader=shaders.source(vertex, self.path, defines),
+                                fragment_shader=shaders.source(fragment, self.path, defines))
 
-    def _init_43(self):
-        ctx = self.ctx
-        self.depth_prog = self._program(S.SCENE_VERTEX_43, S.DEPTH_FRAGMENT)
-        self.id_prog = self._program(S.ID_VERTEX_43, S.ID_FRAGMENT)
-        self.box_progs = {True: self._program(S.BOX_VERTEX_43, S.BOX_COUNT_FRAGMENT_43),
-                          False: self._program(S.BOX_VERTEX_43, S.BOX_FLAG_FRAGMENT_43)}
-        # The draw stream, a ring: chunks of [indirect commands | per-instance records]
-        # appended frame after frame; when full it is orphaned (draws in flight keep the
-        # old storage) and filled again from 0.
-        self.stream_size = _pow2(STREAM_ALIGN + (CMD_BYTES + RECORD.itemsize) * max(len(self.units), 1)
-                                 + RECORD.itemsize, least=4096)
-        self.stream = ctx.buffer(reserve=self.stream_size)
-        self.stream_at = 0
-        self.depth_vao = ctx.vertex_array(self.depth_prog, [(self.vbo, "3f", "in_pos"),
-                                                            (self.stream, "16f 4x/i", "in_mvp")],
-                                          index_buffer=self.ibo, index_element_size=4)
-        self.id_vao = ctx.vertex_array(self.id_prog, [(self.vbo, "3f", "in_pos"),
-                                                      (self.stream, "16f u/i", "in_mvp", "in_id")],
-                                       index_buffer=self.ibo, index_element_size=4)
-        self.free_slots = {}           # capacity -> [_Slot], batches not pending
-        self.slots = []
-
-    def _init_41(self):
-        ctx = self.ctx
-        self.depth_prog = self._program(S.SCENE_VERTEX_41, S.DEPTH_FRAGMENT)
-        self.id_prog = self._program(S.ID_VERTEX_41, S.ID_FRAGMENT)
-        self.box_progs = {True: self._program(S.BOX_VERTEX_41, S.DEPTH_FRAGMENT)}
-        self.depth_vao = ctx.vertex_array(self.depth_prog, [(self.vbo, "3f", "in_pos")],
-                                          index_buffer=self.ibo, index_element_size=4)
-        self.id_vao = ctx.vertex_array(self.id_prog, [(self.vbo, "3f", "in_pos")],
-                                       index_buffer=self.ibo, index_element_size=4)
-        self.box_capacity = 0
-        self.box_vbo = None
-        self.box_vao = None
-        self.free_queries = []         # query objects not held by a pending batch
-
-    def activate(self):
+    # --- hooks for passes built on the renderer (core.gl.gpucull) -----------------------
+    def activate(self) -> None:
         """Make this renderer's context current: several renderers (each with its own
         context) may be alive at once, and GL calls go to whichever is current."""
         self.ctx.__enter__()
 
-    def _count(self, calls=1, reads=0, draws=0):
+    def count_gl(self, calls: int = 1, reads: int = 0, draws: int = 0, batches: int = 0) -> None:
+        """Add GL work done on this renderer's behalf to ``counters`` (module doc)."""
         c = self.counters
         c["gl_calls"] += calls
         c["blocking_reads"] += reads
         c["draws"] += draws
+        c["query_batches"] += batches
 
-    def _use(self, fbo, depth_func, cull):
+    def use_target(self, fbo, depth_func: str, cull: bool) -> None:
         """Bind ``fbo`` (it carries its depth mask) and set the depth function and face
-        culling, each only when it changes."""
+        culling (front faces: this frame's winding), each only when it changes."""
         st, ctx = self._state, self.ctx
         if st.get("fbo") is not fbo:
             fbo.use()
@@ -334,18 +327,60 @@ class GLRenderer:
             ctx.front_face = self.front_face
             st["front"] = self.front_face
 
-    # --- per frame -------------------------------------------------------------------
-    def set_matrices(self, indices, matrices):
+    def use_draw_target(self) -> None:
+        """Geometry: the display-resolution depth, test ``<``, both faces."""
+        self.use_target(self.fbo, "<", False)
+
+    def use_query_target(self) -> None:
+        """Query boxes: the query-resolution depth (no depth write), test ``<=``, front faces."""
+        self.use_target(self.query_fbo, "<=", True)
+
+    def mark_drawn(self, rects: np.ndarray | None = None) -> None:
+        """Something was drawn at the display resolution inside ``(k, 4) int`` query-pixel
+        rectangles (``x0, y0, x1, y1`` inclusive), or anywhere (None: the whole target):
+        the next :meth:`reduce` brings the query depth up to date there."""
+        if rects is None:
+            self._dirty = np.array([0, 0, self.width - 1, self.height - 1])
+            return
+        box = np.array([*rects[:, :2].min(axis=0), *rects[:, 2:].max(axis=0)])
+        if self._dirty is not None:
+            box = np.array([*np.minimum(box[:2], self._dirty[:2]), *np.maximum(box[2:], self._dirty[2:])])
+        self._dirty = box
+
+    def reduce(self) -> None:
+        """Bring the query-resolution depth up to date with the display-resolution
+        depth where something was drawn: each query pixel there gets the farthest
+        depth of the display pixels its area overlaps."""
+        if self._dirty is None:
+            return
+        x0, y0, x1, y1 = (int(v) for v in self._dirty)
+        # The rectangles cover every query pixel whose area a drawn box overlaps.
+        self.reduce_fbo.scissor = (x0, y0, x1 - x0 + 1, y1 - y0 + 1)
+        self.use_target(self.reduce_fbo, "1", False)      # "always": every pixel of the rectangle written
+        self.display_tex.use(0)
+        self.reduce_vao.render(vertices=3)
+        self.reduce_fbo.scissor = None              # bound: moderngl disables the scissor test now
+        self._dirty = None
+        self.count_gl(1, draws=1)
+
+    def attachment(self, key: str, factory: Callable[["BaseRenderer"], T]) -> T:
+        """The object attached to this renderer under ``key``, made by ``factory(self)``
+        the first time (nothing is kept where it raises); attachments hold GPU objects
+        of this renderer's context and are released with it (:meth:`release`)."""
+        got = self._attachments.get(key)
+        if got is None:
+            got = self._attachments[key] = factory(self)
+        return got
+
+    # --- per frame ---------------------------------------------------------------------
+    def set_matrices(self, indices, matrices) -> None:
         """Store world matrices ``(k, 4, 4)`` of objects ``indices`` (mesh centre folded in)."""
         m = np.asarray(matrices, dtype=np.float64).reshape(-1, 4, 4)
-        if not hasattr(self, "world"):
-            self.world = np.repeat(np.eye(4)[None], max(self.n, 1), axis=0)
-            self.model = self.world.copy()
         idx = np.asarray(indices, dtype=np.int64)
         self.model[idx] = m
         self.world[idx] = m @ self.object_offset[idx]
 
-    def begin_frame(self, camera):
+    def begin_frame(self, camera) -> None:
         """Start a pass from ``camera``: reset the counters, clear the depth buffer.
 
         Nothing per object: matrices are made in ``draw`` for what is drawn.
@@ -361,21 +396,21 @@ class GLRenderer:
         self._state.clear()                                # set everything once a frame
         self.ctx.enable(self.ctx.DEPTH_TEST)
         self.fbo.clear(depth=1.0)                          # leaves the bound framebuffer's mask as is
-        self._count()
+        self.count_gl()
         if self.reduces:                                   # an empty display reduces to an empty query depth
             self.reduce_fbo.clear(depth=1.0)
-            self._count()
+            self.count_gl()
         self._dirty = None
         self._vp_set = set()                               # box programs given this frame's matrix
 
-    def _mvps(self, units):
+    def mvps(self, units: np.ndarray) -> np.ndarray:
         """Camera-relative MVPs of ``units``: float64 math, then ``(k, 4, 4) float32``
         column-major (transposed) as GL reads them."""
         rel = self.world[self.units.object[units]]         # a copy (fancy indexing)
         rel[:, :3, 3] -= self.eye
         return np.ascontiguousarray((self.clip @ rel).transpose(0, 2, 1), dtype=np.float32)
 
-    def draw(self, units, rects=None):
+    def draw(self, units, rects=None) -> int:
         """Draw units (``(k,) int``) into the depth buffer; returns the triangles drawn.
 
         rects: ``(k, 4) int`` query-resolution pixel rectangles of the units' boxes,
@@ -386,14 +421,16 @@ class GLRenderer:
         units = np.asarray(units, dtype=np.int64)
         if not len(units):
             return 0
-        self._use(self.fbo, "<", False)
-        if self.path == "4.3":
-            self._draw_43(self.depth_vao, units)
-        else:
-            self._draw_41(self.depth_prog, self.depth_vao, units)
+        self.use_draw_target()
+        self._draw_units(units, ids=False)
         if self.reduces:
-            self._mark_dirty(self._unit_rects(units) if rects is None else np.asarray(rects))
+            self.mark_drawn(self._unit_rects(units) if rects is None else np.asarray(rects))
         return int(self.tri_counts[units].sum())
+
+    def _draw_units(self, units, ids):
+        """Per path: draw ``units`` into the bound target, with their ids (``ids``) or
+        depth only."""
+        raise NotImplementedError
 
     def _unit_rects(self, units):
         """Query-pixel rectangles of units' camera-relative boxes, rounded outward."""
@@ -401,52 +438,8 @@ class GLRenderer:
         boxes = transform_boxes(self.units.local_bounds[units], self.model[self.units.object[units]])
         return project_rects(boxes - self.eye, self.clip, self.width, self.height)[0]
 
-    def _mark_dirty(self, rects):
-        box = np.array([*rects[:, :2].min(axis=0), *rects[:, 2:].max(axis=0)])
-        if self._dirty is not None:
-            box = np.array([*np.minimum(box[:2], self._dirty[:2]), *np.maximum(box[2:], self._dirty[2:])])
-        self._dirty = box
-
-    def _draw_43(self, vao, units):
-        """One buffer write (commands and records) and one multi-draw."""
-        k = len(units)
-        need = STREAM_ALIGN + (CMD_BYTES + RECORD.itemsize) * k + RECORD.itemsize
-        if self.stream_at + need > self.stream_size:
-            self.stream_size = max(self.stream_size, _pow2(need))
-            self.stream.orphan(self.stream_size)           # pending draws keep the old storage
-            self.stream_at = 0
-            self._count()
-        at = self.stream_at
-        rec_at = _ceil_to(at + CMD_BYTES * k, RECORD.itemsize)
-        end = rec_at + RECORD.itemsize * k
-        blob = np.zeros(end - at, dtype=np.uint8)
-        cmds = self.commands[units]
-        cmds[:, 4] = rec_at // RECORD.itemsize + np.arange(k)   # baseInstance: this unit's record
-        blob[:CMD_BYTES * k] = cmds.view(np.uint8).ravel()
-        rec = np.zeros(k, dtype=RECORD)
-        rec["mvp"] = self._mvps(units).reshape(k, 16)
-        rec["id"] = self.units.object[units]
-        blob[rec_at - at:] = rec.view(np.uint8)
-        self.stream.write(blob, offset=at)
-        vao.render_indirect(self.stream, count=k, first=at // CMD_BYTES)
-        self.stream_at = _ceil_to(end, STREAM_ALIGN)
-        self._count(2, draws=1)
-
-    def _draw_41(self, prog, vao, units, ids=False):
-        """One uniform write and one draw per unit (no multi-draw, no baseInstance)."""
-        mvps = self._mvps(units)
-        mvp = prog["u_mvp"]
-        objs = self.units.object[units]
-        for i, unit in enumerate(units.tolist()):
-            mvp.write(mvps[i].tobytes())
-            if ids:
-                prog["u_id"].value = int(objs[i])
-            cmd = self.commands[unit]
-            vao.render(vertices=int(cmd[0]), first=int(cmd[2]))
-        self._count((3 if ids else 2) * len(units), draws=len(units))
-
     # --- queries -------------------------------------------------------------------
-    def query(self, boxes_rel, counts=True):
+    def query(self, boxes_rel, counts: bool = True) -> np.ndarray:
         """Samples of each camera-relative box ``(k, 2, 3)`` that pass ``<=`` the depth
         buffer, ``(k,) int64`` (0 = hidden).  One batch: issued, then read back.
 
@@ -456,7 +449,7 @@ class GLRenderer:
         """
         return self.query_async(boxes_rel, counts).result()
 
-    def query_async(self, boxes_rel, counts=True):
+    def query_async(self, boxes_rel, counts: bool = True) -> PendingQuery:
         """Issue a query batch now; its :class:`PendingQuery` reads the answer later, so
         CPU work can overlap the GPU.  Later draws do not change this batch's answer."""
         # Exact: clipped to a cube around the view frustum, a box keeps every sample it
@@ -466,22 +459,28 @@ class GLRenderer:
         if k == 0:
             return PendingQuery(lambda: _DONE_EMPTY.copy())
         self.counters["query_batches"] += 1
-        self._reduce()
+        self.reduce()
         # Front faces only (the side chosen by the camera's handedness): a queried box
         # never contains the eye (that box is visible by rule), so its front faces
         # cover its whole silhouette, each covered pixel centre once.
-        self._use(self.query_fbo, "<=", True)
+        self.use_query_target()
         counts = bool(counts)
-        prog = counts if self.path == "4.3" else True      # 4.1 has one box program
+        prog = self._box_program_key(counts)
         if prog not in self._vp_set:
             self.box_progs[prog]["u_vp"].write(np.ascontiguousarray(self.clip.T, dtype=np.float32).tobytes())
             self._vp_set.add(prog)
-            self._count()
-        if self.path == "4.3":
-            read, drop = self._issue_43(boxes_rel, counts)
-        else:
-            read, drop = self._issue_41(boxes_rel)
+            self.count_gl()
+        read, drop = self._issue(boxes_rel, counts)
         return PendingQuery(lambda: self._tally(read(), counts), drop)
+
+    def _box_program_key(self, counts):
+        """Per path: the key in ``box_progs`` of the program a batch draws with."""
+        raise NotImplementedError
+
+    def _issue(self, boxes_rel, counts):
+        """Per path: issue a batch; ``(read, drop)``: read its samples ``(k,) int64``
+        once, or give its resources back unread."""
+        raise NotImplementedError
 
     def _tally(self, samples, counts):
         if counts:
@@ -489,107 +488,30 @@ class GLRenderer:
             return samples
         return np.minimum(samples, 1)
 
-    def _issue_43(self, boxes_rel, counts):
-        k = len(boxes_rel)
-        cap = _pow2(k)
-        free = self.free_slots.setdefault(cap, [])
-        slot = free.pop() if free else None
-        if slot is None:
-            slot = _Slot(self.ctx, self.box_progs, cap)
-            self.slots.append(slot)
-        if slot.unfenced:               # dropped unread: its shader writes must land before ours
-            self.ctx.memory_barrier(GL_BUFFER_UPDATE_BARRIER_BIT)
-            self._count()
-        slot.unfenced = True
-        blob = np.zeros(slot.counts_at + 4 * k, dtype=np.uint8)     # counters start at 0
-        blob[:24 * k] = boxes_rel.reshape(k, 6).astype(np.float32).view(np.uint8).ravel()
-        slot.buffer.write(blob)
-        slot.buffer.bind_to_storage_buffer(0, offset=slot.counts_at, size=4 * k)
-        slot.vaos[counts].render(vertices=36, instances=k)
-        self._count(2, draws=1)
-
-        def read():
-            # The barrier here, not after the draw: it makes llvmpipe wait for the draw,
-            # and the batch is only waited for when it is read.
-            self.ctx.memory_barrier(GL_BUFFER_UPDATE_BARRIER_BIT)
-            slot.unfenced = False
-            raw = slot.buffer.read(size=4 * k, offset=slot.counts_at)
-            self.free_slots[cap].append(slot)
-            self._count(2, reads=1)
-            return np.frombuffer(raw, dtype=np.uint32).astype(np.int64)
-        return read, lambda: self.free_slots[cap].append(slot)
-
-    def _issue_41(self, boxes_rel):
-        k = len(boxes_rel)
-        self._reserve_boxes(k)
-        self.box_vbo.write(box_vertices(boxes_rel).tobytes())
-        while len(self.free_queries) < k:
-            self.free_queries.append(self.ctx.query(samples=True))
-        qs = [self.free_queries.pop() for _ in range(k)]
-        vao = self.box_vao
-        for i, q in enumerate(qs):             # one query per box; nothing read yet
-            with q:
-                vao.render(vertices=36, first=36 * i)
-        self._count(1 + 3 * k, draws=k)
-
-        def read():
-            samples = np.array([q.samples for q in qs], dtype=np.int64)
-            self.free_queries.extend(qs)
-            self._count(k, reads=k)
-            return samples
-        return read, lambda: self.free_queries.extend(qs)
-
-    def _reserve_boxes(self, k):
-        if k <= self.box_capacity:
-            return
-        cap = _pow2(k)
-        if self.box_vao is not None:
-            self.box_vao.release()
-            self.box_vbo.release()
-        self.box_vbo = self.ctx.buffer(reserve=cap * 36 * 12)
-        self.box_vao = self.ctx.vertex_array(self.box_progs[True], [(self.box_vbo, "3f", "in_pos")])
-        self.box_capacity = cap
-
-    def _reduce(self):
-        """Bring the query-resolution depth up to date with the display-resolution
-        depth where something was drawn: each query pixel there gets the farthest
-        depth of the display pixels its area overlaps."""
-        if self._dirty is None:
-            return
-        x0, y0, x1, y1 = (int(v) for v in self._dirty)
-        # The rectangles cover every query pixel whose area a drawn box overlaps.
-        self.reduce_fbo.scissor = (x0, y0, x1 - x0 + 1, y1 - y0 + 1)
-        self._use(self.reduce_fbo, "1", False)      # "always": every pixel of the rectangle written
-        self.display_tex.use(0)
-        self.reduce_vao.render(vertices=3)
-        self.reduce_fbo.scissor = None              # bound: moderngl disables the scissor test now
-        self._dirty = None
-        self._count(1, draws=1)
-
-    def finish(self):
+    def finish(self) -> None:
         self.ctx.finish()
-        self._count()
+        self.count_gl()
 
     @property
-    def device(self):
+    def device(self) -> str:
         """The OpenGL renderer string (e.g. 'llvmpipe (LLVM 15.0.6, 256 bits)')."""
         return self.ctx.info.get("GL_RENDERER", "unknown")
 
-    def read_depth(self, display=False):
+    def read_depth(self, display: bool = False) -> np.ndarray:
         """The depth buffer, ``(height, width) float32``, row 0 at the bottom: the one
         queries test against (reduced from the display's), or the display's own."""
         self.activate()
         if display:
             tex, (w, h) = self.display_tex, self.display
         else:
-            self._reduce()
+            self.reduce()
             tex, (w, h) = self.depth_tex, (self.width, self.height)
         data = tex.read(alignment=1)
-        self._count(1, reads=1)
+        self.count_gl(1, reads=1)
         return np.frombuffer(data, dtype=np.float32).reshape(h, w)
 
     # --- ground truth ---------------------------------------------------------
-    def object_ids(self, camera, objects=None, display=False):
+    def object_ids(self, camera, objects=None, display: bool = False) -> np.ndarray:
         """ID buffer from ``camera``: ``(height, width) int64``, -1 = none; at the
         display resolution with ``display=True``.
 
@@ -598,14 +520,14 @@ class GLRenderer:
         fbo = self._id_pass(camera, self.display if display else (self.width, self.height), objects)
         return self._read_ids(fbo)
 
-    def ids_and_depth(self, camera, size, objects=None):
+    def ids_and_depth(self, camera, size, objects=None) -> tuple:
         """ID buffer and window depth from ``camera`` at ``size = (w, h)``: ``(h, w)
         int64`` (-1 = none) and ``(h, w) float32`` in [0, 1] (1 = nothing drawn), row 0
         at the bottom.  The envelope pass (:mod:`core.envelope`) erodes these."""
         fbo = self._id_pass(camera, size, objects)
         ids = self._read_ids(fbo)
         raw = fbo.read(components=1, attachment=-1, dtype="f4", alignment=1)
-        self._count(1, reads=1)
+        self.count_gl(1, reads=1)
         return ids, np.frombuffer(raw, dtype=np.float32).reshape(ids.shape)
 
     def _id_pass(self, camera, size, objects):
@@ -620,27 +542,24 @@ class GLRenderer:
             self.id_fbos[(w, h)] = fbo
         fbo.clear(depth=1.0)
         self._state.clear()                                # the clear re-bound a framebuffer
-        self._use(fbo, "<", False)
+        self.use_target(fbo, "<", False)
         units = np.arange(len(self.units))
         if objects is not None:
             keep = np.zeros(self.n, dtype=bool)
             keep[np.asarray(objects, dtype=np.int64)] = True
             units = units[keep[self.units.object]]
         if len(units):
-            if self.path == "4.3":
-                self._draw_43(self.id_vao, units)
-            else:
-                self._draw_41(self.id_prog, self.id_vao, units, ids=True)
+            self._draw_units(units, ids=True)
         return fbo
 
     def _read_ids(self, fbo):
         w, h = fbo.size
         raw = fbo.read(components=1, dtype="u4", alignment=1)
-        self._count(1, reads=1)
+        self.count_gl(1, reads=1)
         ids = np.frombuffer(raw, dtype=np.uint32).reshape(h, w)
         return ids.astype(np.int64) - 1
 
-    def visible_truth(self, camera, display=False):
+    def visible_truth(self, camera, display: bool = False) -> np.ndarray:
         """Exact visible set at the query (or display) resolution: ``(n,) bool``, an
         object covers a pixel centre."""
         ids = self.object_ids(camera, display=display)
@@ -648,23 +567,18 @@ class GLRenderer:
         out[ids[ids >= 0]] = True
         return out
 
-    def release(self):
-        """Free the GPU objects (and the context when this renderer created it)."""
+    def release(self) -> None:
+        """Free the GPU objects, attachments first (and the context when this renderer
+        created it: that frees them all)."""
         self.activate()
         if self.own_ctx:
             self.ctx.release()
             return
-        gpu = getattr(self, "gpu_cull", None)          # the gpu strategy's buffers (core/gl/gpucull.py)
-        if gpu is not None:
-            gpu.release()
+        for a in reversed(list(self._attachments.values())):
+            a.release()
+        self._attachments.clear()
         objs = [self.depth_vao, self.id_vao, self.vbo, self.ibo, self.depth_prog, self.id_prog,
-                *self.box_progs.values(), self.fbo, self.query_fbo, self.depth_tex]
-        if self.path == "4.3":
-            objs += [self.stream]
-            for s in self.slots:
-                objs += [*s.vaos.values(), s.buffer]
-        else:
-            objs += [self.box_vao, self.box_vbo]           # moderngl queries have no release
+                *self.box_progs.values(), self.fbo, self.query_fbo, self.depth_tex, *self._path_objects()]
         if self.reduces:
             objs += [self.reduce_vao, self.reduce_prog, self.reduce_fbo, self.display_tex]
         for fbo in self.id_fbos.values():
@@ -675,3 +589,7 @@ class GLRenderer:
         for o in objs:
             if o is not None:
                 o.release()
+
+    def _path_objects(self):
+        """Per path: its own GL objects to release."""
+        raise NotImplementedError
