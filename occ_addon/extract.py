@@ -45,6 +45,8 @@ what changed).
 
 import time
 import zlib
+from collections.abc import Generator, Iterable
+from dataclasses import dataclass
 
 import bpy
 import numpy as np
@@ -58,6 +60,27 @@ SOLID_DISPLAY = {"SOLID", "TEXTURED"}            # wire and bounds display never
 STEP_S = 0.1                                     # geometry reading yields about this often (modal steps)
 _EMPTY = (np.zeros((0, 3), dtype=np.float32), np.zeros((0, 3), dtype=np.int32))
 
+
+@dataclass(frozen=True, slots=True)
+class ObjectInfo:
+    """What an object is, from its settings (edits report it: :meth:`Extractor.saw`
+    forgets it): its :func:`kind` and whether it has a parent."""
+
+    kind: str | None
+    parented: bool
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Geometry:
+    """An object's cached geometry: ``key`` names the mesh it was read from (shared
+    meshes share one: ``("mesh", mesh id)``; ``("object", uid)``; a collection
+    instance ``("instance", uid, its members' sorted ids)``), ``vertices`` ``(v, 3)``
+    local positions (None: not all finite), ``faces`` ``(f, 3)`` triangles."""
+
+    key: tuple
+    vertices: np.ndarray | None
+    faces: np.ndarray
+
 # Modifiers whose result depends only on the object's own data and settings
 # (their animation, if any, is the object's animation_data); anything else
 # (armature, hooks, booleans, geometry nodes, physics, ...) makes an object dynamic.
@@ -66,7 +89,7 @@ STATIC_MODIFIERS = {"SUBSURF", "MULTIRES", "MIRROR", "BEVEL", "SOLIDIFY", "TRIAN
                     "SMOOTH", "LAPLACIANSMOOTH", "CORRECTIVE_SMOOTH", "ARRAY", "SCREW"}
 
 
-def positions(mesh):
+def positions(mesh) -> np.ndarray:
     """``(v, 3) float32`` vertex positions of a mesh, one bulk read: the ``position``
     attribute (Blender 3.5+, a plain array copy) or, where there is none (3.4),
     ``vertices.co``."""
@@ -79,7 +102,7 @@ def positions(mesh):
     return v
 
 
-def mesh_arrays(obj_eval, direct=False):
+def mesh_arrays(obj_eval, direct: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Local vertices ``(v, 3) float32`` and triangles ``(f, 3) int32`` of an evaluated
     object, as Blender holds them (no wider copy: the engine takes both dtypes).
 
@@ -126,7 +149,7 @@ def instanced_sources(obj):
     return out
 
 
-def is_instancer(obj):
+def is_instancer(obj) -> bool:
     return obj.instance_type == "COLLECTION" and obj.instance_collection is not None
 
 
@@ -136,7 +159,7 @@ def may_instance(obj):
         or any(m.type == "NODES" for m in obj.modifiers)
 
 
-def kind(obj):
+def kind(obj) -> str | None:
     """"mesh", "instancer" (a mesh-like object that brings instances: its geometry
     is its own, where drawn, and its instances'), "collection" or None: how
     ``obj`` can take part, by its settings alone."""
@@ -172,7 +195,7 @@ def _animated(idblock):
     return ad is not None and (ad.action is not None or len(ad.drivers) > 0 or len(ad.nla_tracks) > 0)
 
 
-def is_dynamic(obj):
+def is_dynamic(obj) -> bool:
     """Whether ``obj``'s evaluated state can change without an edit (animation,
     drivers, constraints, physics, particles, instancing, geometry nodes,
     modifiers that read other objects, bone or vertex parents, a dynamic parent):
@@ -196,7 +219,7 @@ def is_dynamic(obj):
     return False
 
 
-def bulk_matrices(collection, prop):
+def bulk_matrices(collection, prop: str) -> np.ndarray:
     """``(n, 4, 4) float64`` of a matrix property over a whole collection, one ``foreach_get``.
 
     Blender stores matrices column-major and in float32, so the float32 read is exact.
@@ -206,7 +229,7 @@ def bulk_matrices(collection, prop):
     return flat.reshape(-1, 4, 4).transpose(0, 2, 1).astype(np.float64)
 
 
-def world_matrix(obj):
+def world_matrix(obj) -> np.ndarray:
     """World matrix ``(4, 4)``.  An object the add-on hid is not evaluated by the
     depsgraph (its ``matrix_world`` goes stale), so its matrix is rebuilt from
     the parent chain and ``matrix_basis`` (exact for static objects: no
@@ -245,15 +268,7 @@ def user_shown(obj, view_layer, shown):
 DRAWN_TYPES = GEOMETRY_TYPES | {"POINTCLOUD", "VOLUME", "GREASEPENCIL", "GPENCIL", "CURVES"}
 
 
-def draws_beyond_geometry(collection):
-    """Whether an instanced collection holds a member Blender draws but the engine's
-    geometry of its instances leaves out (wire, bounds or "in front" display, point
-    clouds, volumes, ...): such a member may stand anywhere, so an instance of the
-    collection is larger than its box in the engine."""
-    return any(kind(m) is None and m.type in DRAWN_TYPES for m in collection.all_objects)
-
-
-def bystanders(view_layer, held):
+def bystanders(view_layer, held: np.ndarray) -> list:
     """Objects Blender draws now that the engine does not hold (``held``: the
     engine's objects' session ids, ``(k,) int64``): wire and bounds display, point
     clouds, volumes, grease pencil, hair, vertex-instanced children, NaN values.
@@ -279,7 +294,7 @@ class Candidates:
     bad: names of objects left out for NaN or infinite values.
     """
 
-    def __init__(self, view_layer, extractor, verify=False):
+    def __init__(self, view_layer, extractor: "Extractor", verify: bool = False):
         self.view_layer = view_layer
         layer = view_layer.objects
         culled_all = visibility.flags("occ_culled", layer)
@@ -292,8 +307,8 @@ class Candidates:
                 extractor.forget(uid)
             entry = info.get(uid)
             if entry is None:
-                entry = info[uid] = (kind(o), o.parent is not None)
-            k = entry[0]
+                entry = info[uid] = ObjectInfo(kind(o), o.parent is not None)
+            k = entry.kind
             if k is None:
                 if culled:
                     give_back.append(uid)
@@ -316,7 +331,7 @@ class Candidates:
         if len(hidden):                               # stale matrix_world: rebuilt from matrix_basis
             m[hidden] = bulk_matrices(layer, "matrix_basis")[index[hidden]]
             for k in hidden:
-                if info[int(uids_all[index[k]])][1]:  # parented: through the parent chain
+                if info[int(uids_all[index[k]])].parented:   # through the parent chain
                     m[k] = world_matrix(objects[k])
         finite = np.all(np.isfinite(m), axis=(1, 2))
         self.bad = [objects[k].name for k in np.flatnonzero(~finite)]
@@ -335,31 +350,31 @@ class Extractor:
     """Keeps the last extraction and refreshes only what changed (keys: session ids)."""
 
     def __init__(self):
-        self.cache = {}          # object uid -> (mesh key, vertices, faces); vertices None: not finite
+        self.cache: dict[int, Geometry] = {}   # object uid -> its geometry as last read
         # uid -> the mark's number: a read consumes only marks made before it began
         self.dirty = {}          # object uids whose geometry changed
         self.touched = {}        # object uids whose geometry or transform changed (instanced collections)
         self.marks = 0
         # What an object is, from its settings (edits report it: :meth:`saw` forgets it):
-        self.info = {}           # uid -> (kind, has a parent)
+        self.info: dict[int, ObjectInfo] = {}
         self.dynamic = {}        # uid -> is_dynamic
         self.shown = {}          # uid -> user_shown (hidden by the add-on); any visibility change clears it
         self.shown_ids = None    # sorted uids of the objects in shown collections (see shown_by_collections)
         self.fps = {}            # uid -> fingerprint of the data its cached geometry was read from
         self.sources = {}        # instancer uid -> its instanced_sources when its instances were read
 
-    def forget(self, uid):
+    def forget(self, uid: int) -> None:
         """Forget what object ``uid`` is (it will be classified again)."""
         self.info.pop(uid, None)
         self.dynamic.pop(uid, None)
 
-    def unchanged(self, obj, uid, k, memo):
+    def unchanged(self, obj, uid: int, k: str, memo: dict) -> bool:
         """Whether the data of ``obj`` (hidden by the add-on, so not evaluated, and its
         edits not reported) is what its cached geometry was read from."""
         fp = self.fps.get(uid)
         return fp is not None and fp == fingerprint(obj, k, memo)
 
-    def saw(self, update):
+    def saw(self, update) -> None:
         """A depsgraph update (not our own): forget what it may have changed.  An
         object's edits report it (while it is shown); eye, collection and view-layer
         changes report the scene or a collection."""
@@ -373,12 +388,12 @@ class Extractor:
         else:
             self.visibility_changed()
 
-    def visibility_changed(self):
+    def visibility_changed(self) -> None:
         """Eye, collection or view-layer visibility may have changed."""
         self.shown.clear()
         self.shown_ids = None
 
-    def user_shown(self, obj, uid, view_layer):
+    def user_shown(self, obj, uid: int, view_layer) -> bool:
         hit = self.shown.get(uid)
         if hit is None:
             if self.shown_ids is None:
@@ -386,13 +401,13 @@ class Extractor:
             hit = self.shown[uid] = bool(user_shown(obj, view_layer, self.shown_ids))
         return hit
 
-    def is_dynamic(self, obj, uid):
+    def is_dynamic(self, obj, uid: int) -> bool:
         hit = self.dynamic.get(uid)
         if hit is None:
             hit = self.dynamic[uid] = is_dynamic(obj)
         return hit
 
-    def mark(self, geometry=(), transform=()):
+    def mark(self, geometry: Iterable[int] = (), transform: Iterable[int] = ()) -> None:
         """Record depsgraph updates: uids whose geometry changed, and uids that moved
         or changed otherwise (what instances them may be stale)."""
         self.marks += 1
@@ -400,16 +415,16 @@ class Extractor:
         self.touched.update(dict.fromkeys(geometry, self.marks))
         self.touched.update(dict.fromkeys(transform, self.marks))
 
-    def candidates(self, context, verify=False):
+    def candidates(self, context, verify: bool = False) -> "Candidates":
         """The pass's candidates; ``verify``: check every object the add-on hides
         against the data its geometry was read from (see :func:`fingerprint`)."""
         return Candidates(context.view_layer, self, verify)
 
-    def matrices(self, cand, kept):
+    def matrices(self, cand: "Candidates", kept: np.ndarray) -> np.ndarray:
         """World matrices ``(k, 4, 4)`` of candidates ``kept`` (read in bulk with the candidates)."""
         return cand.matrices[kept]
 
-    def knows(self, obj, k):
+    def knows(self, obj, k: str) -> bool:
         """Whether the geometry of ``obj`` (hidden by the add-on) is cached and current."""
         hit = self.cache.get(ident(obj))
         if hit is None:
@@ -418,7 +433,7 @@ class Extractor:
             return not self._instance_stale(obj)
         return ident(obj) not in self.dirty
 
-    def needs_geometry(self, cand):
+    def needs_geometry(self, cand: "Candidates") -> bool:
         """Whether :meth:`scene_steps` must read geometry again for these candidates.
         Instancers are asked whatever was reported: what they instance may change
         unreported (a deleted particle object or collection member)."""
@@ -431,13 +446,13 @@ class Extractor:
                 return True
         return False
 
-    def forget_changes(self, seen):
+    def forget_changes(self, seen: int) -> None:
         """Changes marked up to mark number ``seen`` (taken before a read began) are
         consumed; any reported during the read (between steps) stay for the next one."""
         self.dirty = {u: m for u, m in self.dirty.items() if m > seen}
         self.touched = {u: m for u, m in self.touched.items() if m > seen}
 
-    def scene_steps(self, context, cand):
+    def scene_steps(self, context, cand: "Candidates") -> Generator[tuple, None, tuple[Scene, np.ndarray, list]]:
         """A generator (see :func:`.worker.drive`) that returns ``(core.Scene, kept,
         bad)``: the engine's scene of the candidates with finite triangles, ``kept``
         their indices into ``cand``, ``bad`` the names left out for NaN or infinite
@@ -461,7 +476,7 @@ class Extractor:
                 if o.show_instancer_for_viewport:
                     ov, of = mesh_arrays(o.evaluated_get(depsgraph))
                     v, f = np.concatenate([ov, v]), np.concatenate([of, f.astype(np.int64) + len(ov)])
-            self.cache[uid] = (key, _finite_or_none(v), f)
+            self.cache[uid] = Geometry(key, _finite_or_none(v), f)
             self.fps[uid] = fingerprint(o, "collection" if o.type == "EMPTY" else "instancer", {})
             if o.type != "EMPTY":
                 self.sources[uid] = instanced_sources(o)
@@ -476,7 +491,7 @@ class Extractor:
             entry = self._geometry(obj, cand.kinds[i], cand.culled[i], depsgraph, read)
             if entry is None:
                 continue
-            key, v, f = entry
+            key, v, f = entry.key, entry.vertices, entry.faces
             if v is None:
                 bad.append(obj.name)
                 continue
@@ -509,7 +524,7 @@ class Extractor:
             members = _members(c)
             if memo is not None:
                 memo[ident(c)] = members
-        return hit[0][2] != members or not self.touched.keys().isdisjoint(members)
+        return hit.key[2] != members or not self.touched.keys().isdisjoint(members)
 
     def _instancer_stale(self, obj):
         """Whether the cached instances of an instancer may differ from what Blender
@@ -534,25 +549,25 @@ class Extractor:
         return sources is None or not self.touched.keys().isdisjoint(sources)
 
     def _geometry(self, obj, k, culled, depsgraph, read):
-        """``(key, v, f)`` from the cache when still valid, else from the depsgraph
-        (a shared mesh once per pass: ``read``); None when unknown.  ``v`` is None
-        for geometry with NaN or infinite vertices."""
+        """The object's :class:`Geometry` from the cache when still valid, else from the depsgraph
+        (a shared mesh once per pass: ``read``); None when unknown.  Its vertices are
+        None for geometry with NaN or infinite vertices."""
         uid = ident(obj)
         hit = self.cache.get(uid)
         if k != "mesh" or culled:                     # instancers: read above; hidden: not evaluated
             return hit
         shared = obj.type == "MESH" and not obj.modifiers and obj.data.users > 1
         key = ("mesh", ident(obj.data)) if shared else ("object", uid)
-        if hit is not None and hit[0] == key and uid not in self.dirty:
+        if hit is not None and hit.key == key and uid not in self.dirty:
             return hit
         if key not in read:
             direct = obj.type == "MESH" and not obj.modifiers and obj.mode != "EDIT"
             v, f = mesh_arrays(obj.evaluated_get(depsgraph), direct)
             read[key] = (_finite_or_none(v), f)
         v, f = read[key]
-        self.cache[uid] = (key, v, f)
+        hit = self.cache[uid] = Geometry(key, v, f)
         self.fps[uid] = fingerprint(obj, k, read)
-        return key, v, f
+        return hit
 
 
 def _mesh_fingerprint(mesh, memo):
@@ -569,7 +584,7 @@ def _modifiers_fingerprint(obj):
     return tuple((m.type, m.show_viewport) for m in obj.modifiers)
 
 
-def fingerprint(obj, k, memo):
+def fingerprint(obj, k: str, memo: dict) -> tuple | None:
     """What the geometry of ``obj`` is read from, as a comparable value: its mesh
     (sizes and a checksum of its vertices), its display, its modifiers; for a
     collection instance, its members' and their placement.  None where it cannot

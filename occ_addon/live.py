@@ -1,7 +1,8 @@
 """Live culling: a timer re-culls, debounced, after every change that can change
 what is visible: the view moved (polled: navigation fires no depsgraph update),
-or anything else changed (the depsgraph and frame-change handlers, "never
-cull" and the exclusion collection report it, see :func:`changed`).  GUI only.
+or anything else changed (the change bus of :mod:`.handlers`: edits, frames,
+"never cull" and the exclusion collection; :func:`changed` is subscribed to it
+when the add-on registers).  GUI only.
 
 While the view moves: every hidden set holds for an envelope around the view it
 was made from (:mod:`..core.envelope`; a pass at rest takes a small one).  Before
@@ -24,18 +25,19 @@ import traceback
 import bpy
 import numpy as np
 
-from ..core import Camera, OccError
+from ..core import OccError
+from ..core.camera import camera_cut
 from ..core.motion import view_change
 from . import visibility
-from .session import LISTENERS, POLICY, SESSION, camera_for, find_viewport
+from .cameras import camera_for, find_viewport, region_camera, scene_camera
+from .session import POLICY, SESSION
 
 POLL_S = 0.1          # timer period
 DEBOUNCE_S = 0.15     # the view (or the scene) must rest this long before a pass
-CUT_DEG = 10.0        # a view turned further than this between passes is a cut: the strategy starts fresh
-CUT_MOVE = 0.05       # and so is one moved further than this fraction of the scene's size
 REST_LOOK_S = 0.05    # a view unchanged for this long between two looks has stopped moving
 
-_state = {"last_view": None, "changed_at": None, "dirty_at": None, "passed_view": None}
+# passed: (camera, display) of the last pass at rest, for telling a cut (:func:`_is_cut`)
+_state = {"last_view": None, "changed_at": None, "dirty_at": None, "passed": None}
 # the view's motion, measured between successive looks (redraws and ticks)
 _motion = {"view": None, "t": None, "step": (0.0, 0.0), "speeds": [0.0], "turns": [0.0], "leaving": False,
            "region": None}
@@ -83,7 +85,7 @@ def guard():
     rv3d = context.region_data
     if rv3d is None or rv3d.as_pointer() != _motion["region"]:
         return                                        # another view's redraw
-    camera = Camera.from_matrices(np.array(rv3d.view_matrix), np.array(rv3d.window_matrix))
+    camera = region_camera(rv3d)
     observe(camera)
     if _unsafe(camera):
         _motion["leaving"] = True
@@ -112,7 +114,7 @@ def leave(context, camera, display):
         visibility.restore()
         return
     speed, turn = max(_motion["speeds"]), max(_motion["turns"])
-    latency = (SESSION.last or {}).get("ms", 100.0) / 1e3
+    latency = (SESSION.last.ms if SESSION.last is not None else 100.0) / 1e3
     env = POLICY.envelope(speed, turn, latency, *_motion["step"], SESSION.culler.scene_size)
     try:
         SESSION.cull(context, camera, display, fresh=False, envelope=env, show_only=True)
@@ -125,30 +127,21 @@ def leave(context, camera, display):
 
 
 def changed():
-    """Something other than the view changed: re-cull once it rests."""
+    """Something other than the view changed: re-cull once it rests (a listener of
+    the change bus, :mod:`.handlers`)."""
     if _state["dirty_at"] is None:
         _state["dirty_at"] = time.perf_counter()
 
 
-LISTENERS.append(changed)
-
-
-def _eye(view):
-    return -view[:3, :3].T @ view[:3, 3]
-
-
-def _is_cut(old, new):
-    """Whether the view turned more than CUT_DEG, moved more than CUT_MOVE of the
-    scene's size, or the projection or display size changed."""
-    if old is None:
+def _is_cut(passed, camera, display):
+    """Whether the view jumped since the last pass at rest (``passed``: its camera and
+    display size): the one definition of a cut (:func:`..core.camera.camera_cut`), or
+    another display size.  After a cut the strategy starts fresh."""
+    if passed is None:
         return True
-    if not np.array_equal(old[16:], new[16:]):
-        return True
-    a, b = old[:16].reshape(4, 4), new[:16].reshape(4, 4)
-    r = a[:3, :3].T @ b[:3, :3]
-    cos = np.clip((np.trace(r) - 1.0) / 2.0, -1.0, 1.0)
+    before, shown = passed
     size = SESSION.culler.scene_size if SESSION.culler is not None else 0.0
-    return bool(np.degrees(np.arccos(cos)) > CUT_DEG or np.linalg.norm(_eye(a) - _eye(b)) > CUT_MOVE * size)
+    return tuple(shown) != tuple(display) or camera_cut(before, camera, size)
 
 
 def _tick():
@@ -176,16 +169,16 @@ def _tick():
         return POLL_S
     rested = [t for t in (_state["changed_at"], _state["dirty_at"]) if t is not None]
     if rested and now - max(rested) >= DEBOUNCE_S:
-        fresh = _state["dirty_at"] is not None or _is_cut(_state["passed_view"], key)
+        fresh = _state["dirty_at"] is not None or _is_cut(_state["passed"], camera, display)
         _state.update(changed_at=None, dirty_at=None)
         try:
             SESSION.cull(context, camera, display, fresh=fresh, envelope="rest")
             track(context)
-            _state["passed_view"] = key
+            _state["passed"] = (camera, display)
             _state["dirty_at"] = None                 # our own pass's updates are not a change
         except OccError as e:  # the user's to fix (an empty scene, a panoramic camera): show all, keep going
             print(f"occlusion culling: {e}")
-            _state["passed_view"] = None
+            _state["passed"] = None
             SESSION.shown = None
             visibility.restore()
         except Exception:  # a timer must not raise: our bug, live mode stops and shows everything
@@ -212,14 +205,14 @@ def start(context):
     from . import overlay
     overlay.install()
     context.scene.occ.live = True
-    _state.update(last_view=None, changed_at=time.perf_counter(), dirty_at=None, passed_view=None)
+    _state.update(last_view=None, changed_at=time.perf_counter(), dirty_at=None, passed=None)
     _ensure_timer()
 
 
 def stop(context):
     context.scene.occ.live = False
     _drop_timer()
-    _state.update(last_view=None, changed_at=None, dirty_at=None, passed_view=None)
+    _state.update(last_view=None, changed_at=None, dirty_at=None, passed=None)
 
 
 def stop_all():
@@ -246,3 +239,27 @@ def resync():
         changed()
     else:
         _drop_timer()
+
+
+_camera_motion = {"view": None, "step": (0.0, 0.0)}
+
+
+def guard_camera(scene):
+    """Live from the scene camera, a new frame (playback, scrubbing) or an edit moves
+    it (the depsgraph and frame-change handlers call this): where it is about to leave
+    the hidden set's envelope, everything is shown before the frame is drawn (the
+    live pass that follows hides again)."""
+    if SESSION.shown is None or SESSION.busy or not scene.occ.live or scene.occ.source != "CAMERA":
+        return
+    try:
+        camera, _ = scene_camera(bpy.context, scene)
+    except OccError:
+        camera = None
+    prev = _camera_motion["view"]
+    if camera is not None and prev is not None and np.array_equal(prev.projection, camera.projection):
+        _camera_motion["step"] = view_change(prev, camera)
+    _camera_motion["view"] = camera
+    centre, envelope = SESSION.shown
+    if camera is None or not POLICY.safe(centre, envelope, camera, *_camera_motion["step"]):
+        SESSION.shown = None
+        visibility.restore()

@@ -1,20 +1,16 @@
 """Operators: glue from settings to one engine call, errors mapped to reports."""
 
-import csv
-import json
-import os
 import time
 import traceback
 
 import bpy
-import numpy as np
 from bpy.props import BoolProperty, EnumProperty, IntProperty, StringProperty
 
-from ..core import OccError, Visibility
+from ..core import OccError
 from . import live, overlay, visibility
-from .extract import bystanders, draws_beyond_geometry, is_instancer
-from .session import SESSION, camera_for, scene_camera
-from .shading import rule as rule_of
+from .analysis import analysis_steps, link_collection, push_undo, report_path, write_report
+from .cameras import camera_for
+from .session import SESSION
 from .worker import Job, drive
 
 # "//" paths are blend-relative; Blender 4.5+ wants string properties to say they accept them
@@ -243,7 +239,7 @@ class OCC_OT_analyze(Stepped, bpy.types.Operator):
             frames, path = self._plan(context)
         except Exception as e:  # every failure is a report, never a traceback
             return failed(self, e)
-        return self.start_steps(context, analysis(context, frames, path, self._rule()), "analyze")
+        return self.start_steps(context, analysis_steps(context, frames, path, self._rule()), "analyze")
 
     def _rule(self):
         if self.rule == "AUTO":
@@ -253,92 +249,25 @@ class OCC_OT_analyze(Stepped, bpy.types.Operator):
     def execute(self, context):
         try:
             frames, path = self._plan(context)
-            value = self.run_steps(analysis(context, frames, path, self._rule()), "analyze")
+            value = self.run_steps(analysis_steps(context, frames, path, self._rule()), "analyze")
         except Exception as e:  # every failure is a report, never a traceback
             return failed(self, e)
         return self.finish(context, value)
 
-    def finish(self, context, value):
-        frames, path, per_frame, seen, t, rule = value
+    def finish(self, context, analysis):
         try:
-            write_report(path, frames, per_frame, seen, rule)
+            write_report(analysis)
         except OSError as e:
-            return failed(self, OccError(f"cannot write the report {path}: {e.strerror or e}"))
-        never = sorted(n for n, c in seen.items() if c == 0)
+            return failed(self, OccError(f"cannot write the report {analysis.path}: {e.strerror or e}"))
+        never = analysis.never_visible
         if self.link_never_visible:
             link_collection(context.scene, "Never Visible", never)
             push_undo("Collect Never Visible")
         warn(self)
-        self.report({"INFO"}, f"{len(frames)} frames in {time.perf_counter() - t:.1f} s; "
-                              f"{len(never)} of {len(seen)} objects never visible; report {path}")
+        self.report({"INFO"}, f"{len(analysis.frames)} frames in {time.perf_counter() - analysis.started:.1f} s; "
+                              f"{len(never)} of {len(analysis.seen)} objects never visible; "
+                              f"report {analysis.path}")
         return {"FINISHED"}
-
-
-def analysis(context, frames, path, rule="seen"):
-    """Analyze in steps (a generator, see :func:`.worker.drive`): one a frame, and a
-    first build's own; returns what :meth:`OCC_OT_analyze.finish` writes.  Stopped
-    early (Esc), the scene goes back to its frame and nothing is written.  ``rule``:
-    "seen" (a pixel of it seen) or "render" (seen, or shown beyond its pixels under
-    the render engine: shadows, rays; :mod:`.shading`)."""
-    scene = context.scene
-    previous = scene.frame_current
-    per_frame, seen = [], {}
-    held = held_names = collections = None
-    t = time.perf_counter()
-    step = max(1, len(frames) // 10)          # background mode: about ten progress lines
-    try:
-        for k, f in enumerate(frames):
-            scene.frame_set(f)
-            camera, display = scene_camera(context)
-            # nothing is hidden
-            # the first frame a new engine's answer, later ones from what it taught
-            view_rule = rule_of(context, "CAMERA") if rule == "render" else None
-            result, objects = yield from SESSION.compute_steps(context, camera, display, restart=k == 0,
-                                                               lights=view_rule.lights if view_rule else None)
-            if SESSION.kept_uids is not held:   # the engine's objects changed: their names, once
-                held = SESSION.kept_uids
-                held_names = [o.name for o in objects]
-                collections = [i for i, o in enumerate(objects) if is_instancer(o)]
-                for n in held_names:
-                    seen.setdefault(n, 0)
-            vis = result.state == Visibility.VISIBLE          # one array compare, no per-object enum
-            if view_rule is not None:          # shadow casters are the engine's (given the lights)
-                vis |= SESSION.drawn_beyond_depth(view_rule, result.state)
-            # an instance with members drawn beside its geometry (wire, bounds, ...) is seen
-            # wherever it is drawn: the engine knows only its solid part (conservative by construction)
-            wide = {}                                         # collection name -> the answer, once a frame
-            for i in (i for i in collections if not vis[i]):
-                c = objects[i].instance_collection
-                if c.name_full not in wide:
-                    wide[c.name_full] = draws_beyond_geometry(c)
-                vis[i] = wide[c.name_full]
-            shown = [held_names[i] for i in np.flatnonzero(vis)]
-            extra = bystanders(context.view_layer, held)       # drawn, never culled: visible
-            # an object is seen where a visible collection instance draws it, too
-            members = [m for i in collections if vis[i] for m in objects[i].instance_collection.all_objects]
-            others = [o.name for o in extra + members]
-            names = list(dict.fromkeys(shown + others))
-            per_frame.append({"frame": f, "visible": names})
-            for n in others:
-                seen.setdefault(n, 0)
-            for n in names:
-                seen[n] += 1
-            if bpy.app.background and ((k + 1) % step == 0 or k + 1 == len(frames)):
-                print(f"occlusion analyze: {k + 1}/{len(frames)} frames "
-                      f"({time.perf_counter() - t:.1f} s)", flush=True)
-            yield f"frame {k + 1}/{len(frames)}", (k + 1) / len(frames)
-    finally:
-        scene.frame_set(previous)
-    return frames, path, per_frame, seen, t, rule
-
-
-def report_path(filepath):
-    """Absolute report path.  ``//`` is the blend file's folder; in a file never saved
-    it is the working directory (sub-folders kept), never Blender's temporary folder,
-    which is deleted at exit."""
-    if filepath.startswith("//") and not bpy.data.filepath:
-        return os.path.normpath(os.path.join(os.getcwd(), filepath[2:]))
-    return os.path.normpath(bpy.path.abspath(filepath))
 
 
 def warn(op):
@@ -362,82 +291,6 @@ def failed(op, error):
         op.report({"ERROR"}, f"occlusion culling failed: {type(error).__name__}: {error} "
                              "(details in the system console)")
     return {"CANCELLED"}
-
-
-def write_report(path, frames, per_frame, seen, rule="seen"):
-    """JSON: per frame the visible objects, per object the frames it is visible in, and
-    the rule that says what "visible" means ("seen" or "render"); CSV beside it."""
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    first, last = {}, {}
-    for fr in per_frame:
-        for n in fr["visible"]:
-            first.setdefault(n, fr["frame"])
-            last[n] = fr["frame"]
-    objects = {n: {"frames_visible": c, "first": first.get(n), "last": last.get(n)}
-               for n, c in sorted(seen.items())}
-    with open(path, "w", encoding="utf-8") as f:
-        json.dump({"frames": per_frame, "objects": objects, "frame_count": len(frames), "rule": rule}, f, indent=1)
-    with open(os.path.splitext(path)[0] + ".csv", "w", newline="", encoding="utf-8") as f:
-        w = csv.writer(f)
-        w.writerow(["object", "frames_visible", "fraction", "first_frame", "last_frame"])
-        for n, o in objects.items():
-            w.writerow([n, o["frames_visible"], f"{o['frames_visible'] / max(len(frames), 1):.4f}",
-                        o["first"] if o["first"] is not None else "", o["last"] if o["last"] is not None else ""])
-
-
-def push_undo(message):
-    """Make what an operator just changed an undo step of its own, as every edit is.
-
-    Needed after any change that creates a datablock and links it to existing ones
-    (the "Never Visible" collection in the scene's children): Blender's memfile undo
-    keeps in place every datablock whose saved state did not change between the two
-    undo steps it moves across, and knows nothing of changes made after the last
-    push.  Undo without this step restores the scene as it is now, still pointing at
-    the new collection, which the undo frees: a view layer then holds a freed
-    collection (a crash, or Python reading it as a bare ``ID``).  With the step, the
-    scene differs between the steps and is read back, the collection with it.
-
-    The operators carry no UNDO flag (Cull and Restore must not add steps, and a
-    script's ``bpy.ops`` call pushes nothing for it anyway), so the push is explicit.
-    Headless without an undo history (the common script) nothing is pushed: nothing
-    can be undone there, and a first push would copy the whole file into memory."""
-    if not bpy.app.background or bpy.ops.ed.undo_history.poll():
-        bpy.ops.ed.undo_push(message=message)
-
-
-def link_collection(scene, name, object_names):
-    """Make collection ``name`` hold exactly ``object_names`` (an earlier analysis's
-    objects that this one saw are unlinked: deleting the collection's contents
-    must never delete what the camera sees).  The collection is excluded in every
-    view layer of every scene that links it: it gives its objects no way into a view
-    layer, so linking changes nothing anyone sees (an object whose own collection is
-    excluded stays out)."""
-    coll = bpy.data.collections.get(name) or bpy.data.collections.new(name)
-    if coll.name not in scene.collection.children:
-        # excluded before its objects are linked: they never get a base through it
-        scene.collection.children.link(coll)
-    exclude_everywhere(coll)
-    wanted = set(object_names)
-    for obj in [o for o in coll.objects if o.name not in wanted]:
-        coll.objects.unlink(obj)
-    for n in object_names:
-        obj = bpy.data.objects.get(n)
-        if obj is not None and obj.name not in coll.objects:
-            coll.objects.link(obj)
-
-
-def exclude_everywhere(coll):
-    """Exclude ``coll`` in every view layer where it appears (any depth)."""
-    for scene in bpy.data.scenes:
-        for layer in scene.view_layers:
-            stack = [layer.layer_collection]
-            while stack:
-                lc = stack.pop()
-                if lc.collection == coll:
-                    if not lc.exclude:
-                        lc.exclude = True
-                    continue
-                stack.extend(lc.children)
 
 
 CLASSES = (OCC_OT_cull, OCC_OT_restore, OCC_OT_live, OCC_OT_analyze)

@@ -5,7 +5,6 @@ pass in a window, never at registration or in background mode."""
 import bpy
 import numpy as np
 
-from ..core import Visibility
 from ..core.overlay import box_lines, occupancy_quads
 from .session import SESSION
 
@@ -30,12 +29,11 @@ def _geometry():
     if last is None:
         return None
     if _cache["key"] != SESSION.version:
-        culled = np.flatnonzero((last["state"] != Visibility.VISIBLE) & ~last["protected"])
-        boxes = last["bounds"][culled]
+        boxes = last.bounds[last.hidden]
         if len(boxes) > MAX_BOXES:
             size = np.prod(np.maximum(boxes[:, 1] - boxes[:, 0], 1e-9), axis=1)
             boxes = boxes[np.argsort(size)[-MAX_BOXES:]]
-        grid = last["occupancy"] if last["occupancy"] is not None else np.zeros((0, 0), dtype=bool)
+        grid = last.occupancy if last.occupancy is not None else np.zeros((0, 0), dtype=bool)
         _cache.update(key=SESSION.version, lines=box_lines(boxes), grid=grid)
     return _cache
 

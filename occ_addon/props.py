@@ -17,10 +17,10 @@ STRATEGY_ITEMS = [(info.name, info.label + (" (default)" if info.name == ADDON_D
 
 
 def _changed(_self, _context):
-    """A setting that changes what may be hidden: live mode re-culls."""
-    from .session import LISTENERS
-    for f in LISTENERS:
-        f()
+    """A setting that changes what may be hidden: announced on the change bus (live
+    mode re-culls)."""
+    from .handlers import notify
+    notify()
 
 
 class OccSettings(bpy.types.PropertyGroup):

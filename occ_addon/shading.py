@@ -40,7 +40,7 @@ class ViewRule:
 
 
 def _view_shading(context):
-    from .session import find_viewport
+    from .cameras import find_viewport
     found = find_viewport(context)
     return None if found is None else found[0].spaces.active.shading
 

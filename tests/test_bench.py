@@ -8,9 +8,9 @@ import sys
 
 import numpy as np
 
-from core.bench import format_table, run_bench
+from core.lab.bench import format_table, run_bench
+from core.lab.tradeoff import display_truth, measure, pareto, run_tradeoff
 from core.settings import PRESETS, CullOptions
-from core.tradeoff import display_truth, measure, pareto, run_tradeoff
 from tests import scenes
 from tests.test_cli import ROOT
 
@@ -39,7 +39,7 @@ def test_rounds_rotate_the_strategies_and_take_the_median_round(ctx, monkeypatch
     """``rounds=3``: every strategy runs the path three times, new each time (what
     it learnt does not carry over), in an order rotated each round; its median frame
     is the median of its rounds' medians, its per-frame series that round's."""
-    import core.bench as B
+    import core.lab.bench as B
     scene, cams, _ = scenes.random_city(5, 200)
     order, real = [], B._path
 

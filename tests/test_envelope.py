@@ -169,7 +169,7 @@ def test_a_square_hides_what_its_umbra_holds():
 
 
 def test_motion_replays_hide_nothing_the_truth_sees(ctx):
-    from core.motion import motions, replay
+    from core.lab.motion import motions, replay
     scene, cams, _ = scenes.random_city(4, 250)
     with Culler(scene, resolution=(160, 90), ctx=ctx) as c:
         hidden = 0

@@ -5,6 +5,7 @@ built by tools/build_extension.py's own writer (what `make extension` uses witho
 and by Blender's extension CLI from the bpy module, and must be the same and valid.
 """
 
+import ast
 import glob
 import importlib.util
 import os
@@ -71,6 +72,43 @@ def test_each_platform_zip_carries_its_own_wheels(tmp_path):
         assert "website" not in manifest and manifest["license"] == ["SPDX:GPL-3.0-or-later"]
         assert "LICENSE" in names and "__init__.py" in names and "core/gl/renderer.py" in names
         assert not any(n.startswith(("tests/", "tools/", "sample_scenes/")) for n in names)
+
+
+def _imports_lab(path, source):
+    """Whether the module at ``path`` ("core/engine.py") imports the lab (``core.lab``) in any spelling."""
+    for node in ast.walk(ast.parse(source, filename=path)):
+        if isinstance(node, ast.Import):
+            modules = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            package = path.split("/")[:-1]                       # the folder: a relative import's level 1
+            base = package[:len(package) - (node.level - 1)] if node.level else []
+            modules = [".".join(base + ([node.module] if node.module else []) + [a.name]) for a in node.names]
+        else:
+            continue
+        if any("lab" in m.split(".") for m in modules):
+            return True
+    return False
+
+
+def test_the_zip_holds_no_lab_code(tmp_path):
+    """Benchmarks, reports, the CLI and jobs (core/lab/) stay out of the extension, and
+    nothing that ships imports them."""
+    for path in _build(tmp_path, "self").values():
+        with zipfile.ZipFile(path) as z:
+            names = z.namelist()
+            assert "core/engine.py" in names and "occ_addon/__init__.py" in names
+            assert not [n for n in names if n.startswith("core/lab/") or n == "core/__main__.py"]
+            importers = [n for n in names if n.endswith(".py") and _imports_lab(n, z.read(n).decode("utf-8"))]
+            assert not importers, importers
+
+
+def test_lab_imports_are_recognised():
+    assert _imports_lab("core/__main__.py", "from .lab.cli import main")
+    assert _imports_lab("core/engine.py", "from . import lab")
+    assert _imports_lab("occ_addon/session.py", "from ..core.lab import motion")
+    assert _imports_lab("occ_addon/session.py", "import core.lab.bench")
+    assert not _imports_lab("core/engine.py", "from .motion import LivePolicy\nimport collections")
+    assert not _imports_lab("occ_addon/live.py", "from ..core.motion import view_change")
 
 
 @pytest.mark.skipif(importlib.util.find_spec("bpy") is None, reason="needs bpy (Blender's extension CLI)")

@@ -6,7 +6,7 @@ import pytest
 import sample_scenes
 from core import Culler, OccError
 from core.camera import cameras_from_json
-from core.jobs import load_job, parse_names, parse_sample, spread
+from core.lab.jobs import load_job, parse_names, parse_sample, spread
 
 
 def test_sample_specs():

@@ -17,11 +17,11 @@ import threading
 
 import pytest
 
+from core.lab.tradeoff import KNOBS
 from core.settings import PRESETS
-from core.tradeoff import KNOBS
 from tests.test_cli import ROOT, run, wall_scene  # noqa: F401  (the fixture)
 
-NO_TQDM = "import sys; sys.modules['tqdm'] = None; from core.cli import main; sys.exit(main(sys.argv[1:]))"
+NO_TQDM = "import sys; sys.modules['tqdm'] = None; from core.lab.cli import main; sys.exit(main(sys.argv[1:]))"
 
 
 def run_on_terminal(*args, tqdm=True):
@@ -166,13 +166,13 @@ def test_demo_on_a_terminal(tmp_path):
 def test_core_imports_without_tqdm():
     """The Blender extension bundles no tqdm: nothing in core may import it up front."""
     code = ("import sys; sys.modules['tqdm'] = None\n"
-            "import core, core.cli, core.jobs, core.reports, core.tradeoff, core.bench\n"
-            "from core.jobs import Progress\n"
+            "import core, core.lab.cli, core.lab.jobs, core.lab.reports, core.lab.tradeoff, core.lab.bench\n"
+            "from core.lab.jobs import Progress\n"
             "import io; s = io.StringIO(); p = Progress(2, 't', stream=s); p.step('a'); p.step('b'); p.close()\n"
             "print(s.getvalue(), end='')")
     p = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stderr
     assert p.stdout == "  [1/2] a\n  [2/2] b\n"
-    p = subprocess.run([sys.executable, "-c", "import sys, core.cli, core.reports, core.tradeoff; "
+    p = subprocess.run([sys.executable, "-c", "import sys, core.lab.cli, core.lab.reports, core.lab.tradeoff; "
                         "print('tqdm' in sys.modules)"], cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert p.stdout.strip() == "False", p.stderr

@@ -6,7 +6,7 @@ import shlex
 import subprocess
 import sys
 
-from core.cli import build_parser
+from core.lab.cli import build_parser
 from tests.test_cli import ROOT
 
 with open(os.path.join(ROOT, "README.md"), encoding="utf-8") as _f:

@@ -8,8 +8,8 @@ import sys
 import numpy as np
 
 from core import Culler
-from core.reports import _RecordingMap, _watched_occupancy_map
-from core.tradeoff import pareto, plot_tradeoff, run_tradeoff
+from core.lab.reports import _RecordingMap, _watched_occupancy_map
+from core.lab.tradeoff import pareto, plot_tradeoff, run_tradeoff
 from tests import scenes
 from tests.test_cli import ROOT
 

@@ -428,14 +428,14 @@ def _false_negatives(bpy):
     try:
         session = _addon("occ_addon.session")
         sess = session.SESSION
-        camera, _ = session.camera_for(bpy.context)
+        camera, _ = _addon("occ_addon.cameras").camera_for(bpy.context)
         truth = sess.worker.run(sess.culler.truth, camera)
         objs = bpy.data.objects
         flags = np.zeros(len(objs), dtype=bool)
         objs.foreach_get("occ_culled", flags)               # one bulk read, not a name lookup per object
         ids = _addon("occ_addon.visibility").uids(objs)     # the engine's objects by session id
         by_id = np.argsort(ids)
-        hidden = flags[by_id[np.searchsorted(ids, sess.kept_uids, sorter=by_id)]]
+        hidden = flags[by_id[np.searchsorted(ids, sess.held.uids, sorter=by_id)]]
         return int((truth & hidden).sum()), int(hidden.sum())
     except Exception as e:  # the add-on's internals may change: say so, do not fail the timing
         print(f"false-negative check unavailable: {type(e).__name__}: {e}")

@@ -17,6 +17,7 @@ by the first of:
 """
 
 import argparse
+import fnmatch
 import glob
 import os
 import re
@@ -98,11 +99,34 @@ def bpy_cli():
     return hits[0] if hits else None
 
 
+def anchored_excludes():
+    """The manifest's ``paths_exclude_pattern`` entries that name a path from the root
+    (``"/core/lab/"``), as lists of name patterns (``["core", "lab"]``)."""
+    with open(os.path.join(ROOT, "blender_manifest.toml"), "rb") as f:
+        patterns = tomllib.load(f)["build"]["paths_exclude_pattern"]
+    return [p.strip("/").split("/") for p in patterns if p.startswith("/")]
+
+
+def excluded(rel, anchored):
+    """Whether the source path ``rel`` ("core/lab/cli.py") is, or lies under, an anchored pattern."""
+    parts = rel.replace(os.sep, "/").split("/")
+    return any(len(parts) >= len(pat) and all(fnmatch.fnmatch(a, b) for a, b in zip(parts, pat, strict=False))
+               for pat in anchored)
+
+
 def copy_sources(dest):
+    """The extension's files into ``dest``, less what the manifest excludes (the lab, the CLI
+    entry point): both builders then see the same source folder."""
     if os.path.exists(dest):
         shutil.rmtree(dest)
     os.makedirs(dest)
-    ignore = shutil.ignore_patterns("__pycache__", "*.pyc", ".*")
+    anchored = anchored_excludes()
+    default = shutil.ignore_patterns("__pycache__", "*.pyc", ".*")
+
+    def ignore(folder, names):
+        rel = os.path.relpath(folder, ROOT)
+        return set(default(folder, names)) | {n for n in names if excluded(os.path.join(rel, n), anchored)}
+
     for name in EXTENSION_FILES:
         src = os.path.join(ROOT, name)
         if os.path.isdir(src):

@@ -27,7 +27,7 @@ for s in $SCENES; do
             > "$RAW/base-$s.json" 2> "$RAW/base-$s.log" || tail -5 "$RAW/base-$s.log"
     fi
 done
-echo "== GL backend (python -m core.gl.bench --scene city)"
-[ -z "${SKIP_GLBENCH:-}" ] && { timeout 120 python3 -m core.gl.bench --scene city > "$RAW/glbench.txt" 2>&1; tail -25 "$RAW/glbench.txt"; }
+echo "== GL backend (python -m core.lab.gl_bench --scene city)"
+[ -z "${SKIP_GLBENCH:-}" ] && { timeout 120 python3 -m core.lab.gl_bench --scene city > "$RAW/glbench.txt" 2>&1; tail -25 "$RAW/glbench.txt"; }
 python3 tools/gpu_table.py "$RAW" | tee "$OUT/gpu.md"
 tar -czf "$OUT/raw.tgz" -C "$RAW" .

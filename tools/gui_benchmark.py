@@ -99,20 +99,21 @@ def run():
         bpy.ops.screen.screenshot(filepath=os.path.join(OUT, "culled.png"))
     # live passes: the view moves along the path, as the live timer would cull
     session = sys.modules[f"{ADDON}.occ_addon.session"]
+    cameras = sys.modules[f"{ADDON}.occ_addon.cameras"]
     passes, parts = [], []
     sess = session.SESSION
     engine = sess.culler
     for f in frames[len(frames) // 2: len(frames) // 2 + 10]:
         rv3d.view_matrix = mathutils.Matrix(core.Camera.look_at(f["eye"], f["target"], f["up"]).view.tolist())
         with bpy.context.temp_override(window=win, area=area, region=region):
-            camera, display = session.viewport_camera(bpy.context)
+            camera, display = cameras.viewport_camera(bpy.context)
             t = time.perf_counter()
             sess.cull(bpy.context, camera, display)
             passes.append(1e3 * (time.perf_counter() - t))
             t = time.perf_counter()
             cand = sess.extractor.candidates(bpy.context)
             t1 = time.perf_counter()
-            sess.extractor.matrices(cand, sess.kept)
+            sess.extractor.matrices(cand, sess.held.index)
             t2 = time.perf_counter()
             sess.worker.run(sess.culler.cull, camera)
             t3 = time.perf_counter()
@@ -163,7 +164,7 @@ def live_motion(win, area, region, rv3d, sess, frames, core):
             bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
         yield
         with bpy.context.temp_override(**ctx):
-            camera, _ = sys.modules[f"{ADDON}.occ_addon.session"].viewport_camera(bpy.context)
+            camera, _ = sys.modules[f"{ADDON}.occ_addon.cameras"].viewport_camera(bpy.context)
         hidden = sum(1 for o in bpy.data.objects if o.occ_culled and o.hide_viewport)
         shown = sess.shown
         held.append(hidden == 0 or (shown is not None and shown[1].holds(shown[0], camera)))

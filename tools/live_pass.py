@@ -92,7 +92,7 @@ def main(argv=None):
         t1 = time.perf_counter()
         cand = sess.extractor.candidates(ctx)
         t2 = time.perf_counter()
-        sess.extractor.matrices(cand, sess.kept)
+        sess.extractor.matrices(cand, sess.held.index)
         t3 = time.perf_counter()
         used = sess.shown[1] if sess.shown is not None else None
         sess.worker.run(sess.culler.cull, cam, envelope=used)

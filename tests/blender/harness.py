@@ -12,6 +12,7 @@ import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 PYTHON = os.environ.get("OCC_BPY_PYTHON", sys.executable)
+CASES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "cases.py")    # the cases inside Blender
 
 needs_bpy = [
     pytest.mark.blender,
@@ -40,3 +41,10 @@ def run_script(script, work, *args, timeout=600):
     assert line is not None, (f"{os.path.basename(script)} printed no results (rc {p.returncode}):\n"
                               f"{p.stdout[-3000:]}\n{p.stderr[-3000:]}")
     return json.loads(line[len("OCC_RESULTS "):]), p
+
+
+def assert_check(results, name):
+    """One check a script recorded: reached, and passed (its detail says why not)."""
+    assert name in results, f"the script never reached '{name}'"
+    ok, detail = results[name]
+    assert ok, detail

@@ -7,27 +7,21 @@ step, the broken invariant with the objects concerned, the last steps, and the
 command that replays it.
 """
 
-import importlib.util
 import json
 import os
 import subprocess
-import sys
 
 import pytest
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from .harness import PYTHON, build_zip, needs_bpy
+
 SCRIPT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "workflows.py")
-PYTHON = os.environ.get("OCC_BPY_PYTHON", sys.executable)
 SEEDS = (1, 2, 3)
 STEPS = 300
 VALIDATE_SEED = 11
 MARK = "OCC_WORKFLOWS "
 
-pytestmark = [
-    pytest.mark.blender,
-    pytest.mark.skipif(PYTHON == sys.executable and importlib.util.find_spec("bpy") is None,
-                       reason="bpy is not installed (make test installs bpy==5.0.1)"),
-]
+pytestmark = needs_bpy
 
 
 def run(args, work, env=None):
@@ -42,13 +36,9 @@ def run(args, work, env=None):
 @pytest.fixture(scope="module")
 def workflows(tmp_path_factory):
     work = tmp_path_factory.mktemp("workflows")
-    dist = work / "dist"
-    subprocess.run([PYTHON, os.path.join(ROOT, "tools", "build_extension.py"), "--no-wheels", "--out", str(dist)],
-                   cwd=ROOT, check=True, capture_output=True, timeout=300)
-    zips = sorted(dist.glob("*.zip"))
-    assert len(zips) == 1, zips
+    zip_path = build_zip(work)
     env = {**os.environ, "BLENDER_USER_RESOURCES": str(work / "user"), "PYTHONHASHSEED": "0"}
-    return run(["--zip", str(zips[0]), "--seeds", ",".join(map(str, SEEDS)), "--steps", str(STEPS)], work, env)
+    return run(["--zip", str(zip_path), "--seeds", ",".join(map(str, SEEDS)), "--steps", str(STEPS)], work, env)
 
 
 def explain(seed, failure):

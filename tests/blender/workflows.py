@@ -799,233 +799,343 @@ def switch_view_layer(target):
     bpy.context.window.view_layer = target
 
 
-def do_step(w, kind):
-    """Apply one user action; returns a short description for the history."""
+# Each step applies one user action and returns a short description for the history.
+# Scene steps take ``(w, kind)``; object steps ``(w, kind, obj)``, the object drawn by
+# :func:`pick` first (the draws of the generator stay in the same order).
+
+def step_cull(w, kind):
     import bpy
-    rng, scene, model = w.rng, bpy.context.scene, w.model
-    vl = bpy.context.view_layer
-    if kind == "cull":
-        try:
-            r = bpy.ops.occ.cull()
-            return f"cull -> {sorted(r)}"
-        except RuntimeError as e:                  # an ERROR report: fine unless it is our bug
-            if "failed" in str(e):
-                raise
-            broken = [o.name for o in scene.objects if o.name in str(e) and has_nan(o)]
-            if broken and "nothing to cull" not in str(e):  # the bad one left out, nothing else to cull: fine
-                w.pending.append(f"g: one object with a NaN ({broken}) stopped the whole cull: {e}")
-            return f"cull -> report: {e}"
-    if kind == "restore":
-        return f"restore -> {sorted(bpy.ops.occ.restore())}"
-    if kind == "bad_value":
-        return do_bad_value(w)
-    if kind == "live":
-        live = live_module()
-        if scene.occ.live:                         # what occ.live does when it is on
-            live.stop(bpy.context)
-            bpy.ops.occ.restore()
-            return "live off"
-        live.start(bpy.context)
-        return "live on"
-    if kind == "analyze":
-        return do_analyze(w)
-    cam = scene.camera
-    if kind == "camera_move":
-        place_camera(w, cam)
-        return f"camera to {tuple(round(x, 2) for x in cam.location)}"
-    if kind == "camera_nudge":                      # a small move between live ticks (checked before them)
-        import mathutils
-        step = mathutils.Vector([rng.gauss(0.0, 1.0) for _ in range(3)])
-        step.length = rng.choice([0.02, 0.2, 1.0, 3.0])
-        cam.location += step
-        cam.rotation_euler.z += math.radians(rng.uniform(-8.0, 8.0))
-        return f"camera nudged by {step.length:.2f} to {tuple(round(x, 2) for x in cam.location)}"
-    if kind == "camera_scale":
-        s = rng.choice([(1, 1, 1), (1, 1, 1), (0.01, 0.01, 0.01), (-1, 1, 1), (2, 2, 2), (1, 0.5, 3),
-                        (100, 100, 100), (1, 1, 0)])
-        cam.scale = s
-        return f"camera scale {s}"
-    if kind == "camera_lens":
-        d = cam.data
-        d.type = rng.choice(["PERSP", "PERSP", "ORTHO"])
-        d.lens, d.ortho_scale = rng.uniform(18, 85), rng.uniform(6, 25)
-        d.clip_start, d.clip_end = rng.choice([(0.1, 100.0), (0.5, 14.0), (0.01, 1000.0)])
-        d.shift_x, d.shift_y = rng.uniform(-0.3, 0.3), rng.uniform(-0.2, 0.2)
-        d.sensor_fit = rng.choice(["AUTO", "HORIZONTAL", "VERTICAL"])
-        return (f"camera {d.type} lens {d.lens:.0f} clip {d.clip_start:g}-{d.clip_end:g} "
-                f"shift {d.shift_x:.2f},{d.shift_y:.2f}")
-    if kind == "frame":
-        f = rng.randint(*FRAMES)
-        scene.frame_set(f)
-        return f"frame {f}"
-    if kind == "view_layer":
-        if len(scene.view_layers) < 3 and rng.random() < 0.3:      # a new one: everything shown there
-            new = scene.view_layers.new("Third")
-            if "instanced_member_drawn" in KNOWN_UNFIXED:
-                new.layer_collection.children["Lib"].exclude = True
-            for m in model["objects"].values():
-                m["eye"][new.name] = False
-            for path, lc in layer_collections(new):
-                model["lc"][(new.name, path)] = [lc.hide_viewport, lc.exclude]
-            switch_view_layer(new)
-            return f"new view layer '{new.name}', active"
-        if len(scene.view_layers) > 2 and rng.random() < 0.3:      # the extra one goes away
-            gone = next(v for v in scene.view_layers if v.name.startswith("Third"))
-            if gone == vl:
-                switch_view_layer(scene.view_layers[0])
-            name = gone.name
-            scene.view_layers.remove(gone)
-            for m in model["objects"].values():
-                m["eye"].pop(name, None)
-            model["lc"] = {k: v for k, v in model["lc"].items() if k[0] != name}
-            return f"view layer '{name}' removed, active '{bpy.context.view_layer.name}'"
-        other = [v for v in scene.view_layers if v != vl]
-        switch_view_layer(rng.choice(other))
-        return f"view layer -> {bpy.context.view_layer.name}"
-    if kind == "add":
-        c = rng.choice(user_collections() + [scene.collection])
-        p = in_view_point(w) if rng.random() < 0.5 else (rng.uniform(-9, 9), rng.uniform(-9, 9), rng.uniform(0, 1.5))
-        o = add_box(w, "Added", p, (0.5, 0.5, 0.5), c, rng.uniform(0, 3))
-        model["objects"][o["wf_id"]] = object_intent(o)
-        return f"add '{o.name}' in {c.name} at {tuple(round(x, 2) for x in p)}"
-    if kind == "settings":                          # the add-on's own choices: strategy, accuracy
-        occ = scene.occ
-        strategies = [i.identifier for i in occ.bl_rna.properties["strategy"].enum_items]
-        occ.strategy = rng.choice(strategies)
-        occ.preset = rng.choice([i.identifier for i in occ.bl_rna.properties["preset"].enum_items])
-        return f"strategy {occ.strategy}, accuracy {occ.preset}"
-    if kind == "exclude_setting":
-        c = rng.choice(user_collections() + [None])
-        scene.occ.exclude_collection = c
-        scene.occ.exclude_children = rng.random() < 0.5
-        model["exclude"], model["exclude_children"] = (c.name if c else None), scene.occ.exclude_children
-        return f"exclude collection {c.name if c else None} children {scene.occ.exclude_children}"
-    if kind in ("coll_eye", "coll_exclude"):
-        path, lc = rng.choice([x for x in layer_collections(vl) if x[0][0] != "Lib"])
-        if kind == "coll_eye":
-            lc.hide_viewport = not lc.hide_viewport
-        else:
-            lc.exclude = not lc.exclude
-        for v in scene.view_layers:                 # Blender's own consequences (children of an excluded one)
-            for p2, lc2 in layer_collections(v):
-                model["lc"][(v.name, p2)] = [lc2.hide_viewport, lc2.exclude]
-        forget_lost_bases(w)
-        return f"{kind} {'/'.join(path)} in '{vl.name}' -> {[lc.hide_viewport, lc.exclude]}"
-    if kind == "coll_monitor":
-        c = rng.choice(user_collections())
-        c.hide_viewport = not c.hide_viewport
-        model["coll_monitor"][c.name] = c.hide_viewport
-        return f"collection monitor {c.name} -> {c.hide_viewport}"
-    # ---- object steps
-    o = pick(w, animated=False if kind == "object_move" else None)
-    if o is None:
-        return f"{kind}: no object"
-    wid, name = o["wf_id"], o.name
-    m = model["objects"][wid]
-    if kind == "object_move":
-        p = in_view_point(w) if rng.random() < 0.5 else (rng.uniform(-9, 9), rng.uniform(-9, 9), rng.uniform(0, 1.5))
-        o.location = p
-        return f"move '{name}' to {tuple(round(x, 2) for x in p)}"
-    if kind == "hide_eye":
-        if vl.objects.get(name) is None:
-            return f"hide_eye '{name}': not in view layer"
-        state = not o.hide_get()
-        o.hide_set(state)
-        m["eye"][vl.name] = state
-        return f"eye '{name}' hidden={state}"
-    if kind == "hide_monitor":
-        # a click toggles what the icon shows; the UI evaluates the depsgraph (redraw)
-        # after each click
+    scene = bpy.context.scene
+    try:
+        r = bpy.ops.occ.cull()
+        return f"cull -> {sorted(r)}"
+    except RuntimeError as e:                  # an ERROR report: fine unless it is our bug
+        if "failed" in str(e):
+            raise
+        broken = [o.name for o in scene.objects if o.name in str(e) and has_nan(o)]
+        if broken and "nothing to cull" not in str(e):  # the bad one left out, nothing else to cull: fine
+            w.pending.append(f"g: one object with a NaN ({broken}) stopped the whole cull: {e}")
+        return f"cull -> report: {e}"
+
+
+def step_restore(w, kind):
+    import bpy
+    return f"restore -> {sorted(bpy.ops.occ.restore())}"
+
+
+def step_live(w, kind):
+    import bpy
+    live = live_module()
+    if bpy.context.scene.occ.live:             # what occ.live does when it is on
+        live.stop(bpy.context)
+        bpy.ops.occ.restore()
+        return "live off"
+    live.start(bpy.context)
+    return "live on"
+
+
+def step_camera_move(w, kind):
+    import bpy
+    cam = bpy.context.scene.camera
+    place_camera(w, cam)
+    return f"camera to {tuple(round(x, 2) for x in cam.location)}"
+
+
+def step_camera_nudge(w, kind):
+    """A small move between live ticks (checked before them)."""
+    import bpy
+    import mathutils
+    cam = bpy.context.scene.camera
+    step = mathutils.Vector([w.rng.gauss(0.0, 1.0) for _ in range(3)])
+    step.length = w.rng.choice([0.02, 0.2, 1.0, 3.0])
+    cam.location += step
+    cam.rotation_euler.z += math.radians(w.rng.uniform(-8.0, 8.0))
+    return f"camera nudged by {step.length:.2f} to {tuple(round(x, 2) for x in cam.location)}"
+
+
+def step_camera_scale(w, kind):
+    import bpy
+    s = w.rng.choice([(1, 1, 1), (1, 1, 1), (0.01, 0.01, 0.01), (-1, 1, 1), (2, 2, 2), (1, 0.5, 3),
+                      (100, 100, 100), (1, 1, 0)])
+    bpy.context.scene.camera.scale = s
+    return f"camera scale {s}"
+
+
+def step_camera_lens(w, kind):
+    import bpy
+    rng, d = w.rng, bpy.context.scene.camera.data
+    d.type = rng.choice(["PERSP", "PERSP", "ORTHO"])
+    d.lens, d.ortho_scale = rng.uniform(18, 85), rng.uniform(6, 25)
+    d.clip_start, d.clip_end = rng.choice([(0.1, 100.0), (0.5, 14.0), (0.01, 1000.0)])
+    d.shift_x, d.shift_y = rng.uniform(-0.3, 0.3), rng.uniform(-0.2, 0.2)
+    d.sensor_fit = rng.choice(["AUTO", "HORIZONTAL", "VERTICAL"])
+    return (f"camera {d.type} lens {d.lens:.0f} clip {d.clip_start:g}-{d.clip_end:g} "
+            f"shift {d.shift_x:.2f},{d.shift_y:.2f}")
+
+
+def step_frame(w, kind):
+    import bpy
+    f = w.rng.randint(*FRAMES)
+    bpy.context.scene.frame_set(f)
+    return f"frame {f}"
+
+
+def step_view_layer(w, kind):
+    """A new view layer (everything shown there), the extra one removed, or another one active."""
+    import bpy
+    rng, scene, model, vl = w.rng, bpy.context.scene, w.model, bpy.context.view_layer
+    if len(scene.view_layers) < 3 and rng.random() < 0.3:
+        new = scene.view_layers.new("Third")
+        if "instanced_member_drawn" in KNOWN_UNFIXED:
+            new.layer_collection.children["Lib"].exclude = True
+        for m in model["objects"].values():
+            m["eye"][new.name] = False
+        for path, lc in layer_collections(new):
+            model["lc"][(new.name, path)] = [lc.hide_viewport, lc.exclude]
+        switch_view_layer(new)
+        return f"new view layer '{new.name}', active"
+    if len(scene.view_layers) > 2 and rng.random() < 0.3:
+        gone = next(v for v in scene.view_layers if v.name.startswith("Third"))
+        if gone == vl:
+            switch_view_layer(scene.view_layers[0])
+        name = gone.name
+        scene.view_layers.remove(gone)
+        for m in model["objects"].values():
+            m["eye"].pop(name, None)
+        model["lc"] = {k: v for k, v in model["lc"].items() if k[0] != name}
+        return f"view layer '{name}' removed, active '{bpy.context.view_layer.name}'"
+    other = [v for v in scene.view_layers if v != vl]
+    switch_view_layer(rng.choice(other))
+    return f"view layer -> {bpy.context.view_layer.name}"
+
+
+def step_add(w, kind):
+    import bpy
+    rng = w.rng
+    c = rng.choice(user_collections() + [bpy.context.scene.collection])
+    p = in_view_point(w) if rng.random() < 0.5 else (rng.uniform(-9, 9), rng.uniform(-9, 9), rng.uniform(0, 1.5))
+    o = add_box(w, "Added", p, (0.5, 0.5, 0.5), c, rng.uniform(0, 3))
+    w.model["objects"][o["wf_id"]] = object_intent(o)
+    return f"add '{o.name}' in {c.name} at {tuple(round(x, 2) for x in p)}"
+
+
+def step_settings(w, kind):
+    """The add-on's own choices: strategy, accuracy."""
+    import bpy
+    occ = bpy.context.scene.occ
+    strategies = [i.identifier for i in occ.bl_rna.properties["strategy"].enum_items]
+    occ.strategy = w.rng.choice(strategies)
+    occ.preset = w.rng.choice([i.identifier for i in occ.bl_rna.properties["preset"].enum_items])
+    return f"strategy {occ.strategy}, accuracy {occ.preset}"
+
+
+def step_exclude_setting(w, kind):
+    import bpy
+    occ = bpy.context.scene.occ
+    c = w.rng.choice(user_collections() + [None])
+    occ.exclude_collection = c
+    occ.exclude_children = w.rng.random() < 0.5
+    w.model["exclude"], w.model["exclude_children"] = (c.name if c else None), occ.exclude_children
+    return f"exclude collection {c.name if c else None} children {occ.exclude_children}"
+
+
+def step_layer_collection(w, kind):
+    """coll_eye / coll_exclude: a layer collection's eye or exclude box in the active view layer."""
+    import bpy
+    scene, vl = bpy.context.scene, bpy.context.view_layer
+    path, lc = w.rng.choice([x for x in layer_collections(vl) if x[0][0] != "Lib"])
+    if kind == "coll_eye":
+        lc.hide_viewport = not lc.hide_viewport
+    else:
+        lc.exclude = not lc.exclude
+    for v in scene.view_layers:                 # Blender's own consequences (children of an excluded one)
+        for p2, lc2 in layer_collections(v):
+            w.model["lc"][(v.name, p2)] = [lc2.hide_viewport, lc2.exclude]
+    forget_lost_bases(w)
+    return f"{kind} {'/'.join(path)} in '{vl.name}' -> {[lc.hide_viewport, lc.exclude]}"
+
+
+def step_collection_monitor(w, kind):
+    c = w.rng.choice(user_collections())
+    c.hide_viewport = not c.hide_viewport
+    w.model["coll_monitor"][c.name] = c.hide_viewport
+    return f"collection monitor {c.name} -> {c.hide_viewport}"
+
+
+def step_object_move(w, kind, o):
+    rng = w.rng
+    p = in_view_point(w) if rng.random() < 0.5 else (rng.uniform(-9, 9), rng.uniform(-9, 9), rng.uniform(0, 1.5))
+    o.location = p
+    return f"move '{o.name}' to {tuple(round(x, 2) for x in p)}"
+
+
+def step_hide_eye(w, kind, o):
+    import bpy
+    vl, name = bpy.context.view_layer, o.name
+    if vl.objects.get(name) is None:
+        return f"hide_eye '{name}': not in view layer"
+    state = not o.hide_get()
+    o.hide_set(state)
+    w.model["objects"][o["wf_id"]]["eye"][vl.name] = state
+    return f"eye '{name}' hidden={state}"
+
+
+def step_hide_monitor(w, kind, o):
+    """A click toggles what the icon shows; the UI evaluates the depsgraph (redraw) after each click."""
+    import bpy
+    m, name = w.model["objects"][o["wf_id"]], o.name
+    o.hide_viewport = not o.hide_viewport
+    m["monitor"] = o.hide_viewport
+    if w.rng.random() < 0.3:
+        bpy.context.view_layer.update()
         o.hide_viewport = not o.hide_viewport
         m["monitor"] = o.hide_viewport
-        if rng.random() < 0.3:
-            bpy.context.view_layer.update()
-            o.hide_viewport = not o.hide_viewport
-            m["monitor"] = o.hide_viewport
-            return f"monitor '{name}' clicked twice -> hidden={o.hide_viewport}"
-        return f"monitor '{name}' clicked -> hidden={o.hide_viewport}"
-    if kind == "object_scale":
-        sx = rng.choice([1.0, -1.0, 0.3, 3.0])            # negative: a mirrored object
-        o.scale = (sx * abs(o.scale[0]) if sx < 0 else sx, o.scale[1], rng.choice([o.scale[2], 2.5]))
-        return f"scale '{name}' to {tuple(round(x, 2) for x in o.scale)}"
-    if kind == "mesh_edit":
-        if o.type != "MESH" or not len(o.data.vertices):
-            return f"mesh_edit '{name}': no mesh"
-        # a script (or edit mode) reshapes the mesh data: taller or flatter, a little off centre
-        sz, dx = rng.choice([0.2, 0.5, 2.0, 4.0]), rng.uniform(-1.0, 1.0)
-        co = [0.0] * (3 * len(o.data.vertices))
-        o.data.vertices.foreach_get("co", co)
-        co = [c * sz if i % 3 == 2 else c + (dx if i % 3 == 0 else 0.0) for i, c in enumerate(co)]
-        o.data.vertices.foreach_set("co", co)
-        o.data.update()
-        users = [u.name for u in bpy.data.objects if u.data == o.data]
-        return f"mesh of '{name}' z x{sz}, x {dx:+.2f} (mesh users {users})"
-    if kind == "display_type":
-        if "wire_instanced_member" in KNOWN_UNFIXED and "Lib" in [c.name for c in o.users_collection]:
-            return f"display '{name}': a member of 'Lib' stays solid ({KNOWN_UNFIXED['wire_instanced_member']})"
-        o.display_type = rng.choice(["TEXTURED", "SOLID", "WIRE", "BOUNDS"])
-        return f"display '{name}' as {o.display_type}"
-    if kind == "never_cull":
-        o.occ_never_cull = not o.occ_never_cull
-        m["never"] = o.occ_never_cull
-        return f"never cull '{name}' -> {o.occ_never_cull}"
-    if kind == "delete":
-        bpy.data.objects.remove(o, do_unlink=True)
-        del model["objects"][wid]
-        return f"delete '{name}'"
-    if kind == "rename":
-        o.name = f"R{rng.randint(0, 999)}"
-        return f"rename '{name}' -> '{o.name}'"
-    if kind == "rename_swap":
-        b = pick(w, hidden_first=0.0)
-        if b is None or b == o:
-            return "swap: no pair"
-        bname = b.name
-        o.name = "wf_swap_tmp"
-        b.name = name
-        o.name = bname
-        return f"swap names '{name}' <-> '{bname}'"
-    if kind == "rename_replace":
-        b = pick(w, hidden_first=0.0)
-        if b is None or b == o:
-            return "replace: no pair"
-        bname = b.name
-        bpy.data.objects.remove(o, do_unlink=True)
-        del model["objects"][wid]
-        b.name = name
-        return f"delete '{name}', rename '{bname}' -> '{b.name}'"
-    if kind in ("duplicate", "link"):
-        if kind == "duplicate":
-            c = o.copy()                            # copies custom and add-on properties, and flags
-            if rng.random() < 0.5 and c.data is not None:
-                c.data = o.data.copy()
-            link_like(o, c)
-        else:
-            c = bpy.data.objects.new(f"{name}_link", o.data)
-            rng.choice(user_collections()).objects.link(c)
-            if o.instance_type == "COLLECTION":
-                c.instance_type, c.instance_collection = o.instance_type, o.instance_collection
-        if c.animation_data is None:
-            c.location = in_view_point(w) if rng.random() < 0.5 else (rng.uniform(-9, 9), rng.uniform(-9, 9), 0.5)
-        new_id(w, c)
-        # the user's flags of the copy: Blender copies the object's own ones (monitor,
-        # never cull) and gives the new base a shown eye; the add-on's hiding is not the user's
-        intent = object_intent(c, monitor=m["monitor"] if kind == "duplicate" else False)
-        intent["never"] = m["never"] if kind == "duplicate" else False
-        model["objects"][c["wf_id"]] = intent
-        return f"{kind} '{name}' -> '{c.name}'"
-    if kind == "move_collection":
-        dest = rng.choice(user_collections() + [scene.collection])
-        if dest.name in [c.name for c in o.users_collection]:
-            return f"move '{name}': already in {dest.name}"
-        srcs = list(o.users_collection)
-        dest.objects.link(o)
-        if srcs and (rng.random() < 0.7 or ("instanced_member_drawn" in KNOWN_UNFIXED
-                                            and srcs[0].name == "Lib")):
-            srcs[0].objects.unlink(o)
-        forget_lost_bases(w)
-        return f"move '{name}' from {[c.name for c in srcs]} to {dest.name}"
-    raise ValueError(kind)
+        return f"monitor '{name}' clicked twice -> hidden={o.hide_viewport}"
+    return f"monitor '{name}' clicked -> hidden={o.hide_viewport}"
+
+
+def step_object_scale(w, kind, o):
+    rng = w.rng
+    sx = rng.choice([1.0, -1.0, 0.3, 3.0])            # negative: a mirrored object
+    o.scale = (sx * abs(o.scale[0]) if sx < 0 else sx, o.scale[1], rng.choice([o.scale[2], 2.5]))
+    return f"scale '{o.name}' to {tuple(round(x, 2) for x in o.scale)}"
+
+
+def step_mesh_edit(w, kind, o):
+    """A script (or edit mode) reshapes the mesh data: taller or flatter, a little off centre."""
+    import bpy
+    name = o.name
+    if o.type != "MESH" or not len(o.data.vertices):
+        return f"mesh_edit '{name}': no mesh"
+    sz, dx = w.rng.choice([0.2, 0.5, 2.0, 4.0]), w.rng.uniform(-1.0, 1.0)
+    co = [0.0] * (3 * len(o.data.vertices))
+    o.data.vertices.foreach_get("co", co)
+    co = [c * sz if i % 3 == 2 else c + (dx if i % 3 == 0 else 0.0) for i, c in enumerate(co)]
+    o.data.vertices.foreach_set("co", co)
+    o.data.update()
+    users = [u.name for u in bpy.data.objects if u.data == o.data]
+    return f"mesh of '{name}' z x{sz}, x {dx:+.2f} (mesh users {users})"
+
+
+def step_display_type(w, kind, o):
+    name = o.name
+    if "wire_instanced_member" in KNOWN_UNFIXED and "Lib" in [c.name for c in o.users_collection]:
+        return f"display '{name}': a member of 'Lib' stays solid ({KNOWN_UNFIXED['wire_instanced_member']})"
+    o.display_type = w.rng.choice(["TEXTURED", "SOLID", "WIRE", "BOUNDS"])
+    return f"display '{name}' as {o.display_type}"
+
+
+def step_never_cull(w, kind, o):
+    o.occ_never_cull = not o.occ_never_cull
+    w.model["objects"][o["wf_id"]]["never"] = o.occ_never_cull
+    return f"never cull '{o.name}' -> {o.occ_never_cull}"
+
+
+def step_delete(w, kind, o):
+    import bpy
+    wid, name = o["wf_id"], o.name
+    bpy.data.objects.remove(o, do_unlink=True)
+    del w.model["objects"][wid]
+    return f"delete '{name}'"
+
+
+def step_rename(w, kind, o):
+    name = o.name
+    o.name = f"R{w.rng.randint(0, 999)}"
+    return f"rename '{name}' -> '{o.name}'"
+
+
+def step_rename_swap(w, kind, o):
+    name = o.name
+    b = pick(w, hidden_first=0.0)
+    if b is None or b == o:
+        return "swap: no pair"
+    bname = b.name
+    o.name = "wf_swap_tmp"
+    b.name = name
+    o.name = bname
+    return f"swap names '{name}' <-> '{bname}'"
+
+
+def step_rename_replace(w, kind, o):
+    import bpy
+    wid, name = o["wf_id"], o.name
+    b = pick(w, hidden_first=0.0)
+    if b is None or b == o:
+        return "replace: no pair"
+    bname = b.name
+    bpy.data.objects.remove(o, do_unlink=True)
+    del w.model["objects"][wid]
+    b.name = name
+    return f"delete '{name}', rename '{bname}' -> '{b.name}'"
+
+
+def step_copy(w, kind, o):
+    """duplicate (a copy, its mesh copied or shared) or link (a new object on the same data)."""
+    import bpy
+    rng, name, m = w.rng, o.name, w.model["objects"][o["wf_id"]]
+    if kind == "duplicate":
+        c = o.copy()                            # copies custom and add-on properties, and flags
+        if rng.random() < 0.5 and c.data is not None:
+            c.data = o.data.copy()
+        link_like(o, c)
+    else:
+        c = bpy.data.objects.new(f"{name}_link", o.data)
+        rng.choice(user_collections()).objects.link(c)
+        if o.instance_type == "COLLECTION":
+            c.instance_type, c.instance_collection = o.instance_type, o.instance_collection
+    if c.animation_data is None:
+        c.location = in_view_point(w) if rng.random() < 0.5 else (rng.uniform(-9, 9), rng.uniform(-9, 9), 0.5)
+    new_id(w, c)
+    # the user's flags of the copy: Blender copies the object's own ones (monitor,
+    # never cull) and gives the new base a shown eye; the add-on's hiding is not the user's
+    intent = object_intent(c, monitor=m["monitor"] if kind == "duplicate" else False)
+    intent["never"] = m["never"] if kind == "duplicate" else False
+    w.model["objects"][c["wf_id"]] = intent
+    return f"{kind} '{name}' -> '{c.name}'"
+
+
+def step_move_collection(w, kind, o):
+    import bpy
+    rng, name = w.rng, o.name
+    dest = rng.choice(user_collections() + [bpy.context.scene.collection])
+    if dest.name in [c.name for c in o.users_collection]:
+        return f"move '{name}': already in {dest.name}"
+    srcs = list(o.users_collection)
+    dest.objects.link(o)
+    if srcs and (rng.random() < 0.7 or ("instanced_member_drawn" in KNOWN_UNFIXED
+                                        and srcs[0].name == "Lib")):
+        srcs[0].objects.unlink(o)
+    forget_lost_bases(w)
+    return f"move '{name}' from {[c.name for c in srcs]} to {dest.name}"
+
+
+SCENE_STEPS = {
+    "cull": step_cull, "restore": step_restore, "bad_value": lambda w, kind: do_bad_value(w),
+    "live": step_live, "analyze": lambda w, kind: do_analyze(w), "camera_move": step_camera_move,
+    "camera_nudge": step_camera_nudge, "camera_scale": step_camera_scale, "camera_lens": step_camera_lens,
+    "frame": step_frame, "view_layer": step_view_layer, "add": step_add, "settings": step_settings,
+    "exclude_setting": step_exclude_setting, "coll_eye": step_layer_collection,
+    "coll_exclude": step_layer_collection, "coll_monitor": step_collection_monitor,
+}
+OBJECT_STEPS = {
+    "object_move": step_object_move, "hide_eye": step_hide_eye, "hide_monitor": step_hide_monitor,
+    "object_scale": step_object_scale, "mesh_edit": step_mesh_edit, "display_type": step_display_type,
+    "never_cull": step_never_cull, "delete": step_delete, "rename": step_rename,
+    "rename_swap": step_rename_swap, "rename_replace": step_rename_replace, "duplicate": step_copy,
+    "link": step_copy, "move_collection": step_move_collection,
+}
+
+
+def do_step(w, kind):
+    """Apply one user action (a step of :data:`SCENE_STEPS` or :data:`OBJECT_STEPS`);
+    returns a short description for the history."""
+    if kind in SCENE_STEPS:
+        return SCENE_STEPS[kind](w, kind)
+    o = pick(w, animated=False if kind == "object_move" else None)    # prefers what the add-on hid
+    if o is None:
+        return f"{kind}: no object"
+    return OBJECT_STEPS[kind](w, kind, o)
 
 
 def live_module():

@@ -13,15 +13,14 @@ import time
 
 import numpy as np
 
-from . import traversal
+from .. import STRATEGIES, Visibility
+from ..cull import view_pass
+from ..engine import DEFAULT_RESOLUTION, Culler
+from ..errors import OccError
+from ..occupancy import OccupancyMap
 from .bench import format_table, run_bench
-from .engine import DEFAULT_RESOLUTION, Culler
-from .errors import OccError
 from .images import STATE_COLOURS, colour_by_state
 from .jobs import load_job
-from .occupancy import OccupancyMap
-from .strategies import STRATEGIES
-from .traversal import Visibility
 
 # file name pattern (after the scene title) -> what the index says about it
 FILES = (
@@ -117,12 +116,12 @@ class _RecordingMap(OccupancyMap):
 @contextlib.contextmanager
 def _watched_occupancy_map():
     """Passes started inside build their occupancy map as a :class:`_RecordingMap`."""
-    original, _RecordingMap.last = traversal.OccupancyMap, None
-    traversal.OccupancyMap = _RecordingMap
+    original, _RecordingMap.last = view_pass.OccupancyMap, None
+    view_pass.OccupancyMap = _RecordingMap
     try:
         yield
     finally:
-        traversal.OccupancyMap = original
+        view_pass.OccupancyMap = original
 
 
 def _legend_image(ax, image, labels, colours, title):
@@ -259,7 +258,7 @@ def bench_scene(spec, camera=None, strategies=STRATEGIES, resolution=DEFAULT_RES
                 frames=None, out_dir=None, plot=False, snapshot=False, progress=None, rounds=1, envelope=None):
     """Load a scene (file or sample name), run the benchmark, optionally write a report folder.
 
-    ``progress``: a :class:`core.jobs.Progress` that takes :func:`bench_steps` steps (None: silent).
+    ``progress``: a :class:`core.lab.jobs.Progress` that takes :func:`bench_steps` steps (None: silent).
     """
     step = progress.step if progress is not None else (lambda *a, **k: None)
     t = time.perf_counter()

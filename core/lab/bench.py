@@ -1,6 +1,6 @@
 """The benchmark as a library: every strategy over a camera path in one process,
 measured against the object-ID truth (``python -m core bench`` is its front-end in
-:mod:`core.cli`; the report folder is written by :mod:`core.reports`).
+:mod:`core.lab.cli`; the report folder is written by :mod:`core.lab.reports`).
 
 Per strategy, over the whole path: median and p95 frame ms, culling overhead
 (traversal + queries), triangles drawn and the render rate, queries issued and
@@ -13,9 +13,9 @@ import time
 
 import numpy as np
 
-from .engine import DEFAULT_RESOLUTION, Culler
-from .errors import OccError
-from .strategies import STRATEGIES
+from .. import STRATEGIES
+from ..engine import DEFAULT_RESOLUTION, Culler
+from ..errors import OccError
 
 TABLE_COLUMNS = (
     ("strategy", "{:<13}"), ("median ms", "{:>9.2f}"), ("p95 ms", "{:>8.2f}"),
@@ -104,8 +104,8 @@ def _path(culler, name, cameras, truths, warmup):
 def _envelope_row(culler, cameras, truths, envelope, tri_total):
     """The envelope's row: its pass per frame against the frame's truth and sampled
     views of the envelope, and what it hides beside a point pass of the default."""
-    from .envelope import sample_views
-    from .strategies import DEFAULT_STRATEGY
+    from .. import DEFAULT_STRATEGY
+    from ..envelope import sample_views
     rng = np.random.default_rng(0)
     tri = culler.scene.triangle_counts
     culler.set_strategy(DEFAULT_STRATEGY)

@@ -14,9 +14,9 @@ exact.  The presets are candidates of the front like every knob setting.
 
 import numpy as np
 
-from .engine import Culler
-from .errors import OccError
-from .settings import PRESETS, CullOptions, query_resolution
+from ..engine import Culler
+from ..errors import OccError
+from ..settings import PRESETS, CullOptions, query_resolution
 
 # knob -> list of (label, options changes, culler keyword changes)
 KNOBS = {

@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from .engine import Culler
+from ..engine import Culler
 from .jobs import spread
 
 CANDIDATES = ("tree", "pHBVO", "DBVS", "octree", "balanced")
@@ -51,7 +51,7 @@ def measure_costs(culler, camera):
 
 def chunk_size(scene, costs):
     """Chunk triangles from the cost model, or None when no mesh is worth cutting."""
-    from . import subdivision as sub
+    from .. import subdivision as sub
     tri = np.array([len(f) for _, f in scene.meshes])
     heavy = [t for t in tri if sub.worth_chunking(int(t), costs["query_us"], costs["ktri_us"])]
     if not heavy:

@@ -1,6 +1,6 @@
 """What a command works on: a scene (file or sample name), its cameras, a title.
 
-Shared by the command line (:mod:`core.cli`), the benchmark and the hierarchy
+Shared by the command line (:mod:`core.lab.cli`), the benchmark and the hierarchy
 choice, so that none of them imports another's front-end.  Everything here
 checks its input before any long work starts and raises :class:`OccError`.
 """
@@ -9,9 +9,9 @@ import os
 import sys
 import tempfile
 
-from .camera import cameras_from_json, load_cameras
-from .errors import OccError
-from .scene import load_scene
+from ..camera import cameras_from_json, load_cameras
+from ..errors import OccError
+from ..scene import load_scene
 
 
 def sample_names():

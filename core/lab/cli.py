@@ -1,8 +1,8 @@
 """Command line: ``python -m core cull | truth | bench | motion | tradeoff | demo``.
 
 The command front-ends live here and only here; the work is in libraries
-(:mod:`core.jobs` loads a job, :mod:`core.bench`, :mod:`core.tradeoff` and
-:mod:`core.reports` measure and write).  Output shapes are the contract of
+(:mod:`core.lab.jobs` loads a job, :mod:`core.lab.bench`, :mod:`core.lab.tradeoff` and
+:mod:`core.lab.reports` measure and write).  Output shapes are the contract of
 DESIGN.md; every user error is an :class:`OccError` printed as one line on
 stderr with exit status 2.
 """
@@ -15,12 +15,11 @@ import sys
 
 import numpy as np
 
-from .engine import DEFAULT_RESOLUTION, Culler, parse_resolution
-from .errors import OccError
+from .. import DEFAULT_STRATEGY, STRATEGIES, Visibility
+from ..engine import DEFAULT_RESOLUTION, Culler, parse_resolution
+from ..errors import OccError
+from ..scene import load_scene
 from .jobs import Progress, load_job, parse_names, prepare_out, require_matplotlib, resolve_cameras, resolve_scene
-from .scene import load_scene
-from .strategies import DEFAULT_STRATEGY, STRATEGIES
-from .traversal import Visibility
 
 EXIT_USER_ERROR = 2
 CAMERA_HELP = 'camera JSON: one camera or {"frames": [camera, ...]}'
@@ -67,7 +66,7 @@ def _envelope(args):
     """``--envelope D,A`` as an :class:`core.envelope.Envelope`, or None."""
     if getattr(args, "envelope", None) is None:
         return None
-    from .envelope import Envelope
+    from ..envelope import Envelope
     return Envelope.parse(args.envelope)
 
 

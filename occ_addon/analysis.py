@@ -1,0 +1,177 @@
+"""Analyze a camera path: cull from the scene camera frame by frame, hiding nothing,
+and write what it sees (JSON and CSV); optionally collect the never-visible objects.
+
+What counts as seen beyond the engine's answer is :mod:`.policy`'s (the same rules
+a pass keeps to).  The work runs as a generator (:func:`analysis_steps`, see
+:func:`.worker.drive`): a window drives it from a modal operator's timer, a script
+at once.
+"""
+
+import csv
+import json
+import os
+import time
+from collections.abc import Generator
+from dataclasses import dataclass
+
+import bpy
+import numpy as np
+
+from ..core import Visibility
+from . import policy
+from .cameras import scene_camera
+from .session import SESSION
+from .shading import rule as rule_of
+
+
+@dataclass
+class Analysis:
+    """What an analysis found: ``frames`` analyzed, the report ``path``, per frame
+    ``{"frame": f, "visible": [names]}``, per object name the number of frames it is
+    seen in (0: never), when it started (``time.perf_counter()``) and its ``rule``
+    ("seen" or "render")."""
+
+    frames: list[int]
+    path: str
+    per_frame: list[dict]
+    seen: dict[str, int]
+    started: float
+    rule: str
+
+    @property
+    def never_visible(self) -> list[str]:
+        return sorted(n for n, c in self.seen.items() if c == 0)
+
+
+def analysis_steps(context, frames: list[int], path: str, rule: str = "seen") -> Generator[object, None, Analysis]:
+    """Analyze in steps (a generator, see :func:`.worker.drive`): one a frame, and a
+    first build's own.  Stopped early (Esc), the scene goes back to its frame and
+    nothing is written.  ``rule``: "seen" (a pixel of it seen) or "render" (seen, or
+    shown beyond its pixels under the render engine: shadows, rays; :mod:`.shading`)."""
+    scene = context.scene
+    previous = scene.frame_current
+    out = Analysis(frames, path, [], {}, time.perf_counter(), rule)
+    seen = out.seen
+    held = held_names = instances = None
+    step = max(1, len(frames) // 10)          # background mode: about ten progress lines
+    try:
+        for k, f in enumerate(frames):
+            scene.frame_set(f)
+            camera, display = scene_camera(context)
+            # nothing is hidden
+            # the first frame a new engine's answer, later ones from what it taught
+            view_rule = rule_of(context, "CAMERA") if rule == "render" else None
+            result, objects = yield from SESSION.compute_steps(context, camera, display, restart=k == 0,
+                                                               lights=view_rule.lights if view_rule else None)
+            if SESSION.held is not held:        # the engine's objects changed: their names, once
+                held = SESSION.held
+                held_names = [o.name for o in objects]
+                instances = policy.instancers(objects)
+                for n in held_names:
+                    seen.setdefault(n, 0)
+            vis = result.state == Visibility.VISIBLE          # one array compare, no per-object enum
+            if view_rule is not None:          # shadow casters are the engine's (given the lights)
+                vis |= policy.drawn_beyond_depth(view_rule, result.state, scene.occ.cull_raytraced)
+            policy.widen_instances(objects, instances, vis)
+            shown = [held_names[i] for i in np.flatnonzero(vis)]
+            others = [o.name for o in policy.seen_beside(context.view_layer, objects, held.uids, instances, vis)]
+            names = list(dict.fromkeys(shown + others))
+            out.per_frame.append({"frame": f, "visible": names})
+            for n in others:
+                seen.setdefault(n, 0)
+            for n in names:
+                seen[n] += 1
+            if bpy.app.background and ((k + 1) % step == 0 or k + 1 == len(frames)):
+                print(f"occlusion analyze: {k + 1}/{len(frames)} frames "
+                      f"({time.perf_counter() - out.started:.1f} s)", flush=True)
+            yield f"frame {k + 1}/{len(frames)}", (k + 1) / len(frames)
+    finally:
+        scene.frame_set(previous)
+    return out
+
+
+def report_path(filepath: str) -> str:
+    """Absolute report path.  ``//`` is the blend file's folder; in a file never saved
+    it is the working directory (sub-folders kept), never Blender's temporary folder,
+    which is deleted at exit."""
+    if filepath.startswith("//") and not bpy.data.filepath:
+        return os.path.normpath(os.path.join(os.getcwd(), filepath[2:]))
+    return os.path.normpath(bpy.path.abspath(filepath))
+
+
+def write_report(analysis: Analysis) -> None:
+    """JSON: per frame the visible objects, per object the frames it is visible in, and
+    the rule that says what "visible" means ("seen" or "render"); CSV beside it."""
+    path, frames = analysis.path, analysis.frames
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    first, last = {}, {}
+    for fr in analysis.per_frame:
+        for n in fr["visible"]:
+            first.setdefault(n, fr["frame"])
+            last[n] = fr["frame"]
+    objects = {n: {"frames_visible": c, "first": first.get(n), "last": last.get(n)}
+               for n, c in sorted(analysis.seen.items())}
+    with open(path, "w", encoding="utf-8") as f:
+        json.dump({"frames": analysis.per_frame, "objects": objects, "frame_count": len(frames),
+                   "rule": analysis.rule}, f, indent=1)
+    with open(os.path.splitext(path)[0] + ".csv", "w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        w.writerow(["object", "frames_visible", "fraction", "first_frame", "last_frame"])
+        for n, o in objects.items():
+            w.writerow([n, o["frames_visible"], f"{o['frames_visible'] / max(len(frames), 1):.4f}",
+                        o["first"] if o["first"] is not None else "", o["last"] if o["last"] is not None else ""])
+
+
+def push_undo(message: str) -> None:
+    """Make what an operator just changed an undo step of its own, as every edit is.
+
+    Needed after any change that creates a datablock and links it to existing ones
+    (the "Never Visible" collection in the scene's children): Blender's memfile undo
+    keeps in place every datablock whose saved state did not change between the two
+    undo steps it moves across, and knows nothing of changes made after the last
+    push.  Undo without this step restores the scene as it is now, still pointing at
+    the new collection, which the undo frees: a view layer then holds a freed
+    collection (a crash, or Python reading it as a bare ``ID``).  With the step, the
+    scene differs between the steps and is read back, the collection with it.
+
+    The operators carry no UNDO flag (Cull and Restore must not add steps, and a
+    script's ``bpy.ops`` call pushes nothing for it anyway), so the push is explicit.
+    Headless without an undo history (the common script) nothing is pushed: nothing
+    can be undone there, and a first push would copy the whole file into memory."""
+    if not bpy.app.background or bpy.ops.ed.undo_history.poll():
+        bpy.ops.ed.undo_push(message=message)
+
+
+def link_collection(scene, name: str, object_names: list[str]) -> None:
+    """Make collection ``name`` hold exactly ``object_names`` (an earlier analysis's
+    objects that this one saw are unlinked: deleting the collection's contents
+    must never delete what the camera sees).  The collection is excluded in every
+    view layer of every scene that links it: it gives its objects no way into a view
+    layer, so linking changes nothing anyone sees (an object whose own collection is
+    excluded stays out)."""
+    coll = bpy.data.collections.get(name) or bpy.data.collections.new(name)
+    if coll.name not in scene.collection.children:
+        # excluded before its objects are linked: they never get a base through it
+        scene.collection.children.link(coll)
+    exclude_everywhere(coll)
+    wanted = set(object_names)
+    for obj in [o for o in coll.objects if o.name not in wanted]:
+        coll.objects.unlink(obj)
+    for n in object_names:
+        obj = bpy.data.objects.get(n)
+        if obj is not None and obj.name not in coll.objects:
+            coll.objects.link(obj)
+
+
+def exclude_everywhere(coll) -> None:
+    """Exclude ``coll`` in every view layer where it appears (any depth)."""
+    for scene in bpy.data.scenes:
+        for layer in scene.view_layers:
+            stack = [layer.layer_collection]
+            while stack:
+                lc = stack.pop()
+                if lc.collection == coll:
+                    if not lc.exclude:
+                        lc.exclude = True
+                    continue
+                stack.extend(lc.children)

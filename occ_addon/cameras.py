@@ -1,0 +1,96 @@
+"""The cameras of a pass, as Blender draws them: the active 3D viewport's view and
+the scene camera as it renders (its scale ignored).  Each returns a
+:class:`..core.Camera` and the display size it is drawn at, ``(W, H)`` pixels, or
+raises an :class:`..core.OccError` the user can act on."""
+
+import bpy
+import numpy as np
+
+from ..core import Camera, OccError
+
+
+def find_viewport(context):
+    """``(area, region, region_3d)`` of the active 3D viewport, else the first one of
+    any window; None when there is none (timers have no area in their context)."""
+    areas = []
+    if context.area is not None and context.area.type == "VIEW_3D":
+        areas.append(context.area)
+    screens = [context.screen] if context.screen is not None else []
+    screens += [w.screen for w in context.window_manager.windows] if context.window_manager else []
+    areas += [a for s in screens for a in s.areas if a.type == "VIEW_3D"]
+    for area in areas:
+        region = next((r for r in area.regions if r.type == "WINDOW"), None)
+        rv3d = area.spaces.active.region_3d
+        if region is not None and rv3d is not None:
+            return area, region, rv3d
+    return None
+
+
+def region_camera(rv3d) -> Camera:
+    """The camera of a 3D view's region data (its view and window matrices)."""
+    return Camera.from_matrices(np.array(rv3d.view_matrix), np.array(rv3d.window_matrix))
+
+
+def viewport_camera(context) -> tuple[Camera, tuple[int, int]]:
+    """Camera and display size of the active 3D viewport (or the first one)."""
+    if bpy.app.background:
+        raise OccError("no 3D viewport in background mode: set the source to the scene camera")
+    found = find_viewport(context)
+    if found is None:
+        raise OccError("no 3D viewport to cull for: use the scene camera as the source")
+    _, region, rv3d = found
+    return region_camera(rv3d), (region.width, region.height)
+
+
+def camera_view(cam) -> np.ndarray:
+    """``(4, 4)`` view matrix of a camera object as Blender renders it: from the rotation
+    and position of its world matrix, its scale ignored (a mirroring scale keeps its
+    sign: Blender renders a mirrored camera mirrored)."""
+    m = np.array(cam.matrix_world, dtype=np.float64)
+    axes = m[:3, :3]
+    length = np.linalg.norm(axes, axis=0)
+    if not np.all(np.isfinite(m)) or np.any(length < 1e-12 * max(1.0, float(np.abs(m[:3, 3]).max()))):
+        raise OccError(f"the camera '{cam.name}' has a scale of 0 or a NaN in its transform: "
+                       "its view direction is undefined; reset its scale (Alt+S)")
+    world = np.eye(4)
+    world[:3, :3] = axes / length
+    world[:3, 3] = m[:3, 3]
+    if abs(np.linalg.det(world[:3, :3])) < 0.5:        # sheared beyond recognition
+        raise OccError(f"the camera '{cam.name}' has a sheared transform: apply or clear its parent's scale")
+    return np.linalg.inv(world)
+
+
+def scene_camera(context, scene=None) -> tuple[Camera, tuple[int, int]]:
+    """Camera and render size of the scene camera, as Blender renders it (scale
+    ignored; lens, shift, sensor fit, clipping and orthographic from
+    ``calc_matrix_camera``).  Panoramic cameras are refused."""
+    scene = scene or context.scene
+    cam = scene.camera
+    if cam is None:
+        raise OccError("the scene has no camera: add one or cull from the viewport")
+    if cam.type != "CAMERA":
+        raise OccError(f"the scene camera '{cam.name}' is a {cam.type.lower()}, not a camera")
+    if cam.data.type == "PANO":
+        raise OccError(f"the camera '{cam.name}' is panoramic: only perspective and orthographic "
+                       "cameras can be culled for; cull from the viewport instead")
+    r = scene.render
+    w = int(r.resolution_x * r.resolution_percentage / 100)
+    h = int(r.resolution_y * r.resolution_percentage / 100)
+    depsgraph = context.evaluated_depsgraph_get()
+    proj = np.array(cam.calc_matrix_camera(depsgraph, x=max(w, 1), y=max(h, 1),
+                                           scale_x=r.pixel_aspect_x, scale_y=r.pixel_aspect_y))
+    view = camera_view(cam)
+    if np.linalg.det(view[:3, :3]) < 0:
+        # A mirrored camera sees what the camera mirrored back (its x axis turned
+        # and its x shift negated) sees, in a mirrored image: the same objects,
+        # with the ordinary winding.
+        flip = np.diag([-1.0, 1.0, 1.0, 1.0])
+        view, proj = flip @ view, flip @ proj @ flip
+    return Camera.from_matrices(view, proj), (w, h)
+
+
+def camera_for(context) -> tuple[Camera, tuple[int, int]]:
+    """The camera of the ``scene.occ.source`` setting and its display size."""
+    if context.scene.occ.source == "CAMERA":
+        return scene_camera(context)
+    return viewport_camera(context)

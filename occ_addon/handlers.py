@@ -1,0 +1,128 @@
+"""Blender's application handlers and the add-on's one change bus.
+
+The handlers are registered explicitly (:func:`register`, in the order of
+:data:`HANDLERS`; :func:`unregister` in reverse).  Every change not our own (an
+edit, a new frame, a setting that changes what may be hidden) is announced on the
+bus (:func:`notify`); live mode subscribes to it (:func:`subscribe`, at the add-on's
+registration).  Undo, redo and file loads drop the session's caches; no file is
+saved with the add-on's hiding in it.
+"""
+
+from collections.abc import Callable
+
+import bpy
+from bpy.app.handlers import persistent
+
+from . import live, visibility
+from .session import SESSION
+from .visibility import ident
+
+_listeners: list[Callable[[], None]] = []
+
+
+def subscribe(listener: Callable[[], None]) -> None:
+    """Call ``listener`` (no argument) after every change not our own."""
+    if listener not in _listeners:
+        _listeners.append(listener)
+
+
+def unsubscribe(listener: Callable[[], None]) -> None:
+    if listener in _listeners:
+        _listeners.remove(listener)
+
+
+def notify() -> None:
+    """Something changed that may change what is visible (not the view: live mode polls it)."""
+    for f in _listeners:
+        f()
+
+
+@persistent          # kept across file loads, like the add-on itself
+def on_depsgraph_update(scene, depsgraph):
+    """Mark what changed: geometry -> re-extract those objects (and instances of
+    collections holding them); transforms are read in bulk every pass anyway.
+    An object the user showed leaves the add-on's record here (every show is
+    evaluated, so reported), before the user can hide it again."""
+    if SESSION.applying:
+        return
+    visibility.reconcile()
+    _mark(depsgraph)
+    live.guard_camera(scene)        # the scene camera moved by an edit: as for a new frame
+    notify()
+
+
+@persistent
+def on_frame_change(scene, depsgraph):
+    """Animation moved things: the same marks as an edit (the frame's depsgraph reports them).
+    Animation changes values, not what objects are; but it can change hide flags
+    (keyframed collection visibility): the user-shown answers are asked again."""
+    SESSION.extractor.visibility_changed()
+    if depsgraph is not None:
+        _mark(depsgraph, edits=False)
+    live.guard_camera(scene)
+    notify()
+
+
+def _mark(depsgraph, edits=True):
+    geometry, moved = [], []
+    extractor = SESSION.extractor
+    for update in depsgraph.updates:
+        if edits:
+            extractor.saw(update)
+        if isinstance(update.id, bpy.types.Object):
+            if update.is_updated_geometry:
+                geometry.append(ident(update.id.original))
+            else:
+                # moved, or any other change (display, in front, ...): what instances it
+                # (a collection, a particle system, a vertex parent) may draw it otherwise
+                moved.append(ident(update.id.original))
+    if geometry or moved:
+        extractor.mark(geometry, moved)
+
+
+@persistent
+def on_load(*_args):
+    """A file opens with everything the add-on hid shown again (files saved by
+    older versions, or by a crash), and live mode off: nothing runs by itself."""
+    SESSION.reset()
+    visibility.restore()
+    live.after_load()
+
+
+@persistent
+def on_undo(*_args):
+    """Undo and redo replace Blender's data: caches and references are dropped,
+    the live timer follows the restored state."""
+    SESSION.reset()
+    live.resync()
+
+
+@persistent
+def before_save(*_args):
+    visibility.lift()           # no file carries the add-on's hiding
+
+
+@persistent
+def after_save(*_args):
+    SESSION.applying = True
+    try:
+        visibility.reapply()
+    finally:
+        SESSION.applying = False
+
+
+HANDLERS = (("depsgraph_update_post", on_depsgraph_update), ("frame_change_post", on_frame_change),
+            ("load_post", on_load), ("undo_post", on_undo), ("redo_post", on_undo),
+            ("save_pre", before_save), ("save_post", after_save))
+
+
+def register() -> None:
+    for name, f in HANDLERS:
+        getattr(bpy.app.handlers, name).append(f)
+
+
+def unregister() -> None:
+    for name, f in reversed(HANDLERS):
+        h = getattr(bpy.app.handlers, name)
+        if f in h:
+            h.remove(f)

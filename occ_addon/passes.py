@@ -1,0 +1,59 @@
+"""What an applied pass leaves behind: its figures (the panel, the overlay, the next
+pass's latency estimate) and the view its hidden set holds for (live mode checks
+every redraw against it)."""
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from ..core import Camera, CullResult, Visibility
+from ..core.envelope import Envelope
+
+
+class Shown(NamedTuple):
+    """The view a hidden set was made from and the envelope of views it holds for."""
+
+    camera: Camera
+    envelope: Envelope
+
+
+@dataclass(frozen=True, eq=False)
+class LastPass:
+    """The last applied pass over the engine's ``k`` objects.
+
+    state: ``(k,) uint8`` :class:`..core.Visibility`; protected: ``(k,) bool`` never
+    hidden (:mod:`.policy`); bounds: ``(k, 2, 3)`` world boxes; occupancy: the
+    occupancy map ``(rows, cols) bool`` or None; stats: the engine's figures
+    (:attr:`..core.CullResult.stats`); ms: the whole pass, Blender's update included.
+    """
+
+    state: np.ndarray
+    protected: np.ndarray
+    bounds: np.ndarray
+    occupancy: np.ndarray | None
+    stats: dict
+    ms: float
+
+    @property
+    def hidden(self) -> np.ndarray:
+        """``(k,) bool``: what the pass hid (or, during motion, kept hidden)."""
+        return (self.state != Visibility.VISIBLE) & ~self.protected
+
+    def publish(self, settings, triangle_counts: np.ndarray) -> None:
+        """The figures the panel shows, on ``scene.occ``."""
+        settings.last_tested = len(self.state)
+        settings.last_occluded = int((self.state == Visibility.OCCLUDED).sum())
+        settings.last_outside = int((self.state == Visibility.VIEW_CULLED).sum())
+        settings.last_triangles_hidden = int(triangle_counts[self.hidden].sum())
+        settings.last_ms = self.ms
+
+
+def shown_by(result: CullResult, camera: Camera) -> Shown | None:
+    """The view and envelope a pass's hidden set holds for, or None when the pass
+    was made for no envelope (it holds for its own view only)."""
+    stats = result.stats
+    distance = stats.get("envelope_distance")
+    if distance is None:
+        return None
+    return Shown(camera, Envelope(distance, stats["envelope_angle_deg"], stats.get("envelope_any_roll", True)))

@@ -1,0 +1,106 @@
+"""The never-hide policy: what a pass may hide, and what an analysis counts as seen
+beyond the engine's answer.  Cull (:meth:`.session.Session.cull`) and analyze
+(:mod:`.analysis`) read it from here, so both keep the same rules.
+
+Never hidden, whatever the engine answers:
+
+- the user's "never cull" flag and the exclusion collection (``scene.occ``);
+- members of instanced collections (hiding a member would hide its instances
+  too), of the instances the engine holds and of those it does not hold (drawn
+  as wire or bounds, in front: :func:`.extract.bystanders`);
+- an instance of a collection with a member that draws without occluding (wire,
+  bounds, "in front", point clouds, ...: :func:`draws_beyond_geometry`): the
+  instance is larger than the engine's box of it;
+- dynamic objects (:func:`.extract.is_dynamic`: Blender stops evaluating what is
+  hidden);
+- what the view shows beyond depth (:func:`drawn_beyond_depth`, :mod:`.shading`).
+
+Analyze counts the same instances as seen wherever they are drawn, and the members
+of every visible instance as seen (:func:`seen_beside`).
+"""
+
+import numpy as np
+
+from ..core import Visibility
+from . import visibility
+from .extract import DRAWN_TYPES, bystanders, is_instancer, kind
+from .visibility import ident
+
+
+def draws_beyond_geometry(collection) -> bool:
+    """Whether an instanced collection holds a member Blender draws but the engine's
+    geometry of its instances leaves out (wire, bounds or "in front" display, point
+    clouds, volumes, ...): such a member may stand anywhere, so an instance of the
+    collection is larger than its box in the engine."""
+    return any(kind(m) is None and m.type in DRAWN_TYPES for m in collection.all_objects)
+
+
+def drawn_beyond_depth(view_rule, state: np.ndarray, cull_raytraced: bool) -> np.ndarray:
+    """``(k,) bool``: what the view shows of the engine's objects beyond their depth
+    (:mod:`.shading`): everything under ray tracing (unless the user opted in with
+    ``cull_raytraced``), every occluded object under X-ray.  (Shadow casters under
+    scene lights are the engine's: the pass was given the lights.)"""
+    n = len(state)
+    if view_rule.mode == "raytraced" and not cull_raytraced:
+        return np.ones(n, dtype=bool)
+    if view_rule.mode == "xray":
+        return state == Visibility.OCCLUDED
+    return np.zeros(n, dtype=bool)
+
+
+def never_hidden(context, objects: list, uids: np.ndarray, collection: np.ndarray, culled: np.ndarray,
+                 extractor) -> np.ndarray:
+    """``(k,) bool`` over the engine's objects (``objects``, their session ids ``uids``
+    and ``collection``: which are collection instances): never hidden (see the module
+    docstring).  ``culled``: where the engine would hide; the per-object questions
+    (dynamic, an instance's members) are asked only there."""
+    settings = context.scene.occ
+    out = np.zeros(len(objects), dtype=bool)
+    flagged = [visibility.uids()[visibility.flags("occ_never_cull")]]
+    coll = settings.exclude_collection
+    if coll is not None:
+        flagged.append(visibility.uids(coll.all_objects if settings.exclude_children else coll.objects))
+    colls = {}                                         # collection id -> (collection, its instances' k)
+    for k in np.flatnonzero(collection):
+        c = objects[k].instance_collection
+        colls.setdefault(ident(c), (c, []))[1].append(k)
+    for c, at in colls.values():
+        flagged.append(visibility.uids(c.all_objects))
+        if culled[at].any() and draws_beyond_geometry(c):
+            out[at] = True
+    # ... and so are those of instances the engine does not hold (drawn as wire or
+    # bounds, in front): hiding a member would take it out of them too
+    for o in bystanders(context.view_layer, uids):
+        if is_instancer(o) and ident(o.instance_collection) not in colls:
+            flagged.append(visibility.uids(o.instance_collection.all_objects))
+    out[np.isin(uids, np.concatenate(flagged))] = True
+    for k in np.flatnonzero(culled & ~out):            # O(hidden), cached: what Blender has no bulk form of
+        out[k] = extractor.is_dynamic(objects[k], int(uids[k]))
+    return out
+
+
+def instancers(objects: list) -> list[int]:
+    """Indices of the collection instances among ``objects``."""
+    return [i for i, o in enumerate(objects) if is_instancer(o)]
+
+
+def widen_instances(objects: list, instances: list[int], vis: np.ndarray) -> None:
+    """Count as seen (in ``vis``, ``(k,) bool``, in place) every instance in
+    ``instances`` whose collection draws beside its geometry (wire, bounds, ...): the
+    engine knows only its solid part, and it is seen wherever it is drawn
+    (conservative by construction)."""
+    wide = {}                                          # collection name -> the answer, once a call
+    for i in (i for i in instances if not vis[i]):
+        c = objects[i].instance_collection
+        if c.name_full not in wide:
+            wide[c.name_full] = draws_beyond_geometry(c)
+        vis[i] = wide[c.name_full]
+
+
+def seen_beside(view_layer, objects: list, uids: np.ndarray, instances: list[int], vis: np.ndarray) -> list:
+    """Objects seen beside the engine's visible ones: those Blender draws that the
+    engine does not hold (never culled, so visible), and the members of every
+    visible collection instance (an object is seen where an instance draws it)."""
+    extra = bystanders(view_layer, uids)
+    members = [m for i in instances if vis[i] for m in objects[i].instance_collection.all_objects]
+    return extra + members

@@ -1,0 +1,312 @@
+"""The engine's lifecycle (occ_addon/session.py, extract.py): identity by session id,
+edits seen (reported or not), modal steps, a click's fresh answer, query and display
+resolutions."""
+
+import os
+
+import bpy
+import numpy as np
+
+from .common import (
+    WORK,
+    addon,
+    box,
+    check,
+    cube_mesh,
+    cull,
+    drawn,
+    hidden_by_addon,
+    hide_flags,
+    new_scene,
+    promise,
+    update,
+)
+
+
+def wall_and_pebble(pebble_name):
+    """A wall named "Wall" hiding "behind", a pebble named ``pebble_name`` off to the
+    side, "target" in plain view; culled once.  Returns (wall, pebble)."""
+    scene = new_scene()
+    bpy.data.objects.remove(bpy.data.objects["wall"])
+    wall = bpy.data.objects.new("Wall", cube_mesh("wall_mesh", (0, -6, -2), (0.5, 6, 6)))
+    pebble = bpy.data.objects.new(pebble_name, cube_mesh("pebble_mesh", (0, 0, 0), (0.2, 0.2, 0.2)))
+    for o in (wall, pebble):
+        scene.collection.objects.link(o)
+    pebble.location = (-6.0, 2.5, 0.0)
+    box("target", (-3, -0.5, 0), (-2.5, 0.5, 0.5))
+    box("behind", (3, -1, 0), (4, 1, 1))
+    update()
+    cull()
+    return wall, pebble
+
+
+def identity_follows_objects():
+    """Caches follow objects, not names: swapped names, delete and rename."""
+    wall, pebble = wall_and_pebble("Pebble")
+    wall.name, pebble.name = "tmp", "Wall"
+    wall.name = "Pebble"
+    update()
+    cull()
+    check("identity_swapped_names", drawn("target") and hidden_by_addon("behind"),
+          (drawn("target"), hidden_by_addon("behind")))
+    promise("identity_swap_truth")
+    # delete "Wall", rename "Wall.001" (a pebble) to "Wall"
+    wall, pebble = wall_and_pebble("Wall.001")
+    bpy.data.objects.remove(wall)
+    pebble.name = "Wall"
+    update()
+    cull()
+    check("identity_delete_rename", drawn("target") and drawn("behind"), (drawn("target"), drawn("behind")))
+    promise("identity_delete_truth")
+
+
+def hidden_edits():
+    """Edits to an object while the add-on hides it (never reported by Blender) are
+    seen by the next Cull: the geometry is checked against the data it was read from."""
+    for what in ("move", "nan"):
+        new_scene()
+        box("target", (3, -1, 0), (4, 1, 1))
+        update()
+        cull()
+        hid = hidden_by_addon("target")
+        me = bpy.data.objects["target"].data
+        co = np.zeros(len(me.vertices) * 3, np.float32)
+        me.vertices.foreach_get("co", co)
+        co = co.reshape(-1, 3)
+        if what == "move":
+            co[:, 0] -= 8.0                               # its mesh now stands in front of the wall
+        else:
+            co[0] = np.nan
+        me.vertices.foreach_set("co", co.ravel())
+        me.update()
+        update()
+        r, err = cull()
+        check(f"hidden_edit_{what}_seen", hid and r == {"FINISHED"} and not hidden_by_addon("target"),
+              (hid, r, hidden_by_addon("target"), err[-500:]))
+        promise(f"hidden_edit_{what}_truth")
+
+
+def fast_preset_keeps_display_gaps():
+    """The fast preset queries at half the display's resolution, yet hides nothing the
+    display shows: a slit of one display pixel, between two pixel centres of the
+    half-resolution query, still shows what stands behind it."""
+    scene = new_scene()
+    scene.render.resolution_x, scene.render.resolution_y = 64, 32
+    cam = scene.camera
+    cam.data.type = "ORTHO"
+    cam.data.ortho_scale = 64.0                  # one world unit per display pixel
+    cam.location = (-10.0, 0.0, 0.0)
+    wall = bpy.data.objects["wall"]
+    wall.location, wall.scale = (0.25, -16.0 + 0.2, 0.0), (0.5, 32.0, 40.0)   # y -32.0 .. 0.2
+    box("wall2", (0.0, 0.8, -20.0), (0.5, 32.0, 20.0))      # the slit: y 0.2 .. 0.8 around a display centre
+    box("target", (3.0, -2.0, -2.0), (4.0, 2.0, 2.0))
+    scene.occ.preset = "fast"
+    scene.occ.strategy = "stopwait"     # a query per node: with three objects the occupancy map would draw all
+    update()
+    r, err = cull()
+    check("display_fast_preset_slit_kept", r == {"FINISHED"} and drawn("target"), (r, err[-500:]))
+    promise("display_fast_preset_truth")
+    bpy.data.objects["wall2"].location.y -= 0.6             # the slit closed: now it is hidden
+    update()
+    cull()
+    check("display_fast_preset_closed_hidden", hidden_by_addon("target"), "")
+
+
+def modal_steps():
+    """The modal operators' steps (what a window drives from its timer; background
+    mode has none, so they are driven here): stopped during the build or the
+    geometry reading (Esc), nothing in the scene changed and the next Cull is
+    right; an edit that lands between steps is seen by the pass that follows."""
+    session, extract, analysis = addon("session"), addon("extract"), addon("analysis")
+    worker = addon("worker")
+    SESSION = session.SESSION
+    new_scene()
+    box("target", (3, -1, 0), (4, 1, 1))
+    update()
+    cull()                                         # the wall hides the target
+    before = hide_flags()
+    display = (320, 180)
+    # a moved wall is a rebuild only with new geometry: edit the wall's mesh
+    me = bpy.data.objects["wall"].data
+    me.vertices[0].co.x -= 0.01
+    me.update()
+    update()
+    steps = SESSION.prepare_steps(bpy.context, display)
+    kinds = []
+    for item in steps:
+        kinds.append(type(item).__name__)
+        if isinstance(item, worker.Job):
+            break
+    steps.close()                                  # Esc while the engine builds
+    update()
+    check("steps_cancel_build_nothing_changed",
+          "Job" in kinds and np.array_equal(before, hide_flags()) and SESSION.culler is None,
+          (kinds, SESSION.culler))
+    r, err = cull()
+    check("steps_cancel_build_then_cull", r == {"FINISHED"} and hidden_by_addon("target"), (r, err[-500:]))
+    promise("steps_cancel_build_truth")
+
+    # the wall is read, then shrunk between steps, before the build: the pass must not
+    # hide the target behind the wall as it was read
+    new_scene()
+    for i in range(6):
+        box(f"pebble{i}", (-3.0, -5.0 + i, 0.0), (-2.9, -4.9 + i, 0.1))
+    box("target", (3, -1, 0), (4, 1, 1))
+    update()
+    extract.STEP_S = 0.0                           # a step before every object's geometry
+    try:
+        steps = SESSION.prepare_steps(bpy.context, display)
+        wall = bpy.data.objects["wall"]
+        reads, edited = 0, False
+        uid = addon("visibility").ident(wall)
+        for item in steps:
+            if isinstance(item, worker.Job):
+                item.wait()
+                continue
+            reads += 1
+            if edited or uid not in SESSION.extractor.cache:
+                continue
+            # the wall is read, other objects are not yet: now the edit lands
+            edited = True
+            co = np.zeros(len(wall.data.vertices) * 3, np.float32)
+            wall.data.vertices.foreach_get("co", co)
+            co = co.reshape(-1, 3)
+            co[:, 2] = np.minimum(co[:, 2], -0.49)        # the wall drops below the target
+            wall.data.vertices.foreach_set("co", co.ravel())
+            wall.data.update()
+            update()
+        # a stopped reading, too: nothing hidden, and the next pass reads what it must
+        steps = SESSION.prepare_steps(bpy.context, display)
+        first = next(steps, None)
+        steps.close()
+    finally:
+        extract.STEP_S = 0.1
+    r, err = cull()
+    check("steps_edit_between_steps_seen", edited and reads >= 8 and first is not None and r == {"FINISHED"}
+          and not hidden_by_addon("target"), (reads, first, r, hidden_by_addon("target"), err[-500:]))
+    promise("steps_edit_between_steps_truth")
+
+    # analyze stopped after three frames: the frame is back, no report written
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end, scene.frame_current = 1, 30, 7
+    path = os.path.join(WORK, "stopped_analysis.json")
+    steps = analysis.analysis_steps(bpy.context, list(range(1, 31)), path)
+    frames_done = 0
+    for item in steps:
+        if not isinstance(item, worker.Job):
+            frames_done += 1
+            if frames_done == 3:
+                break
+    steps.close()
+    check("steps_analyze_cancel_restores_frame",
+          scene.frame_current == 7 and not os.path.exists(path), (scene.frame_current, os.path.exists(path)))
+
+
+def instanced_child_edited():
+    """A vertex instancer occludes with its instances; the instanced child's mesh is
+    then edited smaller: the next Cull must not hide what the old instance covered
+    (the instancer's cached instances are stale once an object it instances changes;
+    workflow seed 640 found it with a particle-free scene like this one)."""
+    new_scene()
+    pts = bpy.data.meshes.new("VertPoints")
+    pts.from_pydata([(-3.0, 0.0, 1.0)], [], [])
+    inst = bpy.data.objects.new("VertInstancer", pts)
+    bpy.context.scene.collection.objects.link(inst)
+    inst.instance_type = "VERTS"
+    child = box("VertChild", (-0.5, -2.5, -2.5), (0.5, 2.5, 2.5))
+    child.parent = inst
+    box("target", (-1.5, -0.3, 0.7), (-1.2, 0.3, 1.3))
+    update()
+    cull()
+    hid = hidden_by_addon("target")
+    me = child.data
+    co = np.zeros(len(me.vertices) * 3, np.float32)
+    me.vertices.foreach_get("co", co)
+    me.vertices.foreach_set("co", (co * 0.05).astype(np.float32))   # the instance shrinks to a speck
+    me.update()
+    update()
+    r, err = cull()
+    check("instanced_child_edited_seen", hid and r == {"FINISHED"} and not hidden_by_addon("target"),
+          (hid, r, hidden_by_addon("target"), err[-500:]))
+    promise("instanced_child_edited_truth")
+    me.vertices.foreach_set("co", co)                  # full size again: it hides the target
+    me.update()
+    update()
+    cull()
+    hid = hidden_by_addon("target")
+    child.display_type = "WIRE"                        # its instances are wire now: they occlude nothing
+    update()
+    r, err = cull()
+    check("instanced_child_wire_seen", hid and r == {"FINISHED"} and not hidden_by_addon("target"),
+          (hid, r, hidden_by_addon("target"), err[-500:]))
+    promise("instanced_child_wire_truth")
+
+
+def hair_instancer(source):
+    """An emitter in front of the wall whose hair particles instance ``source`` (an
+    object, or a collection) around (-4, 0, 1), and a target right behind them."""
+    em = box("Emitter", (-4.1, -0.1, 0.9), (-3.9, 0.1, 1.1))
+    em.modifiers.new("hair", "PARTICLE_SYSTEM")
+    ps = em.particle_systems[0].settings
+    ps.type, ps.count, ps.hair_length, ps.particle_size = "HAIR", 4, 0.2, 1.0
+    ps.display_method = "RENDER"                       # the viewport draws the instances
+    if isinstance(source, bpy.types.Collection):
+        ps.render_type, ps.instance_collection = "COLLECTION", source
+    else:
+        ps.render_type, ps.instance_object = "OBJECT", source
+    box("target", (-2.0, -0.3, 0.7), (-1.7, 0.3, 1.3))
+    update()
+
+
+def instance_source_deleted():
+    """Hair particles instance a large box (an object, then a collection's member) that
+    hides a target; the box is deleted: the next Cull must not hide the target behind
+    the instances that went with it (Blender reports neither the deleted object nor a
+    geometry change of the emitter; workflow seed 956 found it)."""
+    for what in ("source", "member"):
+        scene = new_scene()
+        lib = None
+        if what == "member":
+            lib = bpy.data.collections.new("HairLib")
+            scene.collection.children.link(lib)
+        src = box(f"Hair_{what}", (4.5, 4.5, -1.5), (7.5, 7.5, 1.5), lib)     # behind the wall, aside
+        hair_instancer(lib or src)
+        cull()
+        hid = hidden_by_addon("target")
+        bpy.data.objects.remove(src)
+        update()
+        r, err = cull()
+        check(f"instance_{what}_deleted_seen", hid and r == {"FINISHED"} and not hidden_by_addon("target"),
+              (hid, r, hidden_by_addon("target"), err[-500:]))
+        promise(f"instance_{what}_deleted_truth")
+
+
+def click_restarts():
+    """A Cull click gives a new engine's answer whatever came before (the same click,
+    the same answer): live passes from other views in between leave the default
+    strategy (gpu) its memory, which the click drops; an analysis starts the same way
+    and goes on from what its earlier frames taught."""
+    scene = new_scene()
+    for k in range(12):
+        box(f"b{k}", (2 + 1.5 * (k % 4), -4 + 2.5 * (k // 4), 0), (3 + 1.5 * (k % 4), -3 + 2.5 * (k // 4), 1 + k % 3))
+    update()
+    session = addon("session").SESSION
+    cull()
+    first = dict(session.last.stats)
+    hidden = sorted(o.name for o in scene.objects if hidden_by_addon(o.name))
+    camera, display = addon("cameras").scene_camera(bpy.context)
+    cam = scene.camera
+    for x in (-9.0, -8.0):                               # live passes from nearer views: memory kept
+        cam.location.x = x
+        update()
+        camera, display = addon("cameras").scene_camera(bpy.context)
+        session.cull(bpy.context, camera, display, fresh=True)
+    kept = session.last.stats.get("fresh", 0) == 0
+    cam.location.x = -10.0
+    update()
+    r, err = cull()
+    again = sorted(o.name for o in scene.objects if hidden_by_addon(o.name))
+    check("click_restarts_fresh", r == {"FINISHED"} and first.get("fresh") == 1 and kept
+          and session.last.stats.get("fresh") == 1, (first.get("fresh"), kept, session.last.stats, err[-300:]))
+    check("click_restarts_same_answer", hidden and again == hidden, (hidden, again))
+    promise("click_restarts_truth")
