@@ -5,10 +5,10 @@ numeric modules work (and are tested) without a GL context.
 """
 
 from .camera import Camera, load_cameras
-from .cull import DEFAULT_STRATEGY, REGISTRY, STAT_KEYS, STRATEGIES, CullResult, Visibility, make_strategy
+from .cull import DEFAULT_STRATEGY, REGISTRY, STAT_KEYS, STRATEGIES, CullResult, PassStats, Visibility, make_strategy
 from .engine import Culler
 from .errors import OccError
 from .scene import Scene, load_scene
 
-__all__ = ["Camera", "Culler", "CullResult", "OccError", "Scene", "Visibility", "load_cameras",
+__all__ = ["Camera", "Culler", "CullResult", "PassStats", "OccError", "Scene", "Visibility", "load_cameras",
            "load_scene", "REGISTRY", "STAT_KEYS", "STRATEGIES", "DEFAULT_STRATEGY", "make_strategy"]

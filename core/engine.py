@@ -1,7 +1,7 @@
 """The engine's face: a :class:`Culler` holds a scene on the GPU and culls it from cameras.
 
     culler = Culler(scene, resolution=(640, 360), strategy="om_multi")
-    result = culler.cull(camera)           # CullResult: state (n,) uint8, stats dict
+    result = culler.cull(camera)           # CullResult: state (n,) uint8, stats (PassStats)
     truth = culler.truth(camera)           # (n,) bool, exact at this resolution
 """
 
@@ -15,7 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .bounds import MAX, MIN
 from .camera import Camera
-from .cull import DEFAULT_STRATEGY, REGISTRY, STAT_KEYS, CullPass, CullResult, Visibility, make_strategy
+from .cull import DEFAULT_STRATEGY, REGISTRY, CullPass, CullResult, PassStats, Visibility, make_strategy
 from .errors import OccError
 from .hierarchy import build_hierarchy
 from .scene import Scene
@@ -300,8 +300,8 @@ class Culler:
         if fresh:
             self.strategy.reset()
         if self.hierarchy is None:
-            return CullResult(np.zeros(0, dtype=np.uint8), {**dict.fromkeys(STAT_KEYS, 0),
-                              **self._counts(np.zeros(0, np.uint8))}, np.zeros((0, 0), bool))
+            empty = np.zeros(0, dtype=np.uint8)
+            return CullResult(empty, self._count(empty, PassStats()), np.zeros((0, 0), bool))
         if REGISTRY[self.strategy_name].needs_truth and truth is None:
             truth = self.truth(camera)
         cp = CullPass(self.hierarchy, self.renderer, camera, self.options, self.scene_size)
@@ -310,8 +310,8 @@ class Culler:
         state = cp.object_state()
         invalid = self.scene.invalid
         state[invalid] = Visibility.VISIBLE       # conservative: nothing is known about them
-        stats["invalid_objects"] = int(invalid.sum())
-        stats.update(self._counts(state))
+        stats.invalid_objects = int(invalid.sum())
+        self._count(state, stats)
         assert len(state) == n
         return CullResult(state, stats, cp.om.grid.copy())
 
@@ -320,7 +320,7 @@ class Culler:
         if not isinstance(envelope, Envelope):
             envelope = Envelope(*envelope)
         state, stats = envelope_pass(self, camera, envelope, lights=lights)
-        stats.update(self._counts(state))
+        self._count(state, stats)
         return CullResult(state, stats, np.zeros((0, 0), bool))
 
     def scene_bounds(self) -> NDArray[np.float64]:
@@ -331,16 +331,16 @@ class Culler:
         b = self.scene.bounds[ok]
         return np.array([b[:, MIN].min(axis=0), b[:, MAX].max(axis=0)])
 
-    def _counts(self, state):
+    def _count(self, state, stats):
+        """The answer's figures into ``stats``."""
         tri = self.scene.triangle_counts
-        return {
-            "objects": int(len(state)),
-            "visible": int((state == Visibility.VISIBLE).sum()),
-            "occluded": int((state == Visibility.OCCLUDED).sum()),
-            "view_culled": int((state == Visibility.VIEW_CULLED).sum()),
-            "triangles_total": int(tri.sum()),
-            "triangles_visible": int(tri[state == Visibility.VISIBLE].sum()),
-        }
+        stats.objects = int(len(state))
+        stats.visible = int((state == Visibility.VISIBLE).sum())
+        stats.occluded = int((state == Visibility.OCCLUDED).sum())
+        stats.view_culled = int((state == Visibility.VIEW_CULLED).sum())
+        stats.triangles_total = int(tri.sum())
+        stats.triangles_visible = int(tri[state == Visibility.VISIBLE].sum())
+        return stats
 
     def close(self) -> None:
         self.renderer.release()

@@ -56,7 +56,7 @@ import numpy as np
 from . import umbra
 from .bounds import MAX, MIN, corners
 from .camera import Camera, perspective
-from .cull import STAT_KEYS, Visibility
+from .cull import PassStats, Visibility
 from .errors import OccError
 from .frustum import classify, planes_from_matrix
 from .tolerance import tol
@@ -505,12 +505,12 @@ class _Tester:
         objects = np.flatnonzero(shown & ~scene.invalid)
         w, h = self.view.size
         ids, depth = culler.renderer.ids_and_depth(self.view.render, (w, h), objects)
-        stats["gl_calls"] = culler.renderer.counters["gl_calls"]
-        stats["blocking_reads"] = culler.renderer.counters["blocking_reads"]
+        stats.gl_calls = culler.renderer.counters["gl_calls"]
+        stats.blocking_reads = culler.renderer.counters["blocking_reads"]
         self.ext = extended_depth(ids, depth, self.view.render, envelope, self.near_eff)
         (x0, y0), (x1, y1) = self.view.lo, self.view.hi
         self.levels = _pyramid(self.ext[y0:y1 + 1, x0:x1 + 1])   # the cull frustum's: rectangles read no margin
-        stats["query_rect_pixels"] = int(w * h)
+        stats.query_rect_pixels = int(w * h)
 
     def states(self, boxes):
         """VISIBLE, OCCLUDED or VIEW_CULLED for world boxes ``(k, 2, 3)``."""
@@ -550,7 +550,7 @@ def envelope_pass(culler, camera, envelope, display=None, lights=None):
     t0 = time.perf_counter()
     scene = culler.scene
     n = len(scene)
-    stats = dict.fromkeys(STAT_KEYS, 0)
+    stats = PassStats()
     height = (display or culler.display or culler.resolution)[1]
     tester = _Tester(culler, camera, envelope, height, stats)
     valid_units = ~scene.invalid[culler.units.object]
@@ -559,7 +559,7 @@ def envelope_pass(culler, camera, envelope, display=None, lights=None):
     state = np.full(n, Visibility.VIEW_CULLED, dtype=np.uint8)
     np.minimum.at(state, culler.units.object, unit_state)     # an object: the most visible of its units
     state[scene.invalid] = Visibility.VISIBLE
-    stats["queries"] = int(len(unit_state))
+    stats.queries = int(len(unit_state))
     if lights:
         from .lights import in_world, shadow_boxes
         hidden = np.flatnonzero(state != Visibility.VISIBLE)
@@ -568,13 +568,13 @@ def envelope_pass(culler, camera, envelope, display=None, lights=None):
         shows = tester.states(boxes) == Visibility.VISIBLE
         casters = hidden[np.unique(owner[shows])]
         state[casters] = Visibility.VISIBLE
-        stats["shadow_boxes"] = int(len(boxes))
-        stats["shadow_casters_kept"] = int(len(casters))
-    stats["total_ms"] = stats["cpu_ms"] = 1e3 * (time.perf_counter() - t0)
-    stats["invalid_objects"] = int(scene.invalid.sum())
-    stats["envelope_distance"] = envelope.distance
-    stats["envelope_angle_deg"] = envelope.angle_deg
-    stats["envelope_any_roll"] = envelope.any_roll
+        stats.shadow_boxes = int(len(boxes))
+        stats.shadow_casters_kept = int(len(casters))
+    stats.total_ms = stats.cpu_ms = 1e3 * (time.perf_counter() - t0)
+    stats.invalid_objects = int(scene.invalid.sum())
+    stats.envelope_distance = envelope.distance
+    stats.envelope_angle_deg = envelope.angle_deg
+    stats.envelope_any_roll = envelope.any_roll
     return state, stats
 
 

@@ -7,7 +7,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..core import Camera, CullResult, Visibility
+from ..core import Camera, CullResult, PassStats, Visibility
 from ..core.envelope import Envelope
 
 
@@ -32,7 +32,7 @@ class LastPass:
     protected: np.ndarray
     bounds: np.ndarray
     occupancy: np.ndarray | None
-    stats: dict
+    stats: PassStats
     ms: float
 
     @property
@@ -53,7 +53,7 @@ def shown_by(result: CullResult, camera: Camera) -> Shown | None:
     """The view and envelope a pass's hidden set holds for, or None when the pass
     was made for no envelope (it holds for its own view only)."""
     stats = result.stats
-    distance = stats.get("envelope_distance")
-    if distance is None:
+    if stats.envelope_distance is None:
         return None
-    return Shown(camera, Envelope(distance, stats["envelope_angle_deg"], stats.get("envelope_any_roll", True)))
+    any_roll = True if stats.envelope_any_roll is None else stats.envelope_any_roll
+    return Shown(camera, Envelope(stats.envelope_distance, stats.envelope_angle_deg, any_roll))

@@ -77,7 +77,7 @@ def test_empty_scene_gives_empty_answer(ctx):
     scene = Scene.from_arrays([], [], np.zeros(0, int), np.zeros((0, 4, 4)))
     with Culler(scene, (16, 16), ctx=ctx) as c:
         r = c.cull(ortho_cam())
-        assert r.state.shape == (0,) and r.stats["objects"] == 0
+        assert r.state.shape == (0,) and r.stats.objects == 0
         assert c.truth(ortho_cam()).shape == (0,)
 
 
@@ -88,7 +88,7 @@ def test_one_object_and_all_behind_camera(ctx):
     behind = boxes_scene([((-1, -1, 30), (1, 1, 31)), ((5, 5, 40), (6, 6, 41))])
     with Culler(behind, (16, 16), ctx=ctx) as c:
         r = c.cull(ortho_cam())
-        assert r.state.tolist() == [2, 2] and r.stats["queries"] == 0
+        assert r.state.tolist() == [2, 2] and r.stats.queries == 0
         assert not c.truth(ortho_cam()).any()
 
 

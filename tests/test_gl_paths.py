@@ -132,7 +132,7 @@ def test_both_paths_give_identical_culling(ctx, strategy, monkeypatch):
         monkeypatch.setenv("OCC_GL", p)
         with Culler(scene, (48, 32), strategy=strategy, ctx=ctx) as c:
             assert c.renderer.path == p
-            runs[p] = [(c.cull(cam).state.tolist(), c.cull(cam).stats["queries"]) for cam in cams]
+            runs[p] = [(c.cull(cam).state.tolist(), c.cull(cam).stats.queries) for cam in cams]
     assert runs["4.3"] == runs["4.1"]
 
 

@@ -23,10 +23,10 @@ GPU_CALLS = 27          # GL calls of a steady GPU pass: clear, params write, 6 
 def gpu_pass(c, cam, truth=None):
     """A GPU pass from ``cam`` (a first pass, from memory-less, if needed)."""
     r = c.cull(cam, truth=truth)
-    if r.stats["fresh"]:
+    if r.stats.fresh:
         r = c.cull(cam, truth=truth)
     if c.strategy.reason is None:
-        assert r.stats["fresh"] == 0
+        assert r.stats.fresh == 0
     return r
 
 
@@ -56,9 +56,9 @@ def test_walk_and_cuts_never_hide_what_the_truth_shows(ctx, seed):
             assert (r.state == Visibility.OCCLUDED).sum() > 0
             assert np.array_equal(r.state == Visibility.VIEW_CULLED, v.cull(cam).state == Visibility.VIEW_CULLED)
             if k and on_43(c):
-                assert c.strategy.reason is None and r.stats["fresh"] == 0
-                assert r.stats["blocking_reads"] == 1 and r.stats["gl_calls"] == GPU_CALLS
-                assert r.stats["multiple_queries"] == 2 and r.stats["queries"] > 0
+                assert c.strategy.reason is None and r.stats.fresh == 0
+                assert r.stats.blocking_reads == 1 and r.stats.gl_calls == GPU_CALLS
+                assert r.stats.multiple_queries == 2 and r.stats.queries > 0
 
 
 @pytest.mark.parametrize("size", [(64, 48), (70, 45)])
@@ -147,7 +147,7 @@ def test_near_plane_boxes_are_visible_without_a_test(ctx):
         assert state == {"around_eye": Visibility.VISIBLE, "near_wall": Visibility.VISIBLE,
                          "behind_wall": Visibility.OCCLUDED, "behind_eye": Visibility.VIEW_CULLED}
         if on_43(c):
-            assert r.stats["near_visible"] == 2 and r.stats["queries"] == 1
+            assert r.stats.near_visible == 2 and r.stats.queries == 1
 
 
 def test_moved_objects_reach_the_gpu(ctx):
@@ -169,7 +169,7 @@ def test_moved_objects_reach_the_gpu(ctx):
                 assert not (truth & ~r.visible).any()
                 assert (r.state[1] == Visibility.OCCLUDED) == hidden
                 if on_43(c):                       # the memory is kept: still the GPU's pass
-                    assert r.stats["fresh"] == 0
+                    assert r.stats.fresh == 0
 
 
 def test_forget_keeps_the_gpu_memory_and_hides_nothing_seen(ctx):
@@ -191,9 +191,9 @@ def test_forget_keeps_the_gpu_memory_and_hides_nothing_seen(ctx):
             r = c.cull(cam)
             assert not (truth & ~r.visible).any(), f"pass {k} culled truly visible objects"
             if k and on_43(c):
-                assert r.stats["fresh"] == 0
+                assert r.stats.fresh == 0
                 # the moved object's units: one more write
-                assert r.stats["blocking_reads"] == 1 and r.stats["gl_calls"] == GPU_CALLS + (k == 3)
+                assert r.stats.blocking_reads == 1 and r.stats.gl_calls == GPU_CALLS + (k == 3)
     with Culler(scene, (160, 120), strategy="auto", ctx=ctx) as c:
         for cam in path[:2]:
             c.strategy.forget()
@@ -222,7 +222,7 @@ def test_moving_chunked_objects_never_hides_what_the_truth_shows(ctx, moved):
             r = c.cull(cam)
             assert not (truth & ~r.visible).any()
             if k and on_43(c):
-                assert r.stats["fresh"] == 0
+                assert r.stats.fresh == 0
 
 
 def test_thin_slabs_and_depth_ties_keep_the_engine_guard(ctx):
@@ -279,7 +279,7 @@ def test_display_resolution_is_honoured(ctx):
             assert not (truth & ~r.visible).any()
             assert r.state[scene.names.index("post_hidden")] == Visibility.OCCLUDED
             if on_43(c):
-                assert c.strategy.reason is None and r.stats["gl_calls"] == GPU_CALLS + 3
+                assert c.strategy.reason is None and r.stats.gl_calls == GPU_CALLS + 3
 
 
 def test_falls_back_to_om_coherent_on_the_41_path(ctx, monkeypatch):
@@ -338,9 +338,9 @@ def test_auto_tests_through_the_gpu_strategy(ctx):
         for k, cam in enumerate(walk(cams[0], 4)):
             truth = c.truth(cam)
             r = c.cull(cam)
-            assert r.stats["occlusion_pass"] == 1 and not (truth & ~r.visible).any()
+            assert r.stats.occlusion_pass == 1 and not (truth & ~r.visible).any()
             if k and on_43(c):
-                assert r.stats["blocking_reads"] == 1 and r.stats["fresh"] == 0
+                assert r.stats.blocking_reads == 1 and r.stats.fresh == 0
 
 
 @pytest.mark.parametrize("name", ["city", "cathedral", "vessels", "assembly"])

@@ -140,9 +140,9 @@ def test_coherent_memory_is_kept_over_small_moves(ctx):
             truth = c.truth(cam)
             r = c.cull(cam)
             assert not (truth & ~r.visible).any()
-            fresh.append(r.stats["fresh"])
+            fresh.append(r.stats.fresh)
         assert fresh == [1, 0, 0, 0]
-        assert c.cull(cam, fresh=True).stats["fresh"] == 1
+        assert c.cull(cam, fresh=True).stats.fresh == 1
 
 
 def invalid_scene(bad_matrix=True, bad_vertices=True):
@@ -182,7 +182,7 @@ def test_nan_object_is_named_kept_visible_and_never_an_occluder(ctx, strategy):
         assert state["front"] == state["wall"] == Visibility.VISIBLE
         if strategy != "vfc":
             assert state["behind_a"] == state["behind_b"] == Visibility.OCCLUDED
-        assert r.stats["invalid_objects"] == 2
+        assert r.stats.invalid_objects == 2
         assert c.invalid_names == ["bad_wall", "bad_mesh"]
         assert not (truth & ~r.visible).any()
 
@@ -219,7 +219,7 @@ def test_every_object_invalid_culls_nothing(ctx):
         c = Culler(scene, (32, 32), ctx=ctx)
     with c:
         r = c.cull(scenes.cam((-10, 0, 0), (0, 0, 0)))
-        assert r.visible.all() and r.stats["queries"] == 0
+        assert r.visible.all() and r.stats.queries == 0
 
 
 @pytest.mark.parametrize("strategy", ["stopwait", "om", "om_multi", "om_coherent"])
@@ -254,4 +254,4 @@ def test_test_lists_follow_the_papers_rule_in_the_engine(ctx):
     with Culler(scene, (96, 64), strategy="om", ctx=ctx) as c:
         r = c.cull(cam)
     assert (r.state[1:] == Visibility.OCCLUDED).all()
-    assert r.stats["multiple_queries"] == 1 and r.stats["queries"] == 6
+    assert r.stats.multiple_queries == 1 and r.stats.queries == 6

@@ -39,7 +39,7 @@ def test_auto_tests_occlusion_where_triangles_are_dear(ctx):
             for cam in cams:
                 truth = c.truth(cam)
                 r = c.cull(cam)
-                assert r.stats["occlusion_pass"] == 1 and culled(r) > 0
+                assert r.stats.occlusion_pass == 1 and culled(r) > 0
                 assert not (truth & ~r.visible).any()
 
 
@@ -53,7 +53,7 @@ def test_auto_falls_back_to_frustum_culling_where_tests_cannot_pay(ctx):
         c.strategy.learn_count = 2                                    # the costs are known: no learning pass
         c.strategy.LEARN = 0.0                                        # keep the costs given (no timing in tests)
         c.strategy.PROBE_SLOWER = c.strategy.FIRST_SLOWER = float("inf")
-        modes = [c.cull(cam).stats["occlusion_pass"] for _ in range(Auto.LOSSES + Auto.PROBE_EVERY + 2)]
+        modes = [c.cull(cam).stats.occlusion_pass for _ in range(Auto.LOSSES + Auto.PROBE_EVERY + 2)]
     assert modes[:Auto.LOSSES] == [1] * Auto.LOSSES
     assert modes[Auto.LOSSES:Auto.LOSSES + Auto.PROBE_EVERY] == [0] * Auto.PROBE_EVERY
     assert modes[Auto.LOSSES + Auto.PROBE_EVERY] == 1                     # the probe
@@ -71,14 +71,14 @@ def test_auto_probes_less_often_while_the_probes_lose(ctx):
         a.costs = {"tri_ms": 0.0, "round_trip_ms": 1.0, "vfc_cpu_ms": 0.0}
         a.learn_count, a.LEARN = 2, 0.0
         a.PROBE_SLOWER = a.FIRST_SLOWER = float("inf")
-        modes = [c.cull(cam).stats["occlusion_pass"] for _ in range(Auto.LOSSES + 16 + 1 + 32 + 1 + 64 + 1 + 5)]
+        modes = [c.cull(cam).stats.occlusion_pass for _ in range(Auto.LOSSES + 16 + 1 + 32 + 1 + 64 + 1 + 5)]
         probes = [i for i, m in enumerate(modes) if m][Auto.LOSSES:]
         assert np.diff(probes).tolist() == [33, 65] and probes[0] == Auto.LOSSES + 16
         assert a.probe_every == 128 == Auto.PROBE_MAX
         a.PROBE_SLOWER = a.FIRST_SLOWER = 0.0                       # any frustum pass is "much slower"
         a.last_test_ms = 0.0
-        assert c.cull(cam).stats["occlusion_pass"] == 0 and a.probe_every == Auto.PROBE_EVERY
-        assert c.cull(cam).stats["occlusion_pass"] == 1                 # the probe, at once
+        assert c.cull(cam).stats.occlusion_pass == 0 and a.probe_every == Auto.PROBE_EVERY
+        assert c.cull(cam).stats.occlusion_pass == 1                 # the probe, at once
         assert a.probe_every == 2 * Auto.PROBE_EVERY                    # lost: 32 from the restart
 
 
@@ -88,9 +88,9 @@ def test_auto_learns_from_a_real_frustum_only_pass(ctx):
     scene, cams, _ = scenes.random_city(5, 300)
     with Culler(scene, (96, 64), strategy="auto", ctx=ctx) as c:
         a = c.cull(cams[0])
-        assert a.stats["occlusion_pass"] == 1 and c.strategy.costs["round_trip_ms"] > 0.0
+        assert a.stats.occlusion_pass == 1 and c.strategy.costs["round_trip_ms"] > 0.0
         b = c.cull(cams[0])
-        assert b.stats["occlusion_pass"] == 0 and c.strategy.costs["tri_ms"] > 0.0
+        assert b.stats.occlusion_pass == 0 and c.strategy.costs["tri_ms"] > 0.0
         assert not (b.state == Visibility.OCCLUDED).any()
     with Culler(scene, (96, 64), strategy="om_coherent", ctx=ctx) as c:
         fresh = c.cull(cams[0])
@@ -106,16 +106,16 @@ def test_pass_counters(ctx, strategy):
     with Culler(scene, (128, 96), strategy=strategy, ctx=ctx) as c:
         r = c.cull(cams[0], truth=c.truth(cams[0]))
     s = r.stats
-    assert 0.0 <= s["cpu_ms"] <= s["total_ms"]
-    assert s["gl_ms"] + s["cpu_ms"] == pytest.approx(s["total_ms"], rel=1e-6, abs=1e-6)
-    assert s["nodes_visited"] > 0
+    assert 0.0 <= s.cpu_ms <= s.total_ms
+    assert s.gl_ms + s.cpu_ms == pytest.approx(s.total_ms, rel=1e-6, abs=1e-6)
+    assert s.nodes_visited > 0
     if hasattr(c.renderer, "counters"):
-        assert s["gl_calls"] >= 1 and s["blocking_reads"] >= 0
+        assert s.gl_calls >= 1 and s.blocking_reads >= 0
     if strategy == "om_multi":
-        assert 0 < s["query_raster_pixels"] <= s["query_rect_pixels"]
-        assert s["triangles_occluded"] > 0
+        assert 0 < s.query_raster_pixels <= s.query_rect_pixels
+        assert s.triangles_occluded > 0
     else:
-        assert s["queries"] == 0 and s["query_raster_pixels"] == 0
+        assert s.queries == 0 and s.query_raster_pixels == 0
 
 
 def test_outline_pixels_of_a_box_facing_the_camera(ctx):
@@ -143,7 +143,7 @@ def test_two_pass_uses_at_most_two_batches_once_coherent(ctx):
             assert not (truth & ~r.visible).any()
             assert culled(r) > 0
             if k:
-                assert r.stats["fresh"] == 0 and r.stats["multiple_queries"] <= 2
+                assert r.stats.fresh == 0 and r.stats.multiple_queries <= 2
 
 
 @pytest.mark.parametrize("strategy", ["om_coherent", "auto"])
@@ -158,10 +158,10 @@ def test_coherent_default_stays_within_its_read_budget(ctx, strategy):
                 truth = c.truth(cam)
                 for _ in range(2):
                     r = c.cull(cam)
-                    assert r.stats["multiple_queries"] <= COHERENT_READS
+                    assert r.stats.multiple_queries <= COHERENT_READS
                     assert not (truth & ~r.visible).any()
                     # the 4.1 path reads once per box; auto also times a round trip
                     # on its first pass and whenever the clock makes it probe again
                     if getattr(c.renderer, "path", None) == "4.3":
                         timing = Auto.ROUND_TRIPS if strategy == "auto" else 0
-                        assert r.stats["blocking_reads"] <= COHERENT_READS + timing
+                        assert r.stats.blocking_reads <= COHERENT_READS + timing

@@ -289,7 +289,7 @@ def engine_main(args):
                  "peak_above_MB": float("nan"), "after_above_MB": (memory()[0] - base) / MB})
     print_table(f"engine, one grid mesh of {len(v):,} vertices / {len(f):,} triangles "
                 f"(chunks of {args.chunk_triangles}): {len(culler.units)} units, "
-                f"{res.stats['occluded']} occluded; false negatives vs truth: {missed}", rows)
+                f"{res.stats.occluded} occluded; false negatives vs truth: {missed}", rows)
     print(f"scene's own arrays {own / MB:.0f} MB; resident before the engine {base / MB:.0f} MB; "
           f"structure {culler.structure_mb():.0f} MB")
     if args.json:

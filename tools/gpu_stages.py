@@ -63,7 +63,7 @@ def main(argv=None):
     totals = {}
     for name in ("gpu", "vfc") if args.empty else ("gpu",):
         with Culler(scene, res, strategy=name) as c:
-            totals[name] = [c.cull(cam).stats["total_ms"] for cam in cams][2:]      # after the first pass
+            totals[name] = [c.cull(cam).stats.total_ms for cam in cams][2:]      # after the first pass
     print(f"{args.scene}{' (empty view)' if args.empty else ''}, {len(cams)} passes at {args.resolution}: "
           + ", ".join(f"{k} median {np.median(v):.2f} ms" for k, v in totals.items()))
     for label, v in times.items():

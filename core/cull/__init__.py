@@ -56,7 +56,7 @@ from .auto import Auto
 from .baseline import LeafStopWait, OmSingle, Oracle, StopWait, Strategy, Vfc
 from .gpu import Gpu
 from .occupancy_queries import COHERENT_READS, Om, OmMulti, TwoPass
-from .result import STAT_KEYS, CullResult, Visibility
+from .result import STAT_KEYS, CullResult, PassStats, Visibility
 from .view_pass import CullPass
 
 
@@ -110,5 +110,5 @@ def make_strategy(name, max_tests=8):
 
 
 __all__ = ["Auto", "CullPass", "CullResult", "DEFAULT_STRATEGY", "Gpu", "LeafStopWait", "Om", "OmMulti",
-           "OmSingle", "Oracle", "REGISTRY", "STAT_KEYS", "STRATEGIES", "StopWait", "Strategy", "StrategyInfo",
-           "TwoPass", "Vfc", "Visibility", "make_strategy"]
+           "OmSingle", "Oracle", "PassStats", "REGISTRY", "STAT_KEYS", "STRATEGIES", "StopWait", "Strategy",
+           "StrategyInfo", "TwoPass", "Vfc", "Visibility", "make_strategy"]

@@ -106,18 +106,18 @@ class Auto(Strategy):
     def _tests(self, cp, chunk, probe):
         self.since_probe = 0
         self.since_learn += 1
-        cp.stats["occlusion_pass"] = 1
+        cp.stats.occlusion_pass = 1
         self.occlusion(cp, chunk)
         cp.finish_gl()
         spent = self.last_test_ms = 1e3 * (time.perf_counter() - cp.t0)
         if not self.learned:
             return                                   # nothing to compare with yet
         c, s = self.costs, cp.stats
-        frustum_only = (s["triangles_drawn"] + s["triangles_occluded"]) * c["tri_ms"] + c["vfc_cpu_ms"]
+        frustum_only = (s.triangles_drawn + s.triangles_occluded) * c["tri_ms"] + c["vfc_cpu_ms"]
         paid = spent < frustum_only * (self.PROBE_MARGIN if probe else self.LOSS_MARGIN)
         # whatever the clock says: tests that hide almost nothing cannot pay for themselves
-        saved = s["triangles_occluded"]
-        paid &= saved >= self.SAVED_MIN * (s["triangles_drawn"] + saved)
+        saved = s.triangles_occluded
+        paid &= saved >= self.SAVED_MIN * (s.triangles_drawn + saved)
         self.close = spent > self.CLOSE * frustum_only
         self.losses = 0 if paid else self.losses + 1
         self.use_tests = paid if probe else self.losses < self.LOSSES
@@ -135,7 +135,7 @@ class Auto(Strategy):
         cp.finish_gl()
         end = time.perf_counter()
         c = self.costs
-        drawn = cp.stats["triangles_drawn"]
+        drawn = cp.stats.triangles_drawn
         learn = self.LEARN if self.learned else 1.0
         if drawn:
             self.learn_count += learning

@@ -75,7 +75,7 @@ class StopWait(Strategy):
                     cp.occlude(one)
                     continue
             else:
-                cp.stats["near_visible"] += 1
+                cp.stats.near_visible += 1
             if h.is_leaf[node]:
                 cp.draw_leaves(one)
             else:
@@ -95,9 +95,9 @@ class LeafStopWait(Strategy):
         for leaf in cp.sort_near(leaves):     # per leaf by design: a baseline
             one = np.array([leaf])
             if cp.crosses[leaf]:
-                cp.stats["near_visible"] += 1
+                cp.stats.near_visible += 1
             elif self.use_map and cp.om.any_empty_tiles(cp.tiles[one])[0]:
-                cp.stats["queries_skipped"] += 1
+                cp.stats.queries_skipped += 1
             elif not cp.query(one)[0]:
                 cp.occlude(one)
                 continue

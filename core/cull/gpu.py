@@ -108,7 +108,7 @@ class Gpu(Strategy):
         elif self.moved_objects:
             self._upload(cp, gpu, np.unique(np.concatenate(self.moved_objects)))
         if not self.remembered:
-            cp.stats["fresh"] = 1
+            cp.stats.fresh = 1
             self.fresh.reset()
             self.fresh(cp, chunk)                 # no memory: the occupancy map's pass
             gpu.remember(cp.state == Visibility.VISIBLE)
@@ -149,12 +149,12 @@ class Gpu(Strategy):
         near = (words & G.NEAR) != 0
         tri = cp.renderer.tri_counts
         s = cp.stats
-        s["units_drawn"] = int(drawn.sum())
-        s["triangles_drawn"] = int(tri[drawn].sum())
+        s.units_drawn = int(drawn.sum())
+        s.triangles_drawn = int(tri[drawn].sum())
         # what the pass saved: occluded and never drawn (a unit drawn and then found hidden is not)
-        s["triangles_occluded"] = int(tri[(state == Visibility.OCCLUDED) & ~drawn].sum())
-        s["queries"] = int(np.count_nonzero(words & G.TESTED1) + np.count_nonzero(words & G.TESTED2))
-        s["multiple_queries"] = 2
-        s["queries_skipped"] = int(np.count_nonzero((words & G.DRAWN1) != 0) - near.sum())
-        s["near_visible"] = int(near.sum())
-        s["nodes_visited"] = len(words)
+        s.triangles_occluded = int(tri[(state == Visibility.OCCLUDED) & ~drawn].sum())
+        s.queries = int(np.count_nonzero(words & G.TESTED1) + np.count_nonzero(words & G.TESTED2))
+        s.multiple_queries = 2
+        s.queries_skipped = int(np.count_nonzero((words & G.DRAWN1) != 0) - near.sum())
+        s.near_visible = int(near.sum())
+        s.nodes_visited = len(words)

@@ -30,7 +30,7 @@ class CoherentMemory:
         """At a pass's start: forget after a camera cut (the pass counts as fresh)."""
         if camera_cut(self.last_camera, cp.camera, cp.scene_size):
             self.seen = None
-            cp.stats["fresh"] = 1
+            cp.stats.fresh = 1
         self.last_camera = cp.camera
 
     def holds(self, cp):

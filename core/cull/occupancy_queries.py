@@ -78,7 +78,7 @@ class OmMulti(Strategy):
         pre = cp.reach(pre[self.memory.leaves(pre)])
         cp.draw_leaves(cp.sort_near(pre))
         cp.predrawn[pre] = True
-        cp.stats["queries_skipped"] += len(pre)
+        cp.stats.queries_skipped += len(pre)
         up = pre
         while len(up):                              # ancestors, one level per step
             cp.free[up] = True
@@ -155,7 +155,7 @@ class TwoPass(Strategy):
         known = self.memory.leaves(leaves)
         first, rest = leaves[known], leaves[~known]
         cp.draw_leaves(cp.sort_near(first))
-        cp.stats["queries_skipped"] += len(first)
+        cp.stats.queries_skipped += len(first)
         visible = cp.query(rest)
         cp.occlude(rest[~visible])
         passed = cp.sort_near(rest[visible])

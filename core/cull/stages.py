@@ -33,8 +33,8 @@ def stage1(cp, front, chunk):
         # A node over (on screen) and behind a nearer inner node opened in this chunk
         # was judged on a map that lacks that node's contents: a query decides.
         proven &= crosses | free | ~nearer(tiles, proven & ~leaf, inside=False)
-        cp.stats["near_visible"] += int(crosses.sum())
-        cp.stats["queries_skipped"] += int((proven & ~crosses & ~free).sum())
+        cp.stats.near_visible += int(crosses.sum())
+        cp.stats.queries_skipped += int((proven & ~crosses & ~free).sum())
         cp.draw_leaves(head[proven & leaf & ~cp.predrawn[head]])
         front = np.concatenate([front, cp.children_in_frustum(head[proven & ~leaf])])
         pending.append(head[~proven])

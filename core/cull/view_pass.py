@@ -10,7 +10,7 @@ from ..bounds import BOX_FACES, MAX, MIN, corners
 from ..frustum import classify, planes_from_matrix
 from ..occupancy import OccupancyMap, project_rects
 from ..tolerance import tol
-from .result import STAT_KEYS, Visibility
+from .result import PassStats, Visibility
 
 
 class CullPass:
@@ -35,7 +35,7 @@ class CullPass:
         self.camera = camera
         self.options = options
         self.threshold = int(options.visible_threshold)
-        self.stats = dict.fromkeys(STAT_KEYS, 0)
+        self.stats = PassStats()
         self.t_query = self.t_draw = self.t_reach = 0.0
         self.t0 = time.perf_counter()
         self.unit_object = renderer.units.object
@@ -90,7 +90,7 @@ class CullPass:
         if not len(nodes):
             return nodes
         t = time.perf_counter()
-        self.stats["nodes_visited"] += len(nodes)
+        self.stats.nodes_visited += len(nodes)
         b = self.boxes(nodes)
         if masks is not None and not masks.any():      # inside every plane already (plane masking)
             outside, remaining = np.zeros(len(nodes), dtype=bool), masks
@@ -167,7 +167,7 @@ class CullPass:
             return
         units = self.tree.leaf_unit[leaves]
         self._to_draw.append(units)
-        self.stats["units_drawn"] += len(units)
+        self.stats.units_drawn += len(units)
         self.state[units] = Visibility.VISIBLE
         self.om.set_tiles(self.tiles[leaves[self.has_geometry[leaves]]])
 
@@ -178,7 +178,7 @@ class CullPass:
         units = self._to_draw[0] if len(self._to_draw) == 1 else np.concatenate(self._to_draw)
         self._to_draw = []
         t = time.perf_counter()
-        self.stats["triangles_drawn"] += self.renderer.draw(units)
+        self.stats.triangles_drawn += self.renderer.draw(units)
         self.t_draw += time.perf_counter() - t
 
     def guard(self, b):
@@ -254,7 +254,7 @@ class CullPass:
         clipped = lowest <= tol.near_guard_rel * scale
         visible = clipped.copy()
         asked = ~clipped
-        self.stats["near_visible"] += int(clipped.sum())
+        self.stats.near_visible += int(clipped.sum())
         if asked.any():
             self.flush()                    # the occluders before the boxes tested against them
             t = time.perf_counter()
@@ -263,15 +263,15 @@ class CullPass:
             samples = self.renderer.query(grown[asked], counts=self.threshold > 0)
             self.t_query += time.perf_counter() - t
             r = self.rects[nodes[asked]]
-            self.stats["queries"] += len(r)
-            self.stats["multiple_queries"] += 1
-            self.stats["samples_passed"] += int(samples.sum())     # threshold 0: boxes with any sample
+            self.stats.queries += len(r)
+            self.stats.multiple_queries += 1
+            self.stats.samples_passed += int(samples.sum())     # threshold 0: boxes with any sample
             outline = self.outline_pixels(grown[asked])
             # nodes reached without rectangles (the two-pass strategy): their outlines
             area = np.where(self.has_geometry[nodes[asked]], (r[:, 2] - r[:, 0] + 1) * (r[:, 3] - r[:, 1] + 1),
                             np.ceil(outline))
-            self.stats["query_rect_pixels"] += int(area.sum())
-            self.stats["query_raster_pixels"] += int(np.minimum(outline, area).sum())
+            self.stats.query_rect_pixels += int(area.sum())
+            self.stats.query_raster_pixels += int(np.minimum(outline, area).sum())
             visible[asked] = samples > self.threshold
         return visible
 
@@ -303,7 +303,7 @@ class CullPass:
         leaves = leaves[self.in_frustum[leaves]]
         units = self.tree.leaf_unit[leaves]
         self.state[units] = Visibility.OCCLUDED
-        self.stats["triangles_occluded"] += int(self.renderer.tri_counts[units].sum())
+        self.stats.triangles_occluded += int(self.renderer.tri_counts[units].sum())
 
     def object_state(self):
         """Per object: the most visible state of its units, ``(n,) uint8``."""
@@ -329,18 +329,18 @@ class CullPass:
         self.finish_gl()
         total = time.perf_counter() - self.t0
         s = self.stats
-        s["frustum_ms"] = 1e3 * self.t_reach
-        s["query_ms"] = 1e3 * self.t_query
-        s["draw_ms"] = 1e3 * self.t_draw
-        s["total_ms"] = 1e3 * total
-        s["traversal_ms"] = max(0.0, s["total_ms"] - s["query_ms"] - s["draw_ms"])
+        s.frustum_ms = 1e3 * self.t_reach
+        s.query_ms = 1e3 * self.t_query
+        s.draw_ms = 1e3 * self.t_draw
+        s.total_ms = 1e3 * total
+        s.traversal_ms = max(0.0, s.total_ms - s.query_ms - s.draw_ms)
         # CPU time of the pass outside GL calls (what a faster GPU cannot shorten)
-        s["gl_ms"] = s["query_ms"] + s["draw_ms"] + 1e3 * self.t_begin
-        s["cpu_ms"] = max(0.0, s["total_ms"] - s["gl_ms"])
+        s.gl_ms = s.query_ms + s.draw_ms + 1e3 * self.t_begin
+        s.cpu_ms = max(0.0, s.total_ms - s.gl_ms)
         counters = getattr(self.renderer, "counters", None)
         if counters is not None:              # renderers that count their GL calls
-            s["gl_calls"] = int(counters.get("gl_calls", 0))
-            s["blocking_reads"] = int(counters.get("blocking_reads", 0))
+            s.gl_calls = int(counters.get("gl_calls", 0))
+            s.blocking_reads = int(counters.get("blocking_reads", 0))
         else:
-            s["gl_calls"] = s["blocking_reads"] = -1
+            s.gl_calls = s.blocking_reads = -1
         return s

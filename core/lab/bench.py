@@ -97,7 +97,7 @@ def _path(culler, name, cameras, truths, warmup):
     for cam, truth in zip(cameras, truths, strict=True):
         r = culler.cull(cam, truth=truth)
         fn = int((truth & ~r.visible).sum())
-        rows.append({**r.stats, "false_negatives": fn, "truly_visible": int(truth.sum())})
+        rows.append({**r.stats.as_dict(), "false_negatives": fn, "truly_visible": int(truth.sum())})
     return rows
 
 
@@ -122,7 +122,7 @@ def _envelope_row(culler, cameras, truths, envelope, tri_total):
         env_hidden += int(hidden.sum())
         point_tri += int(tri[~point.visible].sum())
         env_tri += int(tri[hidden].sum())
-        stats = {**r.stats, "triangles_drawn": r.stats["triangles_visible"]}   # what drawing it would draw
+        stats = {**r.stats.as_dict(), "triangles_drawn": r.stats.triangles_visible}   # what drawing it would draw
         rows.append({**stats, "false_negatives": int((seen & hidden).sum()), "truly_visible": int(truth.sum())})
     row = _summary([rows], tri_total)
     row["hidden_kept"] = env_hidden / max(point_hidden, 1)
@@ -176,7 +176,7 @@ def run_hierarchies(scene, cameras, builders, resolution=DEFAULT_RESOLUTION, str
             rows = []
             for cam, truth in zip(cameras, truths, strict=True):
                 r = culler.cull(cam, truth=truth)
-                rows.append({**r.stats, "false_negatives": int((truth & ~r.visible).sum()),
+                rows.append({**r.stats.as_dict(), "false_negatives": int((truth & ~r.visible).sum()),
                              "truly_visible": int(truth.sum())})
             h = culler.hierarchy
             s = summarise(rows, tri_total)

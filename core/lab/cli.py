@@ -83,8 +83,8 @@ def cmd_cull(args):
         frames = []
         for i, cam in enumerate(cameras):
             r = culler.cull(cam, envelope=envelope)
-            frames.append(_frame(scene, r.state, r.stats))
-            progress.step(f"frame {i}: {r.stats['visible']} of {len(scene)} visible")
+            frames.append(_frame(scene, r.state, r.stats.as_dict()))
+            progress.step(f"frame {i}: {r.stats.visible} of {len(scene)} visible")
     _print_frames(frames, args.json)
 
 

@@ -91,7 +91,7 @@ def reduction_costs(scene, culler, cameras, query_res, display, strategy, log=pr
         for name, c in cullers.items():
             s = c.cull(cam).stats
             if i:                                              # the first frame is a warm-up
-                stats[name].append({**s, **c.renderer.counters})
+                stats[name].append({**s.as_dict(), **c.renderer.counters})
     out = {}
     for name, c in cullers.items():
         c.close()

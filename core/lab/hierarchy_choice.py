@@ -29,8 +29,8 @@ def measure_costs(culler, camera):
     r = culler.renderer
     vfc = culler.cull(camera)                      # warms up; nodes_visited, frustum time
     # per node, once there are enough nodes that the pass's fixed cost does not dominate
-    nodes = vfc.stats["nodes_visited"]
-    node_us = 1e3 * vfc.stats["frustum_ms"] / nodes if nodes >= 256 else NODE_US_DEFAULT
+    nodes = vfc.stats.nodes_visited
+    node_us = 1e3 * vfc.stats.frustum_ms / nodes if nodes >= 256 else NODE_US_DEFAULT
     r.begin_frame(camera)
     units = np.arange(len(culler.units))
     t = time.perf_counter()
@@ -83,7 +83,7 @@ def build_culler(scene, resolution, strategy, builder, cameras, chunk_triangles=
         with Culler(scene, resolution, strategy=strategy, hierarchy=name,
                     chunk_triangles=None if name == "tree" else chunks, **kw) as c:
             c.cull(probe[0])
-            return float(np.median([c.cull(cam).stats["total_ms"] for cam in probe]))
+            return float(np.median([c.cull(cam).stats.total_ms for cam in probe]))
 
     chunks = model
     if model and not chunk_triangles:          # the model's size and 4x, 16x coarser, on pHBVO

@@ -148,8 +148,8 @@ def write_snapshot(scene, camera, out_dir, title, resolution, strategy="om_multi
         xray = c.renderer.object_ids(camera, hidden)
     s = result.stats
     where = f"{title}, {frame_label or 'one frame'}, strategy {strategy}, {resolution[0]}x{resolution[1]}"
-    counts = (f"{s['visible']} visible, {s['occluded']} occluded, {s['view_culled']} outside the view "
-              f"of {s['objects']} objects")
+    counts = (f"{s.visible} visible, {s.occluded} occluded, {s.view_culled} outside the view "
+              f"of {s.objects} objects")
     view = colour_by_state(ids, result.state, shade=True)
     # x-ray: where occluded objects lie (red) over the visible view, dimmed
     xr = (view // 3).copy()
@@ -217,7 +217,7 @@ def _occupancy_figure(plt, om, result, stats, path, title, where, aspect):
     fig.suptitle(f"{title}: the occupancy map during the pass", fontsize=11)
     _caption(fig, f"{where}: {om.cols}x{om.rows} tiles, {om.sets} draw batches; the first covered {first:.0f}%, "
                   f"{filled:.0f}% at the end (dark: never covered); asked about {om.asks} boxes, "
-                  f"{om.said_empty} 'still empty'; {stats['queries']} queries issued.  A drawn box's screen "
+                  f"{om.said_empty} 'still empty'; {stats.queries} queries issued.  A drawn box's screen "
                   "rectangle covers its tiles.")
     fig.tight_layout(rect=(0, 0.06, 1, 0.96))
     fig.savefig(path, dpi=90)

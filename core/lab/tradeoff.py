@@ -58,7 +58,7 @@ def measure(scene, cameras, truth_pixels, display, options, culler_kw, strategy=
             ms = []
             for cam, pixels in zip(cameras, truth_pixels, strict=True):
                 r = c.cull(cam)
-                ms.append(r.stats["total_ms"])
+                ms.append(r.stats.total_ms)
                 if rep == 0:
                     culled = ~r.visible
                     obj_missed += int((culled & (pixels > 0)).sum())

@@ -292,7 +292,7 @@ def click_restarts():
     update()
     session = addon("session").SESSION
     cull()
-    first = dict(session.last.stats)
+    first = session.last.stats
     hidden = sorted(o.name for o in scene.objects if hidden_by_addon(o.name))
     camera, display = addon("cameras").scene_camera(bpy.context)
     cam = scene.camera
@@ -301,12 +301,12 @@ def click_restarts():
         update()
         camera, display = addon("cameras").scene_camera(bpy.context)
         session.cull(bpy.context, camera, display, fresh=True)
-    kept = session.last.stats.get("fresh", 0) == 0
+    kept = session.last.stats.fresh == 0
     cam.location.x = -10.0
     update()
     r, err = cull()
     again = sorted(o.name for o in scene.objects if hidden_by_addon(o.name))
-    check("click_restarts_fresh", r == {"FINISHED"} and first.get("fresh") == 1 and kept
-          and session.last.stats.get("fresh") == 1, (first.get("fresh"), kept, session.last.stats, err[-300:]))
+    check("click_restarts_fresh", r == {"FINISHED"} and first.fresh == 1 and kept
+          and session.last.stats.fresh == 1, (first.fresh, kept, session.last.stats, err[-300:]))
     check("click_restarts_same_answer", hidden and again == hidden, (hidden, again))
     promise("click_restarts_truth")
