@@ -8,7 +8,8 @@ from .camera import Camera, load_cameras
 from .cull import DEFAULT_STRATEGY, REGISTRY, STAT_KEYS, STRATEGIES, CullResult, PassStats, Visibility, make_strategy
 from .engine import Culler
 from .errors import OccError
-from .scene import Scene, load_scene
+from .loading import load_scene
+from .scene import Scene
 
 __all__ = ["Camera", "Culler", "CullResult", "PassStats", "OccError", "Scene", "Visibility", "load_cameras",
            "load_scene", "REGISTRY", "STAT_KEYS", "STRATEGIES", "DEFAULT_STRATEGY", "make_strategy"]

@@ -22,6 +22,7 @@ from . import policy
 from .cameras import scene_camera
 from .session import SESSION
 from .shading import rule as rule_of
+from .worker import Progress
 
 
 @dataclass
@@ -84,7 +85,7 @@ def analysis_steps(context, frames: list[int], path: str, rule: str = "seen") ->
             if bpy.app.background and ((k + 1) % step == 0 or k + 1 == len(frames)):
                 print(f"occlusion analyze: {k + 1}/{len(frames)} frames "
                       f"({time.perf_counter() - out.started:.1f} s)", flush=True)
-            yield f"frame {k + 1}/{len(frames)}", (k + 1) / len(frames)
+            yield Progress(f"frame {k + 1}/{len(frames)}", (k + 1) / len(frames))
     finally:
         scene.frame_set(previous)
     return out

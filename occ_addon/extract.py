@@ -47,6 +47,7 @@ import time
 import zlib
 from collections.abc import Generator, Iterable
 from dataclasses import dataclass
+from enum import Enum
 
 import bpy
 import numpy as np
@@ -54,6 +55,7 @@ import numpy as np
 from ..core import OccError, Scene
 from . import visibility
 from .visibility import ident
+from .worker import Progress
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
 SOLID_DISPLAY = {"SOLID", "TEXTURED"}            # wire and bounds display never occlude
@@ -61,12 +63,20 @@ STEP_S = 0.1                                     # geometry reading yields about
 _EMPTY = (np.zeros((0, 3), dtype=np.float32), np.zeros((0, 3), dtype=np.int32))
 
 
+class Kind(Enum):
+    """How an object can take part, by its settings alone."""
+
+    MESH = "mesh"
+    INSTANCER = "instancer"      # mesh-like, brings instances: its own geometry (where drawn) and theirs
+    COLLECTION = "collection"    # an empty that instances a collection
+
+
 @dataclass(frozen=True, slots=True)
 class ObjectInfo:
     """What an object is, from its settings (edits report it: :meth:`Extractor.saw`
     forgets it): its :func:`kind` and whether it has a parent."""
 
-    kind: str | None
+    kind: Kind | None
     parented: bool
 
 
@@ -159,21 +169,19 @@ def may_instance(obj):
         or any(m.type == "NODES" for m in obj.modifiers)
 
 
-def kind(obj) -> str | None:
-    """"mesh", "instancer" (a mesh-like object that brings instances: its geometry
-    is its own, where drawn, and its instances'), "collection" or None: how
-    ``obj`` can take part, by its settings alone."""
+def kind(obj) -> Kind | None:
+    """The :class:`Kind` of ``obj``, or None: it takes no part (it occludes nothing)."""
     if obj.type in GEOMETRY_TYPES:
         if obj.display_type not in SOLID_DISPLAY or obj.show_in_front:
             return None                   # wire or bounds occlude nothing; "in front" is drawn over walls
         parent = obj.parent
         if parent is not None and parent.instance_type in {"VERTS", "FACES"}:
             return None                   # drawn only as the parent's instances
-        return "instancer" if may_instance(obj) else "mesh"
+        return Kind.INSTANCER if may_instance(obj) else Kind.MESH
     if obj.type == "EMPTY" and is_instancer(obj):
         if obj.display_type not in SOLID_DISPLAY or obj.show_in_front:
             return None                   # its instances are drawn as it is (wire, bounds, in front)
-        return "collection"
+        return Kind.COLLECTION
     return None
 
 
@@ -368,7 +376,7 @@ class Extractor:
         self.info.pop(uid, None)
         self.dynamic.pop(uid, None)
 
-    def unchanged(self, obj, uid: int, k: str, memo: dict) -> bool:
+    def unchanged(self, obj, uid: int, k: Kind, memo: dict) -> bool:
         """Whether the data of ``obj`` (hidden by the add-on, so not evaluated, and its
         edits not reported) is what its cached geometry was read from."""
         fp = self.fps.get(uid)
@@ -424,12 +432,12 @@ class Extractor:
         """World matrices ``(k, 4, 4)`` of candidates ``kept`` (read in bulk with the candidates)."""
         return cand.matrices[kept]
 
-    def knows(self, obj, k: str) -> bool:
+    def knows(self, obj, k: Kind) -> bool:
         """Whether the geometry of ``obj`` (hidden by the add-on) is cached and current."""
         hit = self.cache.get(ident(obj))
         if hit is None:
             return False
-        if k == "collection":
+        if k is Kind.COLLECTION:
             return not self._instance_stale(obj)
         return ident(obj) not in self.dirty
 
@@ -441,8 +449,8 @@ class Extractor:
             return True
         memo = {}                                     # collection -> its members, once a pass
         for o, k, c in zip(cand.objects, cand.kinds, cand.culled, strict=True):
-            if not c and ((k == "collection" and self._instance_stale(o, memo))
-                          or (k == "instancer" and self._instancer_stale(o))):
+            if not c and ((k is Kind.COLLECTION and self._instance_stale(o, memo))
+                          or (k is Kind.INSTANCER and self._instancer_stale(o))):
                 return True
         return False
 
@@ -456,14 +464,14 @@ class Extractor:
         """A generator (see :func:`.worker.drive`) that returns ``(core.Scene, kept,
         bad)``: the engine's scene of the candidates with finite triangles, ``kept``
         their indices into ``cand``, ``bad`` the names left out for NaN or infinite
-        vertices.  It yields ``(label, fraction)`` about every :data:`STEP_S` seconds
+        vertices.  It yields :class:`.worker.Progress` about every :data:`STEP_S` seconds
         while it reads geometry (a modal operator redraws and looks for Esc in
         between).  Stopped early, what it read stays cached and nothing else changes."""
         seen = self.marks
         depsgraph = context.evaluated_depsgraph_get()
         fresh = {ident(o): o for o, k, c in zip(cand.objects, cand.kinds, cand.culled, strict=True)
-                 if not c and ((k == "collection" and self._instance_stale(o))
-                               or (k == "instancer" and self._instancer_stale(o)))}
+                 if not c and ((k is Kind.COLLECTION and self._instance_stale(o))
+                               or (k is Kind.INSTANCER and self._instancer_stale(o)))}
         for uid, (v, f) in _instanced_geometry(depsgraph, fresh).items():
             o = fresh[uid]
             # instancer-local (a move is then a matrix), by the same evaluation as the instances
@@ -477,7 +485,7 @@ class Extractor:
                     ov, of = mesh_arrays(o.evaluated_get(depsgraph))
                     v, f = np.concatenate([ov, v]), np.concatenate([of, f.astype(np.int64) + len(ov)])
             self.cache[uid] = Geometry(key, _finite_or_none(v), f)
-            self.fps[uid] = fingerprint(o, "collection" if o.type == "EMPTY" else "instancer", {})
+            self.fps[uid] = fingerprint(o, Kind.COLLECTION if o.type == "EMPTY" else Kind.INSTANCER, {})
             if o.type != "EMPTY":
                 self.sources[uid] = instanced_sources(o)
         uids, meshes, mesh_of, kept, bad = [], [], [], [], []
@@ -486,7 +494,7 @@ class Extractor:
         due = time.perf_counter() + STEP_S
         for i, obj in enumerate(cand.objects):         # once per object, bulk inside
             if time.perf_counter() >= due:
-                yield "reading geometry", i / n
+                yield Progress("reading geometry", i / n)
                 due = time.perf_counter() + STEP_S
             entry = self._geometry(obj, cand.kinds[i], cand.culled[i], depsgraph, read)
             if entry is None:
@@ -554,7 +562,7 @@ class Extractor:
         None for geometry with NaN or infinite vertices."""
         uid = ident(obj)
         hit = self.cache.get(uid)
-        if k != "mesh" or culled:                     # instancers: read above; hidden: not evaluated
+        if k is not Kind.MESH or culled:                     # instancers: read above; hidden: not evaluated
             return hit
         shared = obj.type == "MESH" and not obj.modifiers and obj.data.users > 1
         key = ("mesh", ident(obj.data)) if shared else ("object", uid)
@@ -584,7 +592,7 @@ def _modifiers_fingerprint(obj):
     return tuple((m.type, m.show_viewport) for m in obj.modifiers)
 
 
-def fingerprint(obj, k: str, memo: dict) -> tuple | None:
+def fingerprint(obj, k: Kind, memo: dict) -> tuple | None:
     """What the geometry of ``obj`` is read from, as a comparable value: its mesh
     (sizes and a checksum of its vertices), its display, its modifiers; for a
     collection instance, its members' and their placement.  None where it cannot
@@ -592,7 +600,7 @@ def fingerprint(obj, k: str, memo: dict) -> tuple | None:
     be read.  Modifier settings are not in it: edited while hidden, they are
     seen once the object is shown."""
     base = (k, obj.display_type, obj.show_in_front, obj.instance_type)
-    if k == "collection":
+    if k is Kind.COLLECTION:
         parts = [base]
         for m in obj.instance_collection.all_objects:
             if m.type != "MESH":

@@ -11,7 +11,7 @@ from . import live, overlay, visibility
 from .analysis import analysis_steps, link_collection, push_undo, report_path, write_report
 from .cameras import camera_for
 from .session import SESSION
-from .worker import Job, drive
+from .worker import Job, Progress, drive
 
 # "//" paths are blend-relative; Blender 4.5+ wants string properties to say they accept them
 BLEND_RELATIVE = {"PATH_SUPPORTS_BLEND_RELATIVE"} if bpy.app.version >= (4, 5, 0) else set()
@@ -25,9 +25,9 @@ def progress_lines(what):
     def line(item):
         nonlocal last
         now = time.perf_counter()
-        if bpy.app.background and now - last >= 1.0 and item[1] is not None:
+        if bpy.app.background and now - last >= 1.0 and item.fraction is not None:
             last = now
-            print(f"occlusion {what}: {item[0]} {100 * item[1]:.0f}% ({now - t0:.1f} s)", flush=True)
+            print(f"occlusion {what}: {item.label} {100 * item.fraction:.0f}% ({now - t0:.1f} s)", flush=True)
     return line
 
 
@@ -80,7 +80,7 @@ class Stepped:
                 item = next(self._steps)
                 if isinstance(item, Job):
                     self._job = item
-                    self._show(context, ("building the engine", None))
+                    self._show(context, Progress("building the engine", None))
                 else:
                     self._show(context, item)
         except StopIteration as stop:
@@ -91,7 +91,7 @@ class Stepped:
             return failed(self, e)
         return {"RUNNING_MODAL"}
 
-    def _show(self, context, item):
+    def _show(self, context, item: Progress):
         label, fraction = item
         if fraction is not None:
             context.window_manager.progress_update(int(100 * fraction))

@@ -22,7 +22,7 @@ from ..core.motion import LivePolicy
 from ..core.settings import preset, query_resolution
 from ..core.units import ChunkCache
 from . import policy, shading, visibility
-from .extract import Candidates, Extractor
+from .extract import Candidates, Extractor, Kind
 from .passes import LastPass, Shown, shown_by
 from .worker import EngineThread, drive
 
@@ -151,7 +151,7 @@ class Session:
                 raise
             self.culler = job.result()
             self.held = Held(uids, size, kept, cand.uids[kept],
-                             np.array([cand.kinds[i] == "collection" for i in kept], dtype=bool))
+                             np.array([cand.kinds[i] is Kind.COLLECTION for i in kept], dtype=bool))
             self.bad_geometry = bad
         else:
             self.warnings += self.bad_geometry
@@ -191,7 +191,7 @@ class Session:
         pass right after a small view change keeps all of it.  ``restart``: the answer
         is a new engine's first pass, whatever came before (a Cull click, an analysis's
         first frame: the same click gives the same answer).  ``progress``: called with
-        the steps' ``(label, fraction)``.  ``envelope``: hide only what stays hidden
+        the steps' :class:`.worker.Progress`.  ``envelope``: hide only what stays hidden
         while the view moves that far (:mod:`..core.envelope`; "rest": live mode's
         envelope at rest).  Returns ``(result, the engine's objects)``."""
         return drive(self.compute_steps(context, camera, display, fresh, restart, envelope, lights), progress)

@@ -19,6 +19,14 @@ frees resources is dropped: the process frees them.
 import queue
 import sys
 import threading
+from typing import NamedTuple
+
+
+class Progress(NamedTuple):
+    """What a step generator yields between jobs: where it is, and how far (0 .. 1)."""
+
+    label: str
+    fraction: float | None      # None: not known (a job running)
 
 
 class Job:
@@ -54,14 +62,16 @@ class Job:
 
 def drive(steps, progress=None):
     """Run a generator of steps to its end on this thread and return its value: each
-    :class:`Job` it yields is waited for, anything else (``(label, fraction)``) goes
-    to ``progress`` if given.  A modal operator drives the same generators from its
+    :class:`Job` it yields is waited for, each :class:`Progress` goes to ``progress``
+    if given; a step generator yields nothing else.  A modal operator drives the same generators from its
     timer instead."""
     try:
         while True:
             item = next(steps)
             if isinstance(item, Job):
                 item.wait()
+            elif not isinstance(item, Progress):
+                raise TypeError(f"a step generator yielded {item!r}, not a Job or Progress")
             elif progress is not None:
                 progress(item)
     except StopIteration as stop:

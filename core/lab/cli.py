@@ -18,7 +18,7 @@ import numpy as np
 from .. import DEFAULT_STRATEGY, STRATEGIES, Visibility
 from ..engine import DEFAULT_RESOLUTION, Culler, parse_resolution
 from ..errors import OccError
-from ..scene import load_scene
+from ..loading import load_scene
 from .jobs import Progress, load_job, parse_names, prepare_out, require_matplotlib, resolve_cameras, resolve_scene
 
 EXIT_USER_ERROR = 2

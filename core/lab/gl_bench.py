@@ -109,7 +109,7 @@ def main(argv=None):
 
     from ..camera import cameras_from_json
     from ..engine import Culler
-    from ..scene import load_scene
+    from ..loading import load_scene
 
     ap = argparse.ArgumentParser(prog="python -m core.lab.gl_bench", description=__doc__.split("\n\n")[0])
     ap.add_argument("--scene", default="city")

@@ -11,7 +11,7 @@ import tempfile
 
 from ..camera import cameras_from_json, load_cameras
 from ..errors import OccError
-from ..scene import load_scene
+from ..loading import load_scene
 
 
 def sample_names():
