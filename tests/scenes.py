@@ -1,8 +1,9 @@
 """Small generated scenes for the tests, each with the cameras that exercise it.
 
-Every builder returns ``(Scene, [Camera, ...], expect_culling)``; expect_culling
-says whether the scene has objects that are truly hidden from its cameras (so a
-strategy that culls nothing there is a failure).
+Every builder in ``SCENES`` returns ``(Scene, [Camera, ...], expect_culling)``;
+expect_culling says whether the scene has objects that are truly hidden from its
+cameras (so a strategy that culls nothing there is a failure).  After them: the
+smaller scenes, cameras and boxes that several test modules share.
 """
 
 import numpy as np
@@ -167,3 +168,86 @@ SCENES = {
     "random_city": lambda off: random_city(3, offset=off),
     "extreme_cameras": extreme_cameras,
 }
+
+
+def ortho_cam(w=8, h=8, mirror=False):
+    """Down -Z onto the XY plane, one unit per pixel (as tests/test_gl.py's ortho_cam); ``mirror``
+    scales the view's x by -1 (a mirrored camera: the picture flips left-right)."""
+    c = Camera.look_at((0, 0, 10), (0, 0, 0), up=(0, 1, 0), aspect=w / h, near=1, far=20,
+                       ortho_height=h)
+    if not mirror:
+        return c
+    return Camera.from_matrices(np.diag([-1.0, 1.0, 1.0, 1.0]) @ c.view, c.projection)
+
+
+HOLE_SCENE = [((-4, -4, 2), (-1, 4, 3)), ((1, -4, 2), (4, 4, 3)),     # wall, hole at |x|, |y| < 1
+              ((-4, -4, 2), (4, -1, 3)), ((-4, 1, 2), (4, 4, 3)),
+              ((-0.9, -0.9, -1), (0.9, 0.9, 1)),                      # post behind the hole
+              ((-4, -4, -2), (4, 4, -0.5)),                           # back wall, the post's foot in it
+              ((2, 2, 0), (3, 3, 1))]                                 # post behind solid wall
+
+
+def shifted(camera, dx_px, dy_px, width, height):
+    """The camera with its image moved by a fraction of a pixel: a renderer that
+    samples its pixels at other positions (another GPU's rounding)."""
+    t = np.eye(4)
+    t[0, 3], t[1, 3] = 2.0 * dx_px / width, 2.0 * dy_px / height
+    return Camera.from_matrices(camera.view, t @ camera.projection)
+
+
+def slabs_behind_a_wall_edge(width=1200, height=800):
+    """A wall whose top edge runs between two pixel rows, and thin slabs seen edge-on
+    (1.4 pixels tall) behind it, each sticking out above the edge by a different
+    fraction of a pixel (0.05 .. 0.95); plus slabs 1.4 pixels tall in front of
+    nothing.  Camera at the origin looking down +x, 60 degree field of view."""
+    f = (height / 2) / np.tan(np.radians(30.0))        # pixels per unit of z / x
+    wall_x, slab_x = 10.0, 20.0
+    edge = 3.3 / f                                     # the wall's edge: 3.3 pixels above the centre row
+    boxes = [((wall_x, -30.0, -30.0), (wall_x + 0.5, 30.0, edge * wall_x))]
+    names = ["wall"]
+    for k, out in enumerate(np.linspace(0.05, 0.95, 10)):
+        top = (3.3 + out) / f * slab_x
+        y = -9.0 + 2.0 * k
+        boxes.append(((slab_x, y, top - 1.4 / f * slab_x), (slab_x + 3.0, y + 1.0, top)))
+        names.append(f"behind_{out:.2f}")
+    for k, phase in enumerate(np.linspace(0.0, 0.9, 4)):      # no wall above them: in front of nothing
+        bottom = (40.0 + phase) / f * slab_x
+        y = -6.0 + 3.0 * k
+        boxes.append(((slab_x, y, bottom), (slab_x + 3.0, y + 1.0, bottom + 1.4 / f * slab_x)))
+        names.append(f"open_{phase:.2f}")
+    scene = boxes_scene(boxes, names)
+    cam = Camera.look_at((0, 0, 0), (1, 0, 0), up=(0, 0, 1), fov_y_deg=60.0, aspect=width / height,
+                         near=0.05, far=200.0)
+    return scene, cam
+
+
+def invalid_scene(bad_matrix=True, bad_vertices=True):
+    """A wall, two boxes behind it, and bad objects in front of one of them."""
+    box = (UNIT_BOX_V, UNIT_BOX_F)
+    nan_mesh = (np.where(np.arange(24).reshape(8, 3) == 5, np.nan, UNIT_BOX_V), UNIT_BOX_F)
+    mats = [box_matrix((0, -20, -20), (0.2, 20, 20)),      # wall
+            box_matrix((3, -1, -1), (3.5, 1, 1)),          # behind the wall
+            box_matrix((3, 5, -1), (3.5, 6, 1)),           # behind the wall
+            box_matrix((-3, -1, -1), (-2, 1, 1)),          # in front, valid
+            box_matrix((-5, -30, -30), (-4.8, 30, 30)),    # a second wall would hide everything
+            box_matrix((-3, 4, -1), (-2, 5, 1))]           # in front, NaN vertices
+    names = ["wall", "behind_a", "behind_b", "front", "bad_wall", "bad_mesh"]
+    if bad_matrix:
+        mats[4] = mats[4].copy()
+        mats[4][0, 3] = np.nan
+    meshes = [box, nan_mesh] if bad_vertices else [box]
+    mesh_of = [0, 0, 0, 0, 0, 1 if bad_vertices else 0]
+    return Scene.from_arrays(names, meshes, mesh_of, np.array(mats))
+
+
+def random_boxes(rng, k):
+    """``k`` seeded random boxes ``(k, 2, 3)``: scattered, all on a plane or many with one
+    centre, some flat along an axis."""
+    kind = rng.integers(0, 4)
+    lo = rng.uniform(-50, 50, (k, 3))
+    if kind == 1:
+        lo[:, 2] = 0.0                                   # all on a plane
+    if kind == 2:
+        lo[k // 2:] = lo[0]                              # many identical centres
+    size = rng.exponential(1.0, (k, 3)) * (rng.random((k, 3)) > 0.2)
+    return np.stack([lo, lo + size], axis=1)

@@ -12,7 +12,7 @@ from core.lab.bench import format_table, run_bench
 from core.lab.tradeoff import display_truth, measure, pareto, run_tradeoff
 from core.settings import PRESETS, CullOptions
 from tests import scenes
-from tests.test_cli import ROOT
+from tests.cli_helpers import ROOT
 
 BENCH_KEYS = {"frame_ms_median", "frame_ms_p95", "triangles", "queries", "false_negatives",
               "conservativity", "queries_skipped", "query_pixels", "culling_ms", "render_rate",
@@ -87,7 +87,7 @@ def test_bench_cli_json(tmp_path):
 
 
 def test_bench_hierarchies_cli_json(tmp_path):
-    """``bench --hierarchies`` gives the issue's JSON: per builder the Appendix-A
+    """``bench --hierarchies`` gives its JSON: per builder the Appendix-A
     figures, build time and memory, and no false negative for any builder."""
     import trimesh
     s = trimesh.Scene()

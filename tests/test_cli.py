@@ -8,34 +8,7 @@ import sys
 import numpy as np
 import pytest
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-
-
-def run(*args):
-    return subprocess.run([sys.executable, "-m", "core", *args], cwd=ROOT, capture_output=True,
-                          text=True, timeout=120)
-
-
-@pytest.fixture(scope="module")
-def wall_scene(tmp_path_factory):
-    import trimesh
-    d = tmp_path_factory.mktemp("cli")
-    s = trimesh.Scene()
-    s.add_geometry(trimesh.creation.box((1, 10, 10)), node_name="wall", geom_name="wall")
-    ball = trimesh.creation.icosphere()
-    s.add_geometry(ball, node_name="behind", geom_name="ball",
-                   transform=trimesh.transformations.translation_matrix((5, 0, 0)))
-    s.add_geometry(ball, node_name="beside", geom_name="ball",
-                   transform=trimesh.transformations.translation_matrix((-5, 8, 0)))
-    s.add_geometry(ball, node_name="back", geom_name="ball",
-                   transform=trimesh.transformations.translation_matrix((-80, 0, 0)))
-    path = d / "wall.glb"
-    s.export(path)
-    cam = {"eye": [-20, 0, 0], "target": [0, 0, 0], "up": [0, 0, 1], "fov_y_deg": 60.0,
-           "aspect": 1.5, "near": 0.1, "far": 1000.0, "ortho_height": None}
-    cam_path = d / "cam.json"
-    cam_path.write_text(json.dumps({"frames": [cam, {**cam, "eye": [20, 0, 0]}]}))
-    return path, cam_path, d
+from tests.cli_helpers import ROOT, run
 
 
 def test_cull_json_contract(wall_scene):
@@ -155,7 +128,7 @@ def _camera_file(tmp_path, name, text=None, data=None, **changes):
 
 
 def _bad_input(case, scene, cam, tmp_path):
-    """Arguments of one bad command line of issue 12 -> (argv, expected words in the error)."""
+    """Arguments of one bad command line -> (argv, expected words in the error)."""
     s, c = str(scene), str(cam)
     a_file = tmp_path / "a_file.txt"
     a_file.write_text("not a folder")
@@ -199,7 +172,7 @@ def _bad_input(case, scene, cam, tmp_path):
     "tradeoff_out_is_a_file", "fov_true", "near_string", "eye_strings", "up_zero", "scene_is_a_directory",
     "draco", "collada", "strategy_choice"])
 def test_bad_input_is_one_line_before_any_work(wall_scene, tmp_path, case):
-    """Issue 12's bad inputs: one line ``error: ...``, exit 2, nothing run before it."""
+    """Bad inputs: one line ``error: ...``, exit 2, nothing run before it."""
     import importlib.util
     if case == "draco" and importlib.util.find_spec("DracoPy"):
         pytest.skip("DracoPy is installed: the file is decoded, not refused")

@@ -7,7 +7,7 @@ import sys
 
 import numpy as np
 
-from tests.test_cli import ROOT
+from tests.cli_helpers import ROOT
 
 sys.path.insert(0, os.path.join(ROOT, "tools"))
 import fuzz_truth  # noqa: E402

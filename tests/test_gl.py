@@ -93,8 +93,8 @@ def test_one_object_and_all_behind_camera(ctx):
 
 
 def test_nan_matrix_in_scene_is_named_not_fatal():
-    """Issue 9 case 11: one bad object names itself and fails nothing else (the
-    engine keeps it visible; see tests/test_invalid_objects.py)."""
+    """One bad object names itself and fails nothing else (the engine keeps it
+    visible; see tests/test_conservative_answers.py)."""
     m = np.eye(4)[None].copy()
     m[0, 1, 3] = np.inf
     s = Scene.from_arrays(["bad"], [(np.zeros((3, 3)), [[0, 1, 2]])], [0], m)

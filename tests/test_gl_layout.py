@@ -91,7 +91,7 @@ def test_no_glsl_file_defines_a_name_the_layout_owns():
     array by number (the old ``f[44]``) fails here."""
     owned = L.owned_names()
     files = glob.glob(os.path.join(shaders.GLSL_DIR, "*.glsl"))
-    assert len(files) >= 20
+    assert len(files) >= 10                  # the glob found the shader folder
     for path in files:
         text = open(path, encoding="utf-8").read()
         name = os.path.basename(path)

@@ -14,19 +14,9 @@ import pytest
 from core import Camera, Culler, OccError
 from core.gl import GLRenderer
 from core.gl.context import choose_path
-from tests.scenes import boxes_scene
+from tests.scenes import HOLE_SCENE, boxes_scene, ortho_cam
 
 PATHS = ["4.3", "4.1"]
-
-
-def ortho_cam(w=8, h=8, mirror=False):
-    """Down -Z onto the XY plane, one unit per pixel (see test_gl.ortho_cam); ``mirror``
-    scales the view's x by -1 (a mirrored camera: the picture flips left-right)."""
-    c = Camera.look_at((0, 0, 10), (0, 0, 0), up=(0, 1, 0), aspect=w / h, near=1, far=20,
-                       ortho_height=h)
-    if not mirror:
-        return c
-    return Camera.from_matrices(np.diag([-1.0, 1.0, 1.0, 1.0]) @ c.view, c.projection)
 
 
 PROBES = np.array([((-3, -3, 3), (3, 3, 4)),          # in front: 6x6 = 36 pixels
@@ -49,13 +39,6 @@ def test_query_samples_exact_on_both_paths_and_mirrored(ctx, path, mirror):
     r.draw([0])
     assert r.query(PROBES - cam.eye).tolist() == [36, 18, 0, 4]
     r.release()
-
-
-HOLE_SCENE = [((-4, -4, 2), (-1, 4, 3)), ((1, -4, 2), (4, 4, 3)),     # wall, hole at |x|, |y| < 1
-              ((-4, -4, 2), (4, -1, 3)), ((-4, 1, 2), (4, 4, 3)),
-              ((-0.9, -0.9, -1), (0.9, 0.9, 1)),                      # post behind the hole
-              ((-4, -4, -2), (4, 4, -0.5)),                           # back wall, the post's foot in it
-              ((2, 2, 0), (3, 3, 1))]                                 # post behind solid wall
 
 
 @pytest.mark.parametrize("path", PATHS)

@@ -6,7 +6,7 @@ import sys
 
 import pytest
 
-from tests.test_cli import ROOT
+from tests.cli_helpers import ROOT
 
 
 @pytest.mark.skipif(os.environ.get("OCC_GL") == "4.1", reason="the gpu pass needs the 4.3 path")

@@ -12,8 +12,7 @@ import sample_scenes
 from core import Camera, Culler, Visibility, load_scene
 from core.camera import cameras_from_json
 from tests import scenes
-from tests.test_gl_paths import HOLE_SCENE, ortho_cam
-from tests.test_issue9_engine import invalid_scene, shifted, slabs_behind_a_wall_edge
+from tests.scenes import HOLE_SCENE, invalid_scene, ortho_cam, shifted, slabs_behind_a_wall_edge
 
 DEPTH_STEP = 1.0 / 16777215.0
 GPU_CALLS = 27          # GL calls of a steady GPU pass: clear, params write, 6 bindings, 5 dispatches,
@@ -227,7 +226,7 @@ def test_moving_chunked_objects_never_hides_what_the_truth_shows(ctx, moved):
 
 def test_thin_slabs_and_depth_ties_keep_the_engine_guard(ctx):
     """The GPU's guard is the engine's (half a query pixel, 2 depth steps): the slabs a
-    renderer sampling 0.3 pixel off sees, and the depth ties of issue 9, are kept."""
+    renderer sampling 0.3 pixel off sees, and the depth ties behind a wall, are kept."""
     w, h = 1200, 800
     scene, cam = slabs_behind_a_wall_edge(w, h)
     with Culler(scene, (w, h), strategy="gpu", ctx=ctx) as c:

@@ -9,8 +9,8 @@ import sys
 import numpy as np
 import pytest
 
-from core.scene import blender_names, load_scene
-from tests.test_cli import ROOT
+from core.loading import blender_names, load_scene
+from tests.cli_helpers import ROOT
 
 
 def _glb(header, binary):
@@ -77,7 +77,7 @@ def test_repeated_and_missing_names_are_deterministic(messy_gltf):
 
 def test_names_are_stable_across_processes(messy_gltf):
     path, _ = messy_gltf
-    code = "import sys; from core.scene import load_scene; print('|'.join(load_scene(sys.argv[1]).names))"
+    code = "import sys; from core.loading import load_scene; print('|'.join(load_scene(sys.argv[1]).names))"
     runs = {subprocess.run([sys.executable, "-c", code, str(path)], cwd=ROOT, capture_output=True, text=True,
                            check=True, env={**os.environ, "PYTHONHASHSEED": str(seed)}).stdout
             for seed in (1, 2)}
@@ -130,7 +130,7 @@ def test_node_transforms_match_trimesh(tmp_path):
     world matrices equal those trimesh's own loader computes."""
     import trimesh
 
-    from core.scene import scene_from_trimesh
+    from core.loading import scene_from_trimesh
     s = trimesh.Scene()
     s.add_geometry(trimesh.creation.box((1, 2, 3)), node_name="child", geom_name="g")
     header, binary = _split_glb(s.export(file_type="glb"))

@@ -16,7 +16,7 @@ def test_sample_specs():
 
 
 def test_small_sample_uses_its_own_camera_path():
-    """Issue 12: city-small ran the full city's path, and 53 of 90 frames saw nothing."""
+    """city-small has its own camera path: on the full city's, 53 of 90 frames saw nothing."""
     scene, cams, title = load_job("city-small", None)
     small = cameras_from_json(sample_scenes.default_camera_path("city", small=True))
     full = cameras_from_json(sample_scenes.default_camera_path("city"))

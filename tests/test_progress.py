@@ -19,7 +19,7 @@ import pytest
 
 from core.lab.tradeoff import KNOBS
 from core.settings import PRESETS
-from tests.test_cli import ROOT, run, wall_scene  # noqa: F401  (the fixture)
+from tests.cli_helpers import ROOT, run
 
 NO_TQDM = "import sys; sys.modules['tqdm'] = None; from core.lab.cli import main; sys.exit(main(sys.argv[1:]))"
 
@@ -68,7 +68,7 @@ def with_tqdm(request):
     return request.param == "tqdm"
 
 
-def test_bench_bar_on_a_terminal_and_pure_json_on_stdout(wall_scene, with_tqdm):  # noqa: F811
+def test_bench_bar_on_a_terminal_and_pure_json_on_stdout(wall_scene, with_tqdm):
     path, cam, _ = wall_scene
     rc, out, err = run_on_terminal("bench", str(path), "--camera", str(cam), "--strategies", "vfc,om_multi",
                                    "--resolution", "48x32", "--json", tqdm=with_tqdm)
@@ -79,7 +79,7 @@ def test_bench_bar_on_a_terminal_and_pure_json_on_stdout(wall_scene, with_tqdm):
     assert not progress_lines(err)          # a bar, not the lines meant for logs
 
 
-def test_multi_frame_cull_bar_and_its_text_output(wall_scene, with_tqdm):  # noqa: F811
+def test_multi_frame_cull_bar_and_its_text_output(wall_scene, with_tqdm):
     path, cam, _ = wall_scene
     rc, out, err = run_on_terminal("cull", str(path), "--camera", str(cam), "--resolution", "48x32",
                                    tqdm=with_tqdm)
@@ -88,7 +88,7 @@ def test_multi_frame_cull_bar_and_its_text_output(wall_scene, with_tqdm):  # noq
     assert bar_drawn(err, with_tqdm), repr(err)
 
 
-def test_quiet_on_a_terminal_draws_nothing(wall_scene):  # noqa: F811
+def test_quiet_on_a_terminal_draws_nothing(wall_scene):
     path, cam, _ = wall_scene
     rc, out, err = run_on_terminal("bench", str(path), "--camera", str(cam), "--strategies", "vfc",
                                    "--resolution", "48x32", "--json", "--quiet")
@@ -96,7 +96,7 @@ def test_quiet_on_a_terminal_draws_nothing(wall_scene):  # noqa: F811
     assert json.loads(out)["frames"] == 2 and err == ""
 
 
-def test_bench_without_terminal_prints_one_short_line_per_step(wall_scene):  # noqa: F811
+def test_bench_without_terminal_prints_one_short_line_per_step(wall_scene):
     path, cam, _ = wall_scene
     p = run("bench", str(path), "--camera", str(cam), "--strategies", "vfc,stopwait,om_multi",
             "--resolution", "48x32", "--json")
@@ -111,7 +111,7 @@ def test_bench_without_terminal_prints_one_short_line_per_step(wall_scene):  # n
     assert text.stdout.startswith("== wall ==") and len(progress_lines(text.stderr)) == 2   # progress off stdout
 
 
-def test_quiet_and_single_frame_cull_print_no_progress(wall_scene, tmp_path):  # noqa: F811
+def test_quiet_and_single_frame_cull_print_no_progress(wall_scene, tmp_path):
     path, cam, _ = wall_scene
     p = run("bench", str(path), "--camera", str(cam), "--strategies", "vfc", "--resolution", "48x32",
             "--json", "-q")
@@ -122,7 +122,7 @@ def test_quiet_and_single_frame_cull_print_no_progress(wall_scene, tmp_path):  #
     assert p.returncode == 0 and p.stderr == "" and len(json.loads(p.stdout)["frames"]) == 1
 
 
-def test_long_cull_without_terminal_prints_at_most_ten_lines(wall_scene, tmp_path):  # noqa: F811
+def test_long_cull_without_terminal_prints_at_most_ten_lines(wall_scene, tmp_path):
     path, cam, _ = wall_scene
     many = tmp_path / "many.json"
     many.write_text(json.dumps({"frames": json.loads(cam.read_text())["frames"] * 20}))
@@ -134,7 +134,7 @@ def test_long_cull_without_terminal_prints_at_most_ten_lines(wall_scene, tmp_pat
     assert lines[-1].startswith("  [40/40] frame 39")
 
 
-def test_tradeoff_progress_json_and_text(wall_scene):  # noqa: F811
+def test_tradeoff_progress_json_and_text(wall_scene):
     path, cam, _ = wall_scene
     args = ("tradeoff", str(path), "--camera", str(cam), "--display", "48x32", "--frames", "2", "--repeats", "1",
             "--knobs", "bounds")

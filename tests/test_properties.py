@@ -212,7 +212,7 @@ def test_rects_contain_every_covered_pixel_centre(seed):
 
 
 def test_floor_crossing_the_near_plane_is_clipped_not_the_whole_screen():
-    """Issue 10: a floor that passes under the eye (it crosses the near plane)
+    """A floor that passes under the eye (it crosses the near plane)
     gets the rectangle of its part in front of the near plane -- the lower half of
     a level view -- not the whole screen, so it does not fill the occupancy map."""
     cam = Camera.look_at((0, 0, 1.7), (10, 0, 1.7), up=(0, 0, 1), fov_y_deg=60, aspect=1.5,

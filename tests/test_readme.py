@@ -7,7 +7,7 @@ import subprocess
 import sys
 
 from core.lab.cli import build_parser
-from tests.test_cli import ROOT
+from tests.cli_helpers import ROOT
 
 with open(os.path.join(ROOT, "README.md"), encoding="utf-8") as _f:
     README = _f.read()

@@ -11,7 +11,7 @@ from core import Culler
 from core.lab.reports import _RecordingMap, _watched_occupancy_map
 from core.lab.tradeoff import pareto, plot_tradeoff, run_tradeoff
 from tests import scenes
-from tests.test_cli import ROOT
+from tests.cli_helpers import ROOT
 
 
 def test_bench_report_folder_has_an_index_of_every_file(tmp_path):

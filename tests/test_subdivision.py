@@ -9,39 +9,10 @@ from hypothesis import strategies as st
 from core import OccError
 from core.bounds import MAX, MIN
 from core.subdivision import BUILDERS, build_tree, choose_leaf_size, sah_cost, worth_chunking
+from tests.checks import check_tree
+from tests.scenes import random_boxes
 
 SETTINGS = settings(max_examples=25, deadline=None, derandomize=True)
-
-
-def random_boxes(rng, k):
-    kind = rng.integers(0, 4)
-    lo = rng.uniform(-50, 50, (k, 3))
-    if kind == 1:
-        lo[:, 2] = 0.0                                   # all on a plane
-    if kind == 2:
-        lo[k // 2:] = lo[0]                              # many identical centres
-    size = rng.exponential(1.0, (k, 3)) * (rng.random((k, 3)) > 0.2)
-    return np.stack([lo, lo + size], axis=1)
-
-
-def check_tree(tree, boxes, max_children):
-    k = len(boxes)
-    assert np.array_equal(np.sort(tree.order), np.arange(k))           # a permutation
-    # ranges partition the order
-    ranges = np.zeros(k, dtype=int)
-    for s, c in zip(tree.item_start, tree.item_count, strict=True):
-        ranges[s:s + c] += 1
-    assert np.all(ranges == 1)
-    leaf = tree.child_count == 0
-    assert np.all(tree.item_count[leaf] >= 1)                          # no empty leaves
-    assert np.all((tree.child_count[~leaf] >= 2) & (tree.child_count[~leaf] <= max_children))
-    for node in range(len(tree)):                # tight: own items + children
-        own = boxes[tree.order[tree.item_start[node]:tree.item_start[node] + tree.item_count[node]]]
-        kids = np.arange(tree.first_child[node], tree.first_child[node] + tree.child_count[node])
-        parts = np.concatenate([own, tree.bounds[kids]]) if len(kids) else own
-        assert np.array_equal(tree.bounds[node][MIN], parts[:, MIN].min(axis=0))
-        assert np.array_equal(tree.bounds[node][MAX], parts[:, MAX].max(axis=0))
-        assert np.all(tree.parent[kids] == node) and np.all(tree.depth[kids] == tree.depth[node] + 1)
 
 
 @SETTINGS

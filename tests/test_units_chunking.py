@@ -117,7 +117,8 @@ def test_planned_levels_keep_the_invariants(seed, monkeypatch):
     triangle mesh moves its items once per PLAN_DEPTH levels): lowered here so that
     seeded random boxes take that path, the tree is still a tight partition."""
     import core.subdivision as sd
-    from tests.test_subdivision import check_tree, random_boxes
+    from tests.checks import check_tree
+    from tests.scenes import random_boxes
 
     monkeypatch.setattr(sd, "PLAN_ITEMS", 150)
     monkeypatch.setattr(sd, "PLAN_SAMPLE", 1024)

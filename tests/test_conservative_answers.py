@@ -1,6 +1,7 @@
-"""Issue 9, engine side: answers that do not hang on sample rounding or depth
-rounding, a coherent memory that never makes a pass worse than a fresh one, and
-NaN or infinite values that affect only their own object."""
+"""Conservative answers from the engine: answers that do not hang on sample rounding or
+depth rounding, a coherent memory that never makes a pass worse than a fresh one,
+NaN or infinite values that affect only their own object, a lower query resolution
+that keeps what the display shows, and overlapping boxes sharing one multiple query."""
 
 import warnings
 
@@ -13,52 +14,18 @@ from tests import scenes
 QUERY_STRATEGIES = ("stopwait", "leaf_stopwait", "om_single", "om", "om_multi", "om_coherent")
 
 
-def shifted(camera, dx_px, dy_px, width, height):
-    """The camera with its image moved by a fraction of a pixel: a renderer that
-    samples its pixels at other positions (another GPU's rounding)."""
-    t = np.eye(4)
-    t[0, 3], t[1, 3] = 2.0 * dx_px / width, 2.0 * dy_px / height
-    return Camera.from_matrices(camera.view, t @ camera.projection)
-
-
-def slabs_behind_a_wall_edge(width=1200, height=800):
-    """A wall whose top edge runs between two pixel rows, and thin slabs seen edge-on
-    (1.4 pixels tall) behind it, each sticking out above the edge by a different
-    fraction of a pixel (0.05 .. 0.95); plus slabs 1.4 pixels tall in front of
-    nothing.  Camera at the origin looking down +x, 60 degree field of view."""
-    f = (height / 2) / np.tan(np.radians(30.0))        # pixels per unit of z / x
-    wall_x, slab_x = 10.0, 20.0
-    edge = 3.3 / f                                     # the wall's edge: 3.3 pixels above the centre row
-    boxes = [((wall_x, -30.0, -30.0), (wall_x + 0.5, 30.0, edge * wall_x))]
-    names = ["wall"]
-    for k, out in enumerate(np.linspace(0.05, 0.95, 10)):
-        top = (3.3 + out) / f * slab_x
-        y = -9.0 + 2.0 * k
-        boxes.append(((slab_x, y, top - 1.4 / f * slab_x), (slab_x + 3.0, y + 1.0, top)))
-        names.append(f"behind_{out:.2f}")
-    for k, phase in enumerate(np.linspace(0.0, 0.9, 4)):      # no wall above them: in front of nothing
-        bottom = (40.0 + phase) / f * slab_x
-        y = -6.0 + 3.0 * k
-        boxes.append(((slab_x, y, bottom), (slab_x + 3.0, y + 1.0, bottom + 1.4 / f * slab_x)))
-        names.append(f"open_{phase:.2f}")
-    scene = scenes.boxes_scene(boxes, names)
-    cam = Camera.look_at((0, 0, 0), (1, 0, 0), up=(0, 0, 1), fov_y_deg=60.0, aspect=width / height,
-                         near=0.05, far=200.0)
-    return scene, cam
-
-
 @pytest.mark.parametrize("strategy", QUERY_STRATEGIES)
 def test_thin_slab_edge_on_is_kept_whatever_the_sample_rounding(ctx, strategy):
-    """Issue 9: ``stopwait`` and ``om`` culled a slab seen edge-on (about 1.4 pixels
+    """``stopwait`` and ``om`` once culled a slab seen edge-on (about 1.4 pixels
     tall) that another renderer lights.  Every slab that a renderer sampling a
     little off this one's pixel centres (up to 0.3 pixel, either way) sees, at
     1200x800, is kept."""
     w, h = 1200, 800
-    scene, cam = slabs_behind_a_wall_edge(w, h)
+    scene, cam = scenes.slabs_behind_a_wall_edge(w, h)
     with Culler(scene, (w, h), strategy=strategy, ctx=ctx) as c:
         seen = np.zeros(len(scene), dtype=bool)
         for dy in (-0.3, -0.15, 0.0, 0.15, 0.3):
-            seen |= c.truth(shifted(cam, 0.0, dy, w, h))
+            seen |= c.truth(scenes.shifted(cam, 0.0, dy, w, h))
         assert seen[1:11].any() and not seen[1:11].all()     # the set-up straddles pixel centres
         r = c.cull(cam, fresh=True)
     missed = [scene.names[i] for i in np.flatnonzero(seen & ~r.visible)]
@@ -67,7 +34,7 @@ def test_thin_slab_edge_on_is_kept_whatever_the_sample_rounding(ctx, strategy):
 
 @pytest.mark.parametrize("strategy", QUERY_STRATEGIES)
 def test_depth_ties_behind_a_wall_at_one_degree_stay_visible(ctx, strategy):
-    """Issue 9: at a 1 degree field of view, camera 688 units away, near 0.01, one
+    """At a 1 degree field of view, camera 688 units away, near 0.01, one
     24-bit depth step is about 2.9 units there; objects just behind the wall's face
     (up to about 1.5 steps: each surface's depth is rounded to the grid, and
     another renderer rounds its own way) are depth ties and count as visible.
@@ -93,7 +60,7 @@ def test_depth_ties_behind_a_wall_at_one_degree_stay_visible(ctx, strategy):
     assert state["far_behind"] == Visibility.OCCLUDED
 
 
-def test_depth_step_guard_is_what_the_issue_measured():
+def test_depth_step_at_688_units_is_about_2_9_units():
     """The depth step at 688 units with near 0.01 and a 24-bit buffer is about 2.9 units."""
     from core.tolerance import tol
     near, far, dist = 0.01, 2000.0, 688.0
@@ -113,7 +80,7 @@ def front_and_back(n=200, seed=3):
 
 @pytest.mark.parametrize("strategy", ["om_coherent", "om_multi"])
 def test_look_away_and_back_hides_as_many_as_a_fresh_pass(ctx, strategy):
-    """Issue 9 case 9: one pass after looking away and back hides as many objects as
+    """One pass after looking away and back hides as many objects as
     a fresh cull of the same view (the memory of last pass's visible leaves is
     dropped after a camera cut)."""
     scene, front, back = front_and_back()
@@ -145,31 +112,12 @@ def test_coherent_memory_is_kept_over_small_moves(ctx):
         assert c.cull(cam, fresh=True).stats.fresh == 1
 
 
-def invalid_scene(bad_matrix=True, bad_vertices=True):
-    """A wall, two boxes behind it, and bad objects in front of one of them."""
-    box = (scenes.UNIT_BOX_V, scenes.UNIT_BOX_F)
-    nan_mesh = (np.where(np.arange(24).reshape(8, 3) == 5, np.nan, scenes.UNIT_BOX_V), scenes.UNIT_BOX_F)
-    mats = [scenes.box_matrix((0, -20, -20), (0.2, 20, 20)),      # wall
-            scenes.box_matrix((3, -1, -1), (3.5, 1, 1)),          # behind the wall
-            scenes.box_matrix((3, 5, -1), (3.5, 6, 1)),           # behind the wall
-            scenes.box_matrix((-3, -1, -1), (-2, 1, 1)),          # in front, valid
-            scenes.box_matrix((-5, -30, -30), (-4.8, 30, 30)),    # a second wall would hide everything
-            scenes.box_matrix((-3, 4, -1), (-2, 5, 1))]           # in front, NaN vertices
-    names = ["wall", "behind_a", "behind_b", "front", "bad_wall", "bad_mesh"]
-    if bad_matrix:
-        mats[4] = mats[4].copy()
-        mats[4][0, 3] = np.nan
-    meshes = [box, nan_mesh] if bad_vertices else [box]
-    mesh_of = [0, 0, 0, 0, 0, 1 if bad_vertices else 0]
-    return Scene.from_arrays(names, meshes, mesh_of, np.array(mats))
-
-
 @pytest.mark.parametrize("strategy", ["vfc", "stopwait", "om", "om_multi", "om_coherent", "oracle"])
 def test_nan_object_is_named_kept_visible_and_never_an_occluder(ctx, strategy):
-    """Issue 9 case 11: one NaN in an object's matrix or vertices names that object
+    """One NaN in an object's matrix or vertices names that object
     in a warning; it stays VISIBLE, is never drawn as an occluder, and every other
     object is culled as usual."""
-    scene = invalid_scene()
+    scene = scenes.invalid_scene()
     assert scene.invalid_names == ["bad_wall", "bad_mesh"]
     cam = scenes.cam((-10, 0, 0), (0, 0, 0), up=(0, 0, 1), far=100)
     with pytest.warns(UserWarning, match="'bad_wall', 'bad_mesh'"):
@@ -190,7 +138,7 @@ def test_nan_object_is_named_kept_visible_and_never_an_occluder(ctx, strategy):
 def test_nan_matrix_set_later_affects_only_that_object(ctx):
     """set_matrices with a NaN no longer raises and blocks every cull: that object is
     kept visible, the others culled; a finite matrix later makes it an occluder again."""
-    scene = invalid_scene(bad_matrix=False, bad_vertices=False)
+    scene = scenes.invalid_scene(bad_matrix=False, bad_vertices=False)
     cam = scenes.cam((-10, 0, 0), (0, 0, 0), up=(0, 0, 1), far=100)
     bad = scene.names.index("bad_wall")
     good = scene.matrices[bad].copy()
@@ -243,7 +191,7 @@ def test_lower_query_resolution_keeps_what_the_display_shows(ctx, strategy):
 
 
 def test_test_lists_follow_the_papers_rule_in_the_engine(ctx):
-    """Issue 10: boxes behind a wall whose screen rectangles overlap their neighbours'
+    """Boxes behind a wall whose screen rectangles overlap their neighbours'
     by a little go into one multiple query (each still has free tiles in the list's
     map); the old rule (no overlap with a box taken) needed a list per neighbour."""
     boxes = [((0, -20, -20), (0.2, 20, 20))]
