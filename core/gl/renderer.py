@@ -196,6 +196,9 @@ class BaseRenderer:
         self.activate()
         self.counters = dict.fromkeys(COUNTER_KEYS, 0)
         self._upload_geometry(scene, units)
+        # the scene's vertex shader serves both paths (core/gl/glsl/scene.vert.glsl)
+        self.depth_prog = self.program("scene.vert.glsl", "depth.frag.glsl")
+        self.id_prog = self.program("scene.vert.glsl", "id.frag.glsl", WITH_ID=1)
         self._init_path()
         if self.reduces:
             self._init_reduction()
@@ -242,7 +245,7 @@ class BaseRenderer:
         self.set_matrices(np.arange(n), scene.matrices)
 
     def _init_path(self):
-        """Per path: programs, vertex arrays and query resources."""
+        """Per path: its own programs, vertex arrays and query resources."""
         raise NotImplementedError
 
     def _init_reduction(self):

@@ -17,8 +17,6 @@ class Renderer41(BaseRenderer):
 
     def _init_path(self):
         ctx = self.ctx
-        self.depth_prog = self.program("scene.vert.glsl", "depth.frag.glsl")
-        self.id_prog = self.program("scene.vert.glsl", "id.frag.glsl", WITH_ID=1)
         self.box_progs = {True: self.program("box_41.vert.glsl", "depth.frag.glsl")}
         self.depth_vao = ctx.vertex_array(self.depth_prog, [(self.vbo, "3f", "in_pos")],
                                           index_buffer=self.ibo, index_element_size=4)

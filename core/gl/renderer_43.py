@@ -40,8 +40,6 @@ class Renderer43(BaseRenderer):
 
     def _init_path(self):
         ctx = self.ctx
-        self.depth_prog = self.program("scene.vert.glsl", "depth.frag.glsl")
-        self.id_prog = self.program("scene.vert.glsl", "id.frag.glsl", WITH_ID=1)
         self.box_progs = {True: self.program("box_43.vert.glsl", "box_count_43.frag.glsl"),
                           False: self.program("box_43.vert.glsl", "box_flag_43.frag.glsl")}
         # The draw stream, a ring: chunks of [indirect commands | per-instance records]
