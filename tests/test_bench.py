@@ -147,3 +147,26 @@ def test_pareto_front():
     pts = [(1, 5), (2, 1), (3, 3), (1, 5), (0.5, 9)]
     assert pareto(pts).tolist() == [0, 1, 3, 4]
     assert pareto(np.zeros((0, 2))).tolist() == []
+
+
+def test_bench_display_counts_misses_at_the_display_resolution(ctx):
+    """``display=``: queries at the query resolution, conservative at the display's, and
+    false negatives counted against the display's truth, which sees slabs the query's
+    truth misses (so the count can fail)."""
+    scene, cam = scenes.slabs_behind_a_wall_edge(1200, 800)
+    strategies = ["gpu", "om_coherent", "stopwait"]
+    rep = run_bench(scene, [cam], strategies, (300, 200), culler_kw={"ctx": ctx}, display=(1200, 800))
+    assert rep["display"] == [1200, 800] and rep["resolution"] == [300, 200]
+    for name in strategies:
+        assert rep["strategies"][name]["false_negatives"] == 0, name
+    low = run_bench(scene, [cam], ["oracle"], (300, 200), culler_kw={"ctx": ctx})
+    high = run_bench(scene, [cam], ["oracle"], (300, 200), culler_kw={"ctx": ctx}, display=(1200, 800))
+    assert "display" not in low
+    assert high["strategies"]["oracle"]["objects_truly_visible"] > low["strategies"]["oracle"]["objects_truly_visible"]
+
+
+def test_bench_display_below_the_query_resolution_is_one_error_line():
+    p = subprocess.run([sys.executable, "-m", "core", "bench", "city-small", "--strategies", "vfc", "--frames", "1",
+                        "--resolution", "320x180", "--display", "160x90", "-q"],
+                       cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert p.returncode == 2 and p.stderr.count("\n") == 1 and p.stderr.startswith("error:"), p.stderr

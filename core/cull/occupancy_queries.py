@@ -51,7 +51,7 @@ class OmMulti(Strategy):
     """
 
     def __init__(self, max_tests=8, coherent=False, read_budget=None):
-        self.max_tests = max(1, int(max_tests))
+        self.first_max_tests = self.max_tests = max(1, int(max_tests))
         self.coherent = coherent
         self.read_budget = read_budget
         self.memory = CoherentMemory()
@@ -68,8 +68,10 @@ class OmMulti(Strategy):
             self.memory.remember(cp)
 
     def reset(self):
-        """Drop the memory of visible leaves (objects moved, or a fresh pass asked)."""
+        """Drop the memory of visible leaves and the rounds learnt (objects moved, or a
+        fresh pass asked): the next pass is a new engine's first, whatever came before."""
         self.memory.reset()
+        self.max_tests = self.first_max_tests
 
     def _draw_remembered(self, cp):
         if not self.memory.holds(cp):
@@ -139,6 +141,7 @@ class TwoPass(Strategy):
 
     def reset(self):
         self.memory.reset()
+        self.fresh.reset()
 
     def __call__(self, cp, chunk=16, truth=None):
         self.memory.start(cp)

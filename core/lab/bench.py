@@ -39,7 +39,7 @@ ENVELOPE_VIEWS = 4        # views of the envelope sampled per frame for the enve
 
 
 def run_bench(scene, cameras, strategies, resolution=DEFAULT_RESOLUTION, warmup=1, culler_kw=None,
-              progress=None, rounds=1, envelope=None):
+              progress=None, rounds=1, envelope=None, display=None):
     """Run every strategy over ``cameras``; returns the report dict (the ``--json`` shape).
 
     ``rounds``: the whole path this many times for each strategy, the strategies'
@@ -52,19 +52,27 @@ def run_bench(scene, cameras, strategies, resolution=DEFAULT_RESOLUTION, warmup=
     (its pass, whatever the strategy) whose ``false_negatives`` count the frame's
     view and :data:`ENVELOPE_VIEWS` seeded views of the envelope per frame, and
     whose ``hidden_kept`` is the share of the default strategy's hidden objects it
-    still hides (``hidden_triangles_kept`` the same in triangles)."""
+    still hides (``hidden_triangles_kept`` the same in triangles).
+
+    ``display``: ``(W, H)`` above the query resolution: queries at ``resolution``,
+    conservative at the display's (``Culler(display=)``), and every false negative
+    counted against the object-ID truth at the display's resolution."""
     unknown = [s for s in strategies if s not in STRATEGIES]
     if unknown:
         raise OccError(f"unknown strategies {unknown}; choose from {', '.join(STRATEGIES)}")
     if rounds < 1:
         raise OccError(f"rounds must be at least 1, not {rounds}")
-    culler = Culler(scene, resolution, strategy=strategies[0], **(culler_kw or {}))
+    culler = Culler(scene, resolution, strategy=strategies[0], display=display, **(culler_kw or {}))
+    # the truth at the display's resolution where one is given (on the same GL context)
+    seer = culler if display is None else Culler(scene, display, strategy="vfc", ctx=culler.renderer.ctx)
     try:
-        truths = [culler.truth(cam) for cam in cameras]
+        truths = [seer.truth(cam) for cam in cameras]
         tri_total = int(scene.triangle_counts.sum())
         report = {"objects": len(scene), "triangles_total": tri_total, "frames": len(cameras),
                   "resolution": list(resolution), "device": culler.renderer.device, "rounds": rounds,
                   "strategies": {}}
+        if display is not None:
+            report["display"] = list(display)
         runs = {name: [] for name in strategies}
         rows_of = {}
         for k in range(rounds):
@@ -78,12 +86,14 @@ def run_bench(scene, cameras, strategies, resolution=DEFAULT_RESOLUTION, warmup=
         report["strategies"] = {name: rows_of[name] for name in strategies}
         if envelope is not None:
             name = f"envelope {envelope.distance:g},{envelope.angle_deg:g}"
-            report["strategies"][name] = _envelope_row(culler, cameras, truths, envelope, tri_total)
+            report["strategies"][name] = _envelope_row(culler, seer, cameras, truths, envelope, tri_total)
             if progress:
                 progress(name, report["strategies"][name])
         add_speedups(report["strategies"])
         return report
     finally:
+        if seer is not culler:
+            seer.close()
         culler.close()
 
 
@@ -101,9 +111,10 @@ def _path(culler, name, cameras, truths, warmup):
     return rows
 
 
-def _envelope_row(culler, cameras, truths, envelope, tri_total):
+def _envelope_row(culler, seer, cameras, truths, envelope, tri_total):
     """The envelope's row: its pass per frame against the frame's truth and sampled
-    views of the envelope, and what it hides beside a point pass of the default."""
+    views of the envelope (``seer``'s truth: the display's where one is given), and
+    what it hides beside a point pass of the default."""
     from .. import DEFAULT_STRATEGY
     from ..envelope import sample_views
     rng = np.random.default_rng(0)
@@ -116,7 +127,7 @@ def _envelope_row(culler, cameras, truths, envelope, tri_total):
         r = culler.cull(cam, envelope=envelope)
         seen = truth.copy()
         for view in sample_views(cam, envelope, ENVELOPE_VIEWS, rng):
-            seen |= culler.truth(view)
+            seen |= seer.truth(view)
         hidden = ~r.visible
         point_hidden += int((~point.visible).sum())
         env_hidden += int(hidden.sum())

@@ -255,7 +255,8 @@ def bench_steps(strategies, plot=False, snapshot=False):
 
 
 def bench_scene(spec, camera=None, strategies=STRATEGIES, resolution=DEFAULT_RESOLUTION,
-                frames=None, out_dir=None, plot=False, snapshot=False, progress=None, rounds=1, envelope=None):
+                frames=None, out_dir=None, plot=False, snapshot=False, progress=None, rounds=1, envelope=None,
+                display=None):
     """Load a scene (file or sample name), run the benchmark, optionally write a report folder.
 
     ``progress``: a :class:`core.lab.jobs.Progress` that takes :func:`bench_steps` steps (None: silent).
@@ -265,7 +266,7 @@ def bench_scene(spec, camera=None, strategies=STRATEGIES, resolution=DEFAULT_RES
     scene, cameras, title = load_job(spec, camera, frames)
     step(f"{title}: loaded {len(scene)} objects, {int(scene.triangle_counts.sum()):,} triangles "
          f"in {time.perf_counter() - t:.1f} s; {len(cameras)} frames")
-    report = run_bench(scene, cameras, list(strategies), resolution, rounds=rounds, envelope=envelope,
+    report = run_bench(scene, cameras, list(strategies), resolution, rounds=rounds, envelope=envelope, display=display,
                        progress=lambda n, s: step(f"{title} {n:<11} median {s['frame_ms_median']:.2f} ms"))
     report["scene"] = title
     table = format_table(report, f"== {title} ==")

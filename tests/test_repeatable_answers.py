@@ -1,0 +1,92 @@
+"""Answers that do not depend on timing: the default strategy gives the same visible
+sets whatever the clock says (a busy machine), a fresh pass is a new engine's first
+pass whatever came before, and the default stays close to the tightest strategy."""
+
+import time
+
+import numpy as np
+import pytest
+
+from core import DEFAULT_STRATEGY, Culler
+from tests import scenes
+
+
+class BusyClock:
+    """``time.perf_counter`` of a machine whose load comes and goes: every reading
+    advances by a seeded random amount, from microseconds to a tenth of a second."""
+
+    def __init__(self, seed):
+        self.rng = np.random.default_rng(seed)
+        self.now = time.perf_counter()
+
+    def __call__(self):
+        self.now += float(self.rng.choice([1e-6, 1e-4, 1e-2, 1e-1]))
+        return self.now
+
+
+def states(scene, cams, strategy, ctx, clock=None, monkeypatch=None, fresh=False):
+    """Per camera, the states of one engine's passes along the path."""
+    if clock is not None:
+        monkeypatch.setattr(time, "perf_counter", clock)
+    try:
+        with Culler(scene, (160, 120), strategy=strategy, ctx=ctx) as c:
+            return [c.cull(cam, fresh=fresh).state.copy() for cam in cams]
+    finally:
+        if clock is not None:
+            monkeypatch.undo()
+
+
+def path(seed):
+    scene, cams, _ = scenes.random_city(seed, 300)
+    return scene, [c for c in cams for _ in range(3)]      # each view thrice: coherence has time to act
+
+
+def test_the_default_is_not_auto():
+    assert DEFAULT_STRATEGY == "gpu"
+
+
+@pytest.mark.parametrize("seed", [3, 11])
+def test_the_default_answers_the_same_on_a_busy_machine(ctx, monkeypatch, seed):
+    scene, cams = path(seed)
+    calm = states(scene, cams, DEFAULT_STRATEGY, ctx)
+    for clock_seed in (1, 2):
+        busy = states(scene, cams, DEFAULT_STRATEGY, ctx, BusyClock(clock_seed), monkeypatch)
+        for k, (a, b) in enumerate(zip(calm, busy, strict=True)):
+            assert np.array_equal(a, b), f"frame {k}: the answer changed with the clock"
+
+
+def test_the_busy_clock_does_change_a_timing_strategy(ctx, monkeypatch):
+    """The check above can fail: ``auto`` chooses by timing, and under a clock that makes
+    its tests look costly it stops testing, so its answer changes."""
+    scene, cams = path(11)
+    calm = states(scene, cams, "auto", ctx)
+    changed = False
+    for clock_seed in range(1, 6):
+        busy = states(scene, cams, "auto", ctx, BusyClock(clock_seed), monkeypatch)
+        changed |= any(not np.array_equal(a, b) for a, b in zip(calm, busy, strict=True))
+    assert changed
+
+
+@pytest.mark.parametrize("strategy", ["gpu", "om_coherent", "om_multi", "two_pass"])
+def test_a_fresh_pass_is_a_new_engines_first_pass(ctx, strategy):
+    """``cull(fresh=True)`` after any history answers as a new engine's first pass does:
+    what an analysis split into chunks needs to merge into exactly the whole run."""
+    scene, cams = path(5)
+    with Culler(scene, (160, 120), strategy=strategy, ctx=ctx) as walked:
+        for cam in cams:
+            walked.cull(cam)                                   # history: memory, learnt rounds
+        after = [walked.cull(cam, fresh=True).state.copy() for cam in cams[::3]]
+    for cam, got in zip(cams[::3], after, strict=True):
+        with Culler(scene, (160, 120), strategy=strategy, ctx=ctx) as new:
+            assert np.array_equal(new.cull(cam).state, got)
+
+
+def test_fresh_passes_stay_within_a_tenth_of_the_steady_default(ctx):
+    """An analysis culls every frame fresh; summed over a path it keeps at most 1.1x the
+    objects the default keeps along the same path with its memory."""
+    for seed in (3, 11):
+        scene, cams = path(seed)
+        with Culler(scene, (160, 120), ctx=ctx) as c:
+            steady = sum(int(c.cull(cam).visible.sum()) for cam in cams)
+            fresh = sum(int(c.cull(cam, fresh=True).visible.sum()) for cam in cams)
+        assert fresh <= 1.1 * steady, (seed, fresh, steady)
