@@ -2,22 +2,24 @@
 and write what it sees (JSON and CSV); optionally collect the never-visible objects.
 
 What counts as seen beyond the engine's answer is :mod:`.policy`'s (the same rules
-a pass keeps to).  The work runs as a generator (:func:`analysis_steps`, see
-:func:`.worker.drive`): a window drives it from a modal operator's timer, a script
-at once.
+a pass keeps to).  Every frame is culled as a new engine's first pass, so a frame's
+answer never depends on the frames before it: reports of frame ranges (chunks, on a
+farm) merge into exactly the report of one run over all of them (``python -m core
+merge``; the report is :mod:`..core.analysis`'s, the same the command line writes).
+The work runs as a generator (:func:`analysis_steps`, see :func:`.worker.drive`): a
+window drives it from a modal operator's timer, a script at once.
 """
 
-import csv
-import json
 import os
 import time
 from collections.abc import Generator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import bpy
 import numpy as np
 
 from ..core import Visibility
+from ..core import analysis as report
 from . import policy
 from .cameras import scene_camera
 from .session import SESSION
@@ -29,8 +31,9 @@ from .worker import Progress
 class Analysis:
     """What an analysis found: ``frames`` analyzed, the report ``path``, per frame
     ``{"frame": f, "visible": [names]}``, per object name the number of frames it is
-    seen in (0: never), when it started (``time.perf_counter()``) and its ``rule``
-    ("seen" or "render")."""
+    seen in (0: never), when it started (``time.perf_counter()``), its ``rule``
+    ("seen" or "render") and its ``source``: what two chunks of one analysis share
+    (:func:`source`)."""
 
     frames: list[int]
     path: str
@@ -38,31 +41,50 @@ class Analysis:
     seen: dict[str, int]
     started: float
     rule: str
+    source: dict = field(default_factory=dict)
 
     @property
     def never_visible(self) -> list[str]:
         return sorted(n for n, c in self.seen.items() if c == 0)
 
 
-def analysis_steps(context, frames: list[int], path: str, rule: str = "seen") -> Generator[object, None, Analysis]:
+def source(context, rule: str, step: int) -> dict:
+    """The identity of an analysis (:func:`..core.analysis.source_block`): the blend
+    file's name and the scene's, its objects' names, and the settings that change an
+    answer.  Chunks whose sources differ are not merged."""
+    scene = context.scene
+    s, r = scene.occ, scene.render
+    settings = {"strategy": s.strategy, "preset": s.preset, "max_resolution": s.max_resolution, "rule": rule,
+                "frame_step": int(step), "cull_raytraced": bool(s.cull_raytraced),
+                "render_resolution": [r.resolution_x, r.resolution_y, r.resolution_percentage],
+                "view_layer": context.view_layer.name,
+                "exclude_collection": s.exclude_collection.name if s.exclude_collection else None,
+                "exclude_children": bool(s.exclude_children)}
+    return report.source_block(scene.name, sorted(o.name for o in scene.objects), settings,
+                               file=bpy.path.basename(bpy.data.filepath))
+
+
+def analysis_steps(context, frames: list[int], path: str, rule: str = "seen",
+                   step: int = 1) -> Generator[object, None, Analysis]:
     """Analyze in steps (a generator, see :func:`.worker.drive`): one a frame, and a
     first build's own.  Stopped early (Esc), the scene goes back to its frame and
     nothing is written.  ``rule``: "seen" (a pixel of it seen) or "render" (seen, or
-    shown beyond its pixels under the render engine: shadows, rays; :mod:`.shading`)."""
+    shown beyond its pixels under the render engine: shadows, rays; :mod:`.shading`);
+    ``step``: the frame step of ``frames`` (part of the report's identity)."""
     scene = context.scene
     previous = scene.frame_current
-    out = Analysis(frames, path, [], {}, time.perf_counter(), rule)
+    out = Analysis(frames, path, [], {}, time.perf_counter(), rule, source(context, rule, step))
     seen = out.seen
     held = held_names = instances = None
-    step = max(1, len(frames) // 10)          # background mode: about ten progress lines
+    every = max(1, len(frames) // 10)         # background mode: about ten progress lines
     try:
         for k, f in enumerate(frames):
             scene.frame_set(f)
             camera, display = scene_camera(context)
-            # nothing is hidden
-            # the first frame a new engine's answer, later ones from what it taught
+            # nothing is hidden; every frame a new engine's first pass (restart): its answer
+            # never depends on the frames before it, so chunks of the range merge exactly
             view_rule = rule_of(context, "CAMERA") if rule == "render" else None
-            result, objects = yield from SESSION.compute_steps(context, camera, display, restart=k == 0,
+            result, objects = yield from SESSION.compute_steps(context, camera, display, restart=True,
                                                                lights=view_rule.lights if view_rule else None)
             if SESSION.held is not held:        # the engine's objects changed: their names, once
                 held = SESSION.held
@@ -82,7 +104,7 @@ def analysis_steps(context, frames: list[int], path: str, rule: str = "seen") ->
                 seen.setdefault(n, 0)
             for n in names:
                 seen[n] += 1
-            if bpy.app.background and ((k + 1) % step == 0 or k + 1 == len(frames)):
+            if bpy.app.background and ((k + 1) % every == 0 or k + 1 == len(frames)):
                 print(f"occlusion analyze: {k + 1}/{len(frames)} frames "
                       f"({time.perf_counter() - out.started:.1f} s)", flush=True)
             yield Progress(f"frame {k + 1}/{len(frames)}", (k + 1) / len(frames))
@@ -101,26 +123,12 @@ def report_path(filepath: str) -> str:
 
 
 def write_report(analysis: Analysis) -> None:
-    """JSON: per frame the visible objects, per object the frames it is visible in, and
-    the rule that says what "visible" means ("seen" or "render"); CSV beside it."""
-    path, frames = analysis.path, analysis.frames
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    first, last = {}, {}
-    for fr in analysis.per_frame:
-        for n in fr["visible"]:
-            first.setdefault(n, fr["frame"])
-            last[n] = fr["frame"]
-    objects = {n: {"frames_visible": c, "first": first.get(n), "last": last.get(n)}
-               for n, c in sorted(analysis.seen.items())}
-    with open(path, "w", encoding="utf-8") as f:
-        json.dump({"frames": analysis.per_frame, "objects": objects, "frame_count": len(frames),
-                   "rule": analysis.rule}, f, indent=1)
-    with open(os.path.splitext(path)[0] + ".csv", "w", newline="", encoding="utf-8") as f:
-        w = csv.writer(f)
-        w.writerow(["object", "frames_visible", "fraction", "first_frame", "last_frame"])
-        for n, o in objects.items():
-            w.writerow([n, o["frames_visible"], f"{o['frames_visible'] / max(len(frames), 1):.4f}",
-                        o["first"] if o["first"] is not None else "", o["last"] if o["last"] is not None else ""])
+    """JSON: per frame the visible objects, per object the frames it is visible in, the
+    rule that says what "visible" means ("seen" or "render"), the frames analyzed and
+    the analysis's identity; CSV beside it (:mod:`..core.analysis`: the report the
+    command line writes and merges)."""
+    report.write_report(report.build_report(analysis.per_frame, analysis.seen, analysis.rule, analysis.source),
+                        analysis.path)
 
 
 def push_undo(message: str) -> None:

@@ -206,6 +206,9 @@ class OCC_OT_live(Stepped, bpy.types.Operator):
 class OCC_OT_analyze(Stepped, bpy.types.Operator):
     """Cull from the scene camera over a frame range and write what it sees (JSON and CSV)"""
 
+    # Every frame is a new engine's first pass: reports of parts of a range (a farm's
+    # chunks: frame_start/frame_end) join into the whole range's with `python -m core merge`.
+
     bl_idname = "occ.analyze"
     bl_label = "Analyze Camera Path"
 
@@ -239,7 +242,8 @@ class OCC_OT_analyze(Stepped, bpy.types.Operator):
             frames, path = self._plan(context)
         except Exception as e:  # every failure is a report, never a traceback
             return failed(self, e)
-        return self.start_steps(context, analysis_steps(context, frames, path, self._rule()), "analyze")
+        steps = analysis_steps(context, frames, path, self._rule(), self.frame_step)
+        return self.start_steps(context, steps, "analyze")
 
     def _rule(self):
         if self.rule == "AUTO":
@@ -249,7 +253,7 @@ class OCC_OT_analyze(Stepped, bpy.types.Operator):
     def execute(self, context):
         try:
             frames, path = self._plan(context)
-            value = self.run_steps(analysis_steps(context, frames, path, self._rule()), "analyze")
+            value = self.run_steps(analysis_steps(context, frames, path, self._rule(), self.frame_step), "analyze")
         except Exception as e:  # every failure is a report, never a traceback
             return failed(self, e)
         return self.finish(context, value)

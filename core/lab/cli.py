@@ -1,7 +1,8 @@
-"""Command line: ``python -m core cull | truth | bench | motion | tradeoff | demo``.
+"""Command line: ``python -m core cull | truth | analyze | merge | bench | motion | tradeoff | demo``.
 
 The command front-ends live here and only here; the work is in libraries
-(:mod:`core.lab.jobs` loads a job, :mod:`core.lab.bench`, :mod:`core.lab.tradeoff` and
+(:mod:`core.lab.jobs` loads a job, :mod:`core.lab.analyze` analyzes a camera path and
+merges chunk reports, :mod:`core.lab.bench`, :mod:`core.lab.tradeoff` and
 :mod:`core.lab.reports` measure and write).  Output shapes are the contract of
 DESIGN.md; every user error is an :class:`OccError` printed as one line on
 stderr with exit status 2.
@@ -16,6 +17,7 @@ import sys
 import numpy as np
 
 from .. import DEFAULT_STRATEGY, STRATEGIES, Visibility
+from ..analysis import REPORT_NAME as ANALYSIS_REPORT
 from ..engine import DEFAULT_RESOLUTION, Culler, parse_resolution
 from ..errors import OccError
 from ..loading import load_scene
@@ -106,6 +108,19 @@ def cmd_truth(args):
     _print_frames(frames, args.json)
 
 
+def cmd_analyze(args):
+    from .analyze import Plan, run_analyze
+    resolution = parse_resolution(args.resolution)
+    display = _display(args, resolution)
+    plan = Plan(args.scene, args.camera, args.frames, resolution, display, args.strategy, args.jobs)
+    run_analyze(plan, args.out, quiet=args.quiet)
+
+
+def cmd_merge(args):
+    from .analyze import run_merge
+    run_merge(args.reports, args.out)
+
+
 def _print_frames(frames, as_json):
     if as_json:
         json.dump({"frames": frames}, sys.stdout)
@@ -130,7 +145,7 @@ def cmd_bench(args):
     from .reports import bench_scene, bench_steps, write_index
     strategies = parse_names(args.strategies, STRATEGIES, "strategies")
     resolution = parse_resolution(args.resolution)
-    envelope = _envelope(args)
+    display, envelope = _display(args, resolution), _envelope(args)
     out = args.out or ((args.plot or args.snapshot) and "reports") or None
     if args.plot or args.snapshot:
         require_matplotlib()
@@ -140,7 +155,7 @@ def cmd_bench(args):
                   quiet=args.quiet) as progress:
         report, table = bench_scene(args.scene, args.camera, strategies, resolution,
                                     args.frames, out, args.plot, args.snapshot, progress, rounds=args.rounds,
-                                    envelope=envelope)
+                                    envelope=envelope, display=display)
         if out:
             write_index(out)
     if args.json:
@@ -305,6 +320,31 @@ def build_parser():
     t.add_argument("--quiet", "-q", action="store_true", help=QUIET_HELP)
     t.set_defaults(func=cmd_truth)
 
+    a = sub.add_parser("analyze", help="which objects a camera path sees, per frame and per object: "
+                       "the report occ.analyze writes (JSON and CSV)")
+    a.add_argument("scene", help=scene_help)
+    a.add_argument("--camera", help="camera path JSON (default: the sample scene's own path)")
+    a.add_argument("--frames", metavar="A:B", help="only the path's frames A to B, 0-based, B excluded "
+                   "(A: to the end, :B from the start; default all): a chunk that merge joins")
+    # auto chooses by timing whether to test at all: its answer is not repeatable
+    a.add_argument("--strategy", default=DEFAULT_STRATEGY, choices=[s for s in STRATEGIES if s != "auto"],
+                   help=f"(default {DEFAULT_STRATEGY}; not auto, whose answer depends on timing)")
+    a.add_argument("--resolution", default=res, help=f"query resolution WxH (default {res})")
+    a.add_argument("--display", help="display resolution WxH: queries at --resolution, conservative at this one")
+    a.add_argument("--out", metavar="DIR", help=f"write DIR/{ANALYSIS_REPORT} and DIR/report.csv "
+                   "(default: the JSON on stdout)")
+    a.add_argument("--jobs", type=positive_int, default=1,
+                   help="split the frames into N contiguous chunks, one process each, merged at the end")
+    a.add_argument("--quiet", "-q", action="store_true", help=QUIET_HELP)
+    a.set_defaults(func=cmd_analyze)
+
+    g = sub.add_parser("merge", help="join the chunk reports of one analysis into the whole run's report")
+    g.add_argument("reports", nargs="+", metavar="DIR",
+                   help=f"a report folder (its {ANALYSIS_REPORT}; without one, every .json in it) or a report JSON")
+    g.add_argument("--out", metavar="DIR", help=f"write DIR/{ANALYSIS_REPORT} and DIR/report.csv "
+                   "(default: the JSON on stdout)")
+    g.set_defaults(func=cmd_merge)
+
     b = sub.add_parser("bench", help="every strategy over a camera path, against the truth")
     b.add_argument("scene", help=scene_help)
     b.add_argument("--camera", help="camera path JSON (default: the sample scene's own path)")
@@ -314,6 +354,8 @@ def build_parser():
     b.add_argument("--rounds", type=positive_int, default=1,
                    help="the path this many times per strategy, the order rotated each round; the median "
                         "frame is the median of the rounds' (ratios that hold on a busy machine)")
+    b.add_argument("--display", help="display resolution WxH: queries at --resolution, conservative at this "
+                   "one; false negatives counted against the truth at this one")
     b.add_argument("--envelope", metavar="D,A", help="also a row 'envelope D,A': " + ENVELOPE_HELP +
                    "; its FN counts views of the envelope too (a few sampled per frame)")
     b.add_argument("--out", help="report folder (default reports/ with --plot or --snapshot)")

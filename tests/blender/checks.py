@@ -54,6 +54,7 @@ CHECKS = {
     "analysis": [
         "analyze_counts_hidden", "never_visible_exact", "analyze_unsaved_path_in_cwd",
         "analyze_background_progress", "never_visible_no_path", "never_visible_excluded_everywhere",
+        "analyze_chunks_merge_to_whole",
     ],
 }
 

@@ -2,12 +2,15 @@
 collection."""
 
 import io
+import json
 import os
+import subprocess
+import sys
 from contextlib import redirect_stdout
 
 import bpy
 
-from .common import WORK, box, check, drawn, new_scene, update
+from .common import ROOT, WORK, box, check, drawn, keyframes, new_scene, update
 
 
 def report_path_and_progress():
@@ -23,6 +26,31 @@ def report_path_and_progress():
     check("analyze_unsaved_path_in_cwd", r == {"FINISHED"} and os.path.exists(path), (r, path))
     lines = [ln for ln in out.getvalue().splitlines() if ln.startswith("occlusion analyze:")]
     check("analyze_background_progress", 2 <= len(lines) <= 12 and "20/20" in lines[-1], lines)
+    chunks_merge_to_whole()
+
+
+def chunks_merge_to_whole():
+    """occ.analyze over frames 1-3 and 4-6 (a farm's chunks), joined by ``python -m core
+    merge``, is byte for byte occ.analyze over 1-6: every frame is a new engine's first
+    pass.  The camera walks along the wall, so the frames see different boxes."""
+    new_scene()
+    for i, y in enumerate((-8, -4, 4, 8)):
+        box(f"behind_{i}", (3, y - 0.5, 0), (4, y + 0.5, 1))
+    keyframes(bpy.data.objects["cam"], [(1, (-10.0, -9.0, 1.0)), (6, (-10.0, 9.0, 1.0))])
+    update()
+    whole = os.path.join(WORK, "chunks_whole", "report.json")
+    bpy.ops.occ.analyze(filepath=whole, frame_start=1, frame_end=6)
+    for a, b in ((4, 6), (1, 3)):
+        bpy.ops.occ.analyze(filepath=os.path.join(WORK, "chunks", f"chunk_{a}_{b}.json"), frame_start=a, frame_end=b)
+    merged = os.path.join(WORK, "chunks_merged")
+    p = subprocess.run([sys.executable, "-m", "core", "merge", os.path.join(WORK, "chunks"), "--out", merged],
+                       cwd=ROOT, capture_output=True, text=True, timeout=120)
+    same = p.returncode == 0 and all(
+        open(os.path.join(merged, f"report.{ext}"), "rb").read() == open(whole[:-4] + ext, "rb").read()
+        for ext in ("json", "csv"))
+    with open(whole) as f:
+        seen = {tuple(fr["visible"]) for fr in json.load(f)["frames"]}
+    check("analyze_chunks_merge_to_whole", same and len(seen) > 1, (p.returncode, p.stderr[-500:], seen))
 
 
 def never_visible_exact():
