@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
-from ..core import Visibility
+from ..core import Visibility, repeatable
 from ..core import analysis as report
 from . import policy
 from .cameras import scene_camera
@@ -54,7 +54,8 @@ def source(context, rule: str, step: int) -> dict:
     answer.  Chunks whose sources differ are not merged."""
     scene = context.scene
     s, r = scene.occ, scene.render
-    settings = {"strategy": s.strategy, "preset": s.preset, "max_resolution": s.max_resolution, "rule": rule,
+    settings = {"strategy": repeatable(s.strategy), "preset": s.preset, "max_resolution": s.max_resolution,
+                "rule": rule,
                 "frame_step": int(step), "cull_raytraced": bool(s.cull_raytraced),
                 "render_resolution": [r.resolution_x, r.resolution_y, r.resolution_percentage],
                 "view_layer": context.view_layer.name,
@@ -84,8 +85,11 @@ def analysis_steps(context, frames: list[int], path: str, rule: str = "seen",
             # nothing is hidden; every frame a new engine's first pass (restart): its answer
             # never depends on the frames before it, so chunks of the range merge exactly
             view_rule = rule_of(context, "CAMERA") if rule == "render" else None
+            # a fresh pass each frame, by a strategy whose answer does not depend on timing:
+            # the same file and settings give the same report, and chunks merge exactly
             result, objects = yield from SESSION.compute_steps(context, camera, display, restart=True,
-                                                               lights=view_rule.lights if view_rule else None)
+                                                               lights=view_rule.lights if view_rule else None,
+                                                               strategy=repeatable(scene.occ.strategy))
             if SESSION.held is not held:        # the engine's objects changed: their names, once
                 held = SESSION.held
                 held_names = [o.name for o in objects]

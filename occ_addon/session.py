@@ -197,12 +197,14 @@ class Session:
         return drive(self.compute_steps(context, camera, display, fresh, restart, envelope, lights), progress)
 
     def compute_steps(self, context, camera: Camera, display: Size, fresh: bool = True, restart: bool = False,
-                      envelope: Envelope | str | None = None, lights: list | None = None) -> Generator:
-        """:meth:`compute` in steps (see :meth:`engine_steps`)."""
+                      envelope: Envelope | str | None = None, lights: list | None = None,
+                      strategy: str | None = None) -> Generator:
+        """:meth:`compute` in steps (see :meth:`engine_steps`); ``strategy``: this pass's,
+        instead of the scene's setting."""
         options, res, shown = self._sizes(context, display)
         # a fresh pass (a click, analyze, a scene change) also checks what the add-on
         # hides against its data: edits to hidden objects are never reported
-        culler, objects = yield from self.engine_steps(context, res, context.scene.occ.strategy,
+        culler, objects = yield from self.engine_steps(context, res, strategy or context.scene.occ.strategy,
                                                        verify=fresh or restart, display=shown)
         culler.options = options
         if envelope == "rest":

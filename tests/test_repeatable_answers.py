@@ -90,3 +90,20 @@ def test_fresh_passes_stay_within_a_tenth_of_the_steady_default(ctx):
             steady = sum(int(c.cull(cam).visible.sum()) for cam in cams)
             fresh = sum(int(c.cull(cam, fresh=True).visible.sum()) for cam in cams)
         assert fresh <= 1.1 * steady, (seed, fresh, steady)
+
+
+def test_analyses_never_run_a_strategy_whose_answer_depends_on_timing():
+    """``repeatable`` (what occ.analyze runs) swaps a timed strategy for the default, and
+    ``analyze`` does not offer one."""
+    import subprocess
+    import sys
+
+    from core import REGISTRY, repeatable
+    from tests.cli_helpers import ROOT
+    timed = [n for n, info in REGISTRY.items() if info.timed]
+    assert timed == ["auto"]
+    assert repeatable("auto") == DEFAULT_STRATEGY
+    assert all(repeatable(n) == n for n in REGISTRY if n not in timed)
+    p = subprocess.run([sys.executable, "-m", "core", "analyze", "city-small", "--strategy", "auto", "-q"],
+                       cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert p.returncode == 2 and "auto" in p.stderr and p.stdout == ""

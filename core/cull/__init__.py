@@ -72,6 +72,7 @@ class StrategyInfo:
     description: str
     default_candidate: bool = False
     needs_truth: bool = False
+    timed: bool = False             # its answer depends on the clock (auto): never for a repeatable answer
 
 
 REGISTRY = {info.name: info for info in (
@@ -94,7 +95,8 @@ REGISTRY = {info.name: info for info in (
                  "Units' boxes on the GPU: last pass's visible drawn, everything else tested there, "
                  "one read a pass; Coherent where the GPU path cannot run (OpenGL 4.1, macOS)", True),
     StrategyInfo("auto", lambda m: Auto(m), "Automatic",
-                 "Occlusion tests where they pay on this machine, frustum culling where they cannot", True),
+                 "Occlusion tests where they pay on this machine, frustum culling where they cannot", True,
+                 timed=True),
     StrategyInfo("oracle", lambda m: Oracle(), "Oracle",
                  "Draws exactly the truly visible set (benchmark limit, needs the truth)",
                  needs_truth=True),
@@ -103,6 +105,12 @@ STRATEGIES = tuple(REGISTRY)
 # The default answers the same whatever the machine's load: ``auto`` chooses by timing
 # whether to test occlusion at all, so its answer depends on the clock; it is never a default.
 DEFAULT_STRATEGY = "gpu"
+
+
+def repeatable(name: str) -> str:
+    """``name``, or the default where ``name``'s answer depends on timing: what an analysis
+    runs, so that the same scene, cameras and settings give the same report every time."""
+    return DEFAULT_STRATEGY if REGISTRY[name].timed else name
 
 
 def make_strategy(name, max_tests=8):
@@ -114,4 +122,4 @@ def make_strategy(name, max_tests=8):
 
 __all__ = ["Auto", "CullPass", "CullResult", "DEFAULT_STRATEGY", "Gpu", "LeafStopWait", "Om", "OmMulti",
            "OmSingle", "Oracle", "PassStats", "REGISTRY", "STAT_KEYS", "STRATEGIES", "StopWait", "Strategy",
-           "StrategyInfo", "TwoPass", "Vfc", "Visibility", "make_strategy"]
+           "StrategyInfo", "TwoPass", "Vfc", "Visibility", "make_strategy", "repeatable"]

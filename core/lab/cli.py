@@ -16,7 +16,7 @@ import sys
 
 import numpy as np
 
-from .. import DEFAULT_STRATEGY, STRATEGIES, Visibility
+from .. import DEFAULT_STRATEGY, REGISTRY, STRATEGIES, Visibility
 from ..analysis import REPORT_NAME as ANALYSIS_REPORT
 from ..engine import DEFAULT_RESOLUTION, Culler, parse_resolution
 from ..errors import OccError
@@ -326,8 +326,8 @@ def build_parser():
     a.add_argument("--camera", help="camera path JSON (default: the sample scene's own path)")
     a.add_argument("--frames", metavar="A:B", help="only the path's frames A to B, 0-based, B excluded "
                    "(A: to the end, :B from the start; default all): a chunk that merge joins")
-    # auto chooses by timing whether to test at all: its answer is not repeatable
-    a.add_argument("--strategy", default=DEFAULT_STRATEGY, choices=[s for s in STRATEGIES if s != "auto"],
+    # a strategy whose answer depends on timing (auto) would not give a repeatable report
+    a.add_argument("--strategy", default=DEFAULT_STRATEGY, choices=[s for s in STRATEGIES if not REGISTRY[s].timed],
                    help=f"(default {DEFAULT_STRATEGY}; not auto, whose answer depends on timing)")
     a.add_argument("--resolution", default=res, help=f"query resolution WxH (default {res})")
     a.add_argument("--display", help="display resolution WxH: queries at --resolution, conservative at this one")
