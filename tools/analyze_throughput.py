@@ -164,13 +164,9 @@ def headless_rows(work, camera, n):
 
 # --- bpy ---------------------------------------------------------------------------------------
 def build_zip(work):
-    dist = os.path.join(work, "dist")
-    subprocess.run([sys.executable, os.path.join(ROOT, "tools", "build_extension.py"), "--no-wheels",
-                    "--out", dist], cwd=ROOT, check=True, capture_output=True, timeout=300)
-    zips = sorted(f for f in os.listdir(dist) if f.endswith(".zip"))
-    if len(zips) != 1:
-        raise SystemExit(f"expected one extension zip in {dist}, got {zips}")
-    return os.path.join(dist, zips[0])
+    sys.path.insert(0, os.path.join(ROOT, "tools"))
+    from build_extension import plain_zip
+    return plain_zip(os.path.join(work, "dist"))
 
 
 def bpy_rows(work, camera, n, n2):

@@ -548,16 +548,13 @@ def blender_main(argv):
         args.scene = args.child
         return child_main(args)
     work = tempfile.mkdtemp(prefix="occ_scale_")
-    dist = os.path.join(work, "dist")
-    subprocess.run([sys.executable, os.path.join(ROOT, "tools", "build_extension.py"), "--no-wheels",
-                    "--out", dist], cwd=ROOT, check=True, capture_output=True, timeout=300)
-    zips = sorted(f for f in os.listdir(dist) if f.endswith(".zip"))
-    if len(zips) != 1:
-        raise SystemExit(f"expected one extension zip in {dist}, got {zips}")
+    sys.path.insert(0, os.path.join(ROOT, "tools"))
+    from build_extension import plain_zip
+    zip_path = plain_zip(os.path.join(work, "dist"))
     results = []
     for name in args.only.split(","):
         env = {**os.environ, "BLENDER_USER_RESOURCES": os.path.join(work, f"user_{name}")}
-        cmd = [sys.executable, os.path.abspath(__file__), *argv, "--child", name, "--zip", os.path.join(dist, zips[0])]
+        cmd = [sys.executable, os.path.abspath(__file__), *argv, "--child", name, "--zip", zip_path]
         p = subprocess.Popen(cmd, cwd=work, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         for line in p.stdout:                  # each scene in a fresh Blender: its memory is its own
             if line.startswith("SCALE_RESULT "):

@@ -205,6 +205,17 @@ def write_zips(ext_dir, out_dir, split):
     return zips
 
 
+def plain_zip(out):
+    """Build the one zip without wheels into ``out`` (as a tool or test installs it), in a
+    subprocess; its path."""
+    subprocess.run([sys.executable, os.path.abspath(__file__), "--no-wheels", "--out", out],
+                   check=True, capture_output=True, timeout=300)
+    zips = sorted(f for f in os.listdir(out) if f.endswith(".zip"))
+    if len(zips) != 1:
+        raise SystemExit(f"expected one extension zip in {out}, got {zips}")
+    return os.path.join(out, zips[0])
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--no-wheels", action="store_true", help="one zip without bundled wheels")
