@@ -206,14 +206,14 @@ class Session:
         # hides against its data: edits to hidden objects are never reported
         culler, objects = yield from self.engine_steps(context, res, strategy or context.scene.occ.strategy,
                                                        verify=fresh or restart, display=shown)
-        culler.options = options
+        culler.set_options(options)
         if envelope == "rest":
             envelope = POLICY.rest(culler.scene_size)
         lights = lights or None
         if restart:
-            culler.strategy.reset()
+            culler.forget(everything=True)
         elif fresh:
-            culler.strategy.forget()
+            culler.forget()
         return self.worker.run(culler.cull, camera, envelope=envelope, lights=lights), objects
 
     def cull(self, context, camera: Camera, display: Size, fresh: bool = False, progress: Callable | None = None,
