@@ -26,6 +26,17 @@ def find_viewport(context):
     return None
 
 
+def pass_view(context):
+    """The 3D view (``SpaceView3D``) a pass is made for: the one :func:`viewport_camera`
+    culls for when the source is the viewport; None for the scene camera, in background
+    mode or with no 3D viewport (then Blender's default: the context's own 3D view, if any).
+    What it does not draw (local view, local collections, object-type filters) takes no part."""
+    if context.scene.occ.source != "VIEWPORT" or bpy.app.background:
+        return None
+    found = find_viewport(context)
+    return None if found is None else found[0].spaces.active
+
+
 def region_camera(rv3d) -> Camera:
     """The camera of a 3D view's region data (its view and window matrices)."""
     return Camera.from_matrices(np.array(rv3d.view_matrix), np.array(rv3d.window_matrix))

@@ -16,6 +16,10 @@ else is handled conservatively by construction:
   add-on had hidden is shown again before the pass (so it is evaluated now);
 - an object the user hid in any way is no candidate (and one the add-on had
   hidden is given back to the user's hide);
+- an object the pass's 3D view does not draw (local view, local collections,
+  the view's object-type filters; :func:`.cameras.pass_view`) is no candidate (and
+  one the add-on had hidden is given back): what the view does not draw occludes
+  nothing in it;
 - wire and bounds display, "in front" display, and every type that is not solid mesh-like geometry
   (point clouds, volumes, grease pencil, hair curves, empties, lights): never
   occluders and never hidden;
@@ -54,6 +58,7 @@ import numpy as np
 
 from ..core import OccError, Scene
 from . import visibility
+from .cameras import pass_view
 from .visibility import ident
 from .worker import Progress
 
@@ -275,6 +280,29 @@ def user_shown(obj, view_layer, shown):
 
 DRAWN_TYPES = GEOMETRY_TYPES | {"POINTCLOUD", "VOLUME", "GREASEPENCIL", "GPENCIL", "CURVES"}
 
+# The object-type filters of a 3D view (``SpaceView3D.show_object_viewport_*``) of the types that take part
+TYPE_FILTERS = {"MESH": "show_object_viewport_mesh", "CURVE": "show_object_viewport_curve",
+                "SURFACE": "show_object_viewport_surf", "META": "show_object_viewport_meta",
+                "FONT": "show_object_viewport_font", "EMPTY": "show_object_viewport_empty"}
+
+
+def view_shows(obj, space) -> bool:
+    """Whether 3D view ``space`` draws ``obj``, which the add-on hid, once it is shown
+    again, as far as that can be told while it is hidden: its object-type filter.  In
+    local view or with local collections it cannot (Blender brings an object's
+    membership up to date only while it is drawn: ``visible_in_viewport_get`` and
+    ``local_view_get`` read stale bits): False, so it is given back and evaluated."""
+    return space.local_view is None and not space.use_local_collections \
+        and getattr(space, TYPE_FILTERS.get(obj.type, ""), True)
+
+
+def filters_geometry(space) -> bool:
+    """Whether 3D view ``space`` filters out a type that takes part.  A collection
+    instance is drawn by its members' types, which the instancer's own visibility
+    does not tell: in such a view it is no candidate (conservative: it neither
+    occludes nor is hidden)."""
+    return space is not None and not all(getattr(space, TYPE_FILTERS[t]) for t in GEOMETRY_TYPES)
+
 
 def bystanders(view_layer, held: np.ndarray) -> list:
     """Objects Blender draws now that the engine does not hold (``held``: the
@@ -302,12 +330,16 @@ class Candidates:
     bad: names of objects left out for NaN or infinite values.
     """
 
-    def __init__(self, view_layer, extractor: "Extractor", verify: bool = False):
+    def __init__(self, view_layer, extractor: "Extractor", verify: bool = False, space=None):
+        """space: the pass's 3D view (``SpaceView3D``, see :func:`.cameras.pass_view`):
+        what it does not draw takes no part; None: Blender's default view (the
+        context's 3D view, if any)."""
         self.view_layer = view_layer
         layer = view_layer.objects
         culled_all = visibility.flags("occ_culled", layer)
         uids_all = visibility.uids(layer)
         info = extractor.info
+        no_instances = filters_geometry(space)
         objects, index, kinds, give_back, memo = [], [], [], [], {}
         for i, (o, uid, culled) in enumerate(zip(layer.values(), uids_all.tolist(), culled_all.tolist(),
                                                  strict=True)):   # one visible_get per object; no bulk form
@@ -317,17 +349,18 @@ class Candidates:
             if entry is None:
                 entry = info[uid] = ObjectInfo(kind(o), o.parent is not None)
             k = entry.kind
-            if k is None:
+            if k is None or (no_instances and k is Kind.COLLECTION):
                 if culled:
                     give_back.append(uid)
                 continue
             if culled:
                 # the user hid it too, or it may have changed unseen: give it back
                 if not extractor.user_shown(o, uid, view_layer) or extractor.is_dynamic(o, uid) \
-                        or not extractor.knows(o, k) or (verify and not extractor.unchanged(o, uid, k, memo)):
+                        or not extractor.knows(o, k) or (verify and not extractor.unchanged(o, uid, k, memo)) \
+                        or (space is not None and not view_shows(o, space)):
                     give_back.append(uid)
                     continue
-            elif not o.visible_get():
+            elif not o.visible_get(viewport=space):   # None: the context's 3D view, if any
                 continue
             objects.append(o)
             index.append(i)
@@ -426,7 +459,7 @@ class Extractor:
     def candidates(self, context, verify: bool = False) -> "Candidates":
         """The pass's candidates; ``verify``: check every object the add-on hides
         against the data its geometry was read from (see :func:`fingerprint`)."""
-        return Candidates(context.view_layer, self, verify)
+        return Candidates(context.view_layer, self, verify, pass_view(context))
 
     def matrices(self, cand: "Candidates", kept: np.ndarray) -> np.ndarray:
         """World matrices ``(k, 4, 4)`` of candidates ``kept`` (read in bulk with the candidates)."""

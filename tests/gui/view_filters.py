@@ -1,0 +1,245 @@
+"""Run inside a real Blender window (Blender 3.4 under Xvfb, the add-on installed
+as a legacy add-on from this checkout, see ``test_view_filters.py``):
+
+    blender --python tests/gui/view_filters.py -- OUT_DIR
+
+A 3D view can draw fewer objects than the view layer holds: local view and the
+viewport's object-type filters.  An object that view does not draw must never
+occlude what it does draw.  A wall stands in front of a box; each case culls,
+through the Cull operator in the view and through a live-mode pass (the real
+timer, whose context has no 3D view), and records whether the box was hidden.
+
+- ``full``: sanity, everything drawn: the box is hidden (it is occluded);
+- ``local_view``: the view is in local view with the box only (the wall out);
+- ``type_filter``: the wall is a curve, the view's curve filter is off;
+- ``hidden_out_of_local_view``: a cube the add-on hid (behind the wall) is out of
+  the local view that holds a second box, which it covers from the next view.
+
+Writes OUT_DIR/view_filters.json and quits.
+"""
+
+import json
+import os
+import sys
+import traceback
+
+import bpy
+import mathutils
+import numpy as np
+
+ARGS = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+OUT = os.path.abspath(ARGS[0] if ARGS else "view_filters_out")
+ADDON = "occlusion_culled_viewport"
+results = {}
+
+
+def view3d():
+    for win in bpy.context.window_manager.windows:
+        for area in win.screen.areas:
+            if area.type == "VIEW_3D":
+                region = next(r for r in area.regions if r.type == "WINDOW")
+                return win, area, region
+    raise RuntimeError("no 3D viewport")
+
+
+def look_at(eye, target, up=(0.0, 0.0, 1.0)):
+    eye, target, up = (np.asarray(v, dtype=np.float64) for v in (eye, target, up))
+    f = target - eye
+    f /= np.linalg.norm(f)
+    s = np.cross(f, up)
+    s /= np.linalg.norm(s)
+    u = np.cross(s, f)
+    m = np.eye(4)
+    m[0, :3], m[1, :3], m[2, :3] = s, u, -f
+    m[:3, 3] = -m[:3, :3] @ eye
+    return mathutils.Matrix(m.tolist())
+
+
+def cube(name, location, size):
+    mesh = bpy.data.meshes.new(name)
+    h = np.asarray(size, dtype=np.float64) / 2
+    verts = [(x * h[0], y * h[1], z * h[2]) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
+    faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    mesh.from_pydata(verts, [], faces)
+    mesh.update()
+    ob = bpy.data.objects.new(name, mesh)
+    ob.location = location
+    bpy.context.scene.collection.objects.link(ob)
+    return ob
+
+
+def curve_wall(name, location, half):
+    """A filled square in the xz plane: a 2D poly curve, drawn solid."""
+    cu = bpy.data.curves.new(name, "CURVE")
+    cu.dimensions = "2D"
+    cu.fill_mode = "BOTH"
+    sp = cu.splines.new("POLY")
+    sp.points.add(3)
+    for p, (x, y) in zip(sp.points, [(-half, -half), (half, -half), (half, half), (-half, half)], strict=True):
+        p.co = (x, y, 0.0, 1.0)
+    sp.use_cyclic_u = True
+    ob = bpy.data.objects.new(name, cu)
+    ob.location = location
+    ob.rotation_euler = (np.pi / 2, 0.0, 0.0)
+    bpy.context.scene.collection.objects.link(ob)
+    return ob
+
+
+def clear_scene():
+    for ob in list(bpy.data.objects):
+        bpy.data.objects.remove(ob)
+
+
+def hidden(ob):
+    return bool(ob.occ_culled and ob.hide_viewport)
+
+
+class Case:
+    """The window's 3D view, the add-on's modules, and how a pass is made."""
+
+    def __init__(self):
+        self.win, self.area, self.region = view3d()
+        self.space = self.area.spaces.active
+        self.rv3d = self.space.region_3d
+        self.ctx = {"window": self.win, "area": self.area, "region": self.region}
+        self.live = sys.modules[f"{ADDON}.occ_addon.live"]
+        self.session = sys.modules[f"{ADDON}.occ_addon.session"].SESSION
+
+    def view(self, eye, target):
+        self.rv3d.view_perspective = "PERSP"
+        self.rv3d.view_matrix = look_at(eye, target)
+
+    def restore(self):
+        with bpy.context.temp_override(**self.ctx):
+            bpy.ops.occ.restore()
+        self.session.reset()
+
+    def local_view(self, objects):
+        """Local view with ``objects`` only (Numpad /, without framing)."""
+        with bpy.context.temp_override(**self.ctx):
+            bpy.ops.object.select_all(action="DESELECT")
+            for ob in objects:
+                ob.select_set(True)
+            bpy.context.view_layer.objects.active = objects[0]
+            bpy.ops.view3d.localview(frame_selected=False)
+        assert self.space.local_view is not None, "not in local view"
+
+    def leave_local_view(self):
+        if self.space.local_view is not None:
+            with bpy.context.temp_override(**self.ctx):
+                bpy.ops.view3d.localview(frame_selected=False)
+
+    def cull(self):
+        with bpy.context.temp_override(**self.ctx):
+            return list(bpy.ops.occ.cull())
+
+    def live_pass(self):
+        """Live mode on, in the view; the real timer makes the pass at rest."""
+        version = self.session.version
+        with bpy.context.temp_override(**self.ctx):
+            self.live.start(bpy.context)
+        for _ in range(40):
+            yield
+            if self.session.version != version:
+                break
+        passed = self.session.version != version
+        with bpy.context.temp_override(**self.ctx):
+            self.live.stop(bpy.context)
+        assert passed, "no live pass"
+
+
+def run():
+    os.makedirs(OUT, exist_ok=True)
+    bpy.ops.preferences.addon_enable(module=ADDON)
+    bpy.context.preferences.view.smooth_view = 0
+    c = Case()
+    c.space.shading.type = "SOLID"
+    c.space.overlay.show_floor = False
+    clear_scene()
+    bpy.context.scene.occ.source = "VIEWPORT"
+    wall = cube("wall", (0.0, 0.0, 0.0), (6.0, 0.2, 6.0))
+    box = cube("box", (0.0, 5.0, 0.0), (1.0, 1.0, 1.0))
+    eye, target = (0.0, -12.0, 0.0), (0.0, 5.0, 0.0)
+    yield
+
+    def case(name, setup, teardown):
+        out = results[name] = {}
+        for how in ("operator", "live"):
+            setup()
+            c.view(eye, target)
+            yield
+            if how == "operator":
+                out["cull_result"] = c.cull()
+            else:
+                yield from c.live_pass()
+            out[how] = hidden(box)
+            c.restore()
+            teardown()
+            yield
+
+    def nothing():
+        pass
+
+    yield from case("full", nothing, nothing)
+    yield from case("local_view", lambda: c.local_view([box]), c.leave_local_view)
+
+    # the wall as a curve, the view's curve filter off
+    bpy.data.objects.remove(wall)
+    curve = curve_wall("wall_curve", (0.0, 0.0, 0.0), 3.0)
+
+    def curves_off():
+        c.space.show_object_viewport_curve = False
+
+    def curves_on():
+        c.space.show_object_viewport_curve = True
+
+    yield from case("type_filter_sanity", nothing, nothing)      # the curve wall occludes the box
+    yield from case("type_filter", curves_off, curves_on)
+
+    # a cube the add-on hid behind a small wall, out of the local view of a second box
+    # it covers from the next view
+    clear_scene()
+    cube("wall", (0.0, 0.0, 0.0), (2.0, 0.2, 2.0))
+    hid = cube("hid", (0.0, 3.0, 0.0), (1.0, 1.0, 1.0))
+    box = cube("box2", (3.0, 3.0, 0.0), (1.0, 1.0, 1.0))
+    out = results["hidden_out_of_local_view"] = {}
+    for how in ("operator", "live"):
+        c.view((0.0, -10.0, 0.0), (0.0, 3.0, 0.0))
+        yield
+        c.cull()
+        out[f"{how}_first_pass_hid_the_cube"] = hidden(hid) and not hidden(box)
+        c.local_view([box])
+        c.view((-3.0, 3.0, 0.0), (3.0, 3.0, 0.0))     # the hidden cube in front of the box
+        yield
+        if how == "operator":
+            c.cull()
+        else:
+            yield from c.live_pass()
+        out[how] = hidden(box)
+        c.restore()
+        c.leave_local_view()
+        yield
+    del curve
+
+
+_steps = []
+
+
+def main():
+    """A timer: ``run`` yields where Blender must process events before it goes on."""
+    if not _steps:
+        _steps.append(run())
+    try:
+        next(_steps[0])
+        return 0.2
+    except StopIteration:
+        pass
+    except Exception:
+        results["error"] = traceback.format_exc()
+    with open(os.path.join(OUT, "view_filters.json"), "w") as f:
+        json.dump(results, f, indent=1)
+    bpy.ops.wm.quit_blender()
+    return None
+
+
+bpy.app.timers.register(main, first_interval=1.0)
