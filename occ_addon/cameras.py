@@ -37,6 +37,17 @@ def pass_view(context):
     return None if found is None else found[0].spaces.active
 
 
+def view_state(space) -> tuple | None:
+    """What of a 3D view, beside its camera, decides which objects it draws: local view,
+    local collections and every object-type filter; None without a view.  A pass's hidden
+    set holds only while this stays as it was (a wall filtered out occludes nothing)."""
+    if space is None:
+        return None
+    filters = tuple(getattr(space, p.identifier) for p in space.bl_rna.properties
+                    if p.identifier.startswith("show_object_viewport_"))
+    return (space.local_view is not None, bool(getattr(space, "use_local_collections", False)), filters)
+
+
 def region_camera(rv3d) -> Camera:
     """The camera of a 3D view's region data (its view and window matrices)."""
     return Camera.from_matrices(np.array(rv3d.view_matrix), np.array(rv3d.window_matrix))

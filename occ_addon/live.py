@@ -29,7 +29,7 @@ from ..core import OccError
 from ..core.camera import camera_cut
 from ..core.motion import view_change
 from . import visibility
-from .cameras import camera_for, find_viewport, region_camera, scene_camera
+from .cameras import camera_for, find_viewport, region_camera, scene_camera, view_state
 from .session import POLICY, SESSION
 
 POLL_S = 0.1          # timer period
@@ -40,7 +40,7 @@ REST_LOOK_S = 0.05    # a view unchanged for this long between two looks has sto
 _state = {"last_view": None, "changed_at": None, "dirty_at": None, "passed": None}
 # the view's motion, measured between successive looks (redraws and ticks)
 _motion = {"view": None, "t": None, "step": (0.0, 0.0), "speeds": [0.0], "turns": [0.0], "leaving": False,
-           "region": None}
+           "region": None, "view_state": None}
 
 
 def track(context):
@@ -49,6 +49,13 @@ def track(context):
     timer finds)."""
     found = find_viewport(context) if context.scene.occ.source == "VIEWPORT" else None
     _motion["region"] = None if found is None else found[2].as_pointer()
+    _motion["view_state"] = None if found is None else view_state(found[0].spaces.active)
+
+
+def _view_changed(space):
+    """Whether the watched view now draws other objects than at the pass (local view
+    entered or left, a type filter toggled): the hidden set no longer holds."""
+    return _motion["region"] is not None and view_state(space) != _motion["view_state"]
 
 
 def observe(camera):
@@ -87,7 +94,7 @@ def guard():
         return                                        # another view's redraw
     camera = region_camera(rv3d)
     observe(camera)
-    if _unsafe(camera):
+    if _unsafe(camera) or _view_changed(context.space_data):
         _motion["leaving"] = True
         bpy.app.timers.register(_leave_timer, first_interval=0.0)
 
@@ -162,7 +169,11 @@ def _tick():
     key = np.concatenate([camera.view.ravel(), camera.projection.ravel(), display])
     now = time.perf_counter()
     observe(camera)
-    if _unsafe(camera):                               # the redraw guard missed it: leave now
+    found = find_viewport(context) if scene.occ.source == "VIEWPORT" else None
+    if found is not None and _view_changed(found[0].spaces.active) and SESSION.shown is not None:
+        _state["dirty_at"] = now                      # it draws other objects now: a fresh pass next
+        leave(context, camera, display)
+    elif _unsafe(camera):                             # the redraw guard missed it: leave now
         leave(context, camera, display)
     if _state["last_view"] is None or not np.array_equal(key, _state["last_view"]):
         _state["last_view"], _state["changed_at"] = key, now

@@ -79,3 +79,9 @@ def test_an_object_the_addon_hid_out_of_local_view_hides_nothing(results):
     r = results["hidden_out_of_local_view"]
     assert r["operator_first_pass_hid_the_cube"] and r["live_first_pass_hid_the_cube"], r
     assert (r["operator"], r["live"]) == (False, False), r
+
+
+def test_a_wall_filtered_out_after_a_pass_gives_back_what_it_hid(results):
+    r = results["filter_toggled_after_pass"]
+    assert r["operator_hid_first"] and r["live_hid_first"], r
+    assert (r["operator"], r["live"]) == (False, False), r

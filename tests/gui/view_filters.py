@@ -12,6 +12,9 @@ timer, whose context has no 3D view), and records whether the box was hidden.
 - ``full``: sanity, everything drawn: the box is hidden (it is occluded);
 - ``local_view``: the view is in local view with the box only (the wall out);
 - ``type_filter``: the wall is a curve, the view's curve filter is off;
+- ``filter_toggled_after_pass``: the curve filter turned off after a pass that hid
+  the box behind the curve wall: the box must come back (a Cull click's redraw
+  guard, live mode's tick);
 - ``hidden_out_of_local_view``: a cube the add-on hid (behind the wall) is out of
   the local view that holds a second box, which it covers from the next view.
 
@@ -195,6 +198,36 @@ def run():
 
     yield from case("type_filter_sanity", nothing, nothing)      # the curve wall occludes the box
     yield from case("type_filter", curves_off, curves_on)
+
+    # the filter turned off after a pass that hid the box: the hidden set no longer
+    # holds (the redraw guard after a Cull click, live mode's tick), the box comes back
+    out = results["filter_toggled_after_pass"] = {}
+    for how in ("operator", "live"):
+        curves_on()
+        c.view(eye, target)
+        yield
+        if how == "operator":
+            c.cull()
+        else:
+            version = c.session.version
+            with bpy.context.temp_override(**c.ctx):
+                c.live.start(bpy.context)
+            for _ in range(40):
+                yield
+                if c.session.version != version:
+                    break
+        out[f"{how}_hid_first"] = hidden(box)
+        curves_off()
+        c.area.tag_redraw()
+        for _ in range(10):                           # redraws and live ticks
+            yield
+        out[how] = hidden(box)
+        if how == "live":
+            with bpy.context.temp_override(**c.ctx):
+                c.live.stop(bpy.context)
+        c.restore()
+        curves_on()
+        yield
 
     # a cube the add-on hid behind a small wall, out of the local view of a second box
     # it covers from the next view
