@@ -7,18 +7,15 @@ Skipped where ``blender`` or ``xvfb-run`` is missing (``.ci/run`` installs
 them) or where that Blender's Python cannot load this venv's moderngl wheel.
 """
 
-import importlib.util
 import json
 import os
 import shutil
-import subprocess
-import sys
 
 import pytest
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from tests.gui.window import ROOT, blender_env, run_in_window
+
 BENCH = os.path.join(ROOT, "tools", "gui_benchmark.py")
-ADDON = "occlusion_culled_viewport"
 
 pytestmark = [
     pytest.mark.gui,
@@ -27,40 +24,13 @@ pytestmark = [
 ]
 
 
-def _blender_python(env):
-    p = subprocess.run(["blender", "-b", "--factory-startup", "--python-expr",
-                        "import sys; print('PYVER %d.%d' % sys.version_info[:2])"],
-                       env=env, capture_output=True, text=True, timeout=120)
-    line = next((ln for ln in p.stdout.splitlines() if ln.startswith("PYVER ")), "")
-    return line[6:]
-
-
 @pytest.fixture(scope="module")
 def gui_run(tmp_path_factory):
     work = tmp_path_factory.mktemp("gui")
-    cfg, scripts, site, out = (work / d for d in ("config", "scripts", "site", "out"))
-    for d in (cfg, scripts / "addons", site):
-        d.mkdir(parents=True)
-    os.symlink(ROOT, scripts / "addons" / ADDON)            # the checkout as a legacy add-on
-    for mod in ("moderngl", "glcontext", "trimesh"):         # this venv's packages, for Blender's Python
-        origin = os.path.dirname(importlib.util.find_spec(mod).origin)
-        os.symlink(origin, site / mod)
-    os.symlink(importlib.util.find_spec("_moderngl").origin, site / "_moderngl.py")
-    env = {**os.environ, "BLENDER_USER_CONFIG": str(cfg), "BLENDER_USER_SCRIPTS": str(scripts),
-           "PYTHONPATH": f"{site}{os.pathsep}{ROOT}"}
-    version = _blender_python(env)
-    here = "%d.%d" % sys.version_info[:2]
-    if version != here:
-        pytest.skip(f"Blender's Python is {version or 'unknown'}, this venv's moderngl is built for {here}")
-    subprocess.run(["blender", "-b", "--factory-startup", "--python-expr",
-                    "import bpy; bpy.context.preferences.view.show_splash = False; bpy.ops.wm.save_userpref()"],
-                   env=env, check=True, capture_output=True, timeout=120)
-    p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1600x900x24", "blender", "--enable-event-simulate",
-                        "--python", BENCH, "--", str(out), "city-small"],
-                       env=env, capture_output=True, text=True, timeout=600)
-    log = p.stdout + p.stderr
+    env, out = blender_env(work), work / "out"
+    rc, log = run_in_window(env, BENCH, [str(out), "city-small"], screen="1600x900", extra=["--enable-event-simulate"])
     path = out / "gui.json"
-    assert path.exists(), f"no results (rc {p.returncode}):\n{log[-3000:]}"
+    assert path.exists(), f"no results (rc {rc}):\n{log[-3000:]}"
     return json.loads(path.read_text()), log, out
 
 

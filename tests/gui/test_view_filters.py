@@ -8,18 +8,15 @@ Skipped where ``blender`` or ``xvfb-run`` is missing or where that Blender's
 Python cannot load this venv's moderngl wheel.
 """
 
-import importlib.util
 import json
 import os
 import shutil
-import subprocess
-import sys
 
 import pytest
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from tests.gui.window import blender_env, run_in_window
+
 DRIVER = os.path.join(os.path.dirname(os.path.abspath(__file__)), "view_filters.py")
-ADDON = "occlusion_culled_viewport"
 
 pytestmark = [
     pytest.mark.gui,
@@ -31,31 +28,10 @@ pytestmark = [
 @pytest.fixture(scope="module")
 def results(tmp_path_factory):
     work = tmp_path_factory.mktemp("view_filters")
-    cfg, scripts, site, out = (work / d for d in ("config", "scripts", "site", "out"))
-    for d in (cfg, scripts / "addons", site):
-        d.mkdir(parents=True)
-    os.symlink(ROOT, scripts / "addons" / ADDON)            # the checkout as a legacy add-on
-    for mod in ("moderngl", "glcontext", "trimesh"):         # this venv's packages, for Blender's Python
-        origin = os.path.dirname(importlib.util.find_spec(mod).origin)
-        os.symlink(origin, site / mod)
-    os.symlink(importlib.util.find_spec("_moderngl").origin, site / "_moderngl.py")
-    env = {**os.environ, "BLENDER_USER_CONFIG": str(cfg), "BLENDER_USER_SCRIPTS": str(scripts),
-           "PYTHONPATH": f"{site}{os.pathsep}{ROOT}"}
-    p = subprocess.run(["blender", "-b", "--factory-startup", "--python-expr",
-                        "import sys; print('PYVER %d.%d' % sys.version_info[:2])"],
-                       env=env, capture_output=True, text=True, timeout=120)
-    version = next((ln[6:] for ln in p.stdout.splitlines() if ln.startswith("PYVER ")), "")
-    here = "%d.%d" % sys.version_info[:2]
-    if version != here:
-        pytest.skip(f"Blender's Python is {version or 'unknown'}, this venv's moderngl is built for {here}")
-    subprocess.run(["blender", "-b", "--factory-startup", "--python-expr",
-                    "import bpy; bpy.context.preferences.view.show_splash = False; bpy.ops.wm.save_userpref()"],
-                   env=env, check=True, capture_output=True, timeout=120)
-    p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1280x720x24", "blender", "--python", DRIVER,
-                        "--", str(out)], env=env, capture_output=True, text=True, timeout=600)
-    log = p.stdout + p.stderr
+    env, out = blender_env(work), work / "out"
+    rc, log = run_in_window(env, DRIVER, [str(out)])
     path = out / "view_filters.json"
-    assert path.exists(), f"no results (rc {p.returncode}):\n{log[-3000:]}"
+    assert path.exists(), f"no results (rc {rc}):\n{log[-3000:]}"
     res = json.loads(path.read_text())
     assert "error" not in res, res["error"]
     assert "Traceback" not in log, log[-3000:]

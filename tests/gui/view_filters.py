@@ -136,19 +136,26 @@ class Case:
         with bpy.context.temp_override(**self.ctx):
             return list(bpy.ops.occ.cull())
 
-    def live_pass(self):
-        """Live mode on, in the view; the real timer makes the pass at rest."""
+    def start_live(self):
+        """Live mode on, in the view, until the real timer has made a pass at rest."""
         version = self.session.version
         with bpy.context.temp_override(**self.ctx):
             self.live.start(bpy.context)
         for _ in range(40):
             yield
             if self.session.version != version:
-                break
-        passed = self.session.version != version
+                return
+        self.stop_live()
+        raise AssertionError("no live pass")
+
+    def stop_live(self):
         with bpy.context.temp_override(**self.ctx):
             self.live.stop(bpy.context)
-        assert passed, "no live pass"
+
+    def live_pass(self):
+        """One live pass: live mode on until it has culled, then off."""
+        yield from self.start_live()
+        self.stop_live()
 
 
 def run():
@@ -209,13 +216,7 @@ def run():
         if how == "operator":
             c.cull()
         else:
-            version = c.session.version
-            with bpy.context.temp_override(**c.ctx):
-                c.live.start(bpy.context)
-            for _ in range(40):
-                yield
-                if c.session.version != version:
-                    break
+            yield from c.start_live()
         out[f"{how}_hid_first"] = hidden(box)
         curves_off()
         c.area.tag_redraw()
@@ -223,8 +224,7 @@ def run():
             yield
         out[how] = hidden(box)
         if how == "live":
-            with bpy.context.temp_override(**c.ctx):
-                c.live.stop(bpy.context)
+            c.stop_live()
         c.restore()
         curves_on()
         yield
