@@ -29,3 +29,30 @@ def build_scene(scene, collection=None, limit=None):
         o = bpy.data.objects.new(name, meshes[m])
         o.matrix_world = mathutils.Matrix(mat.tolist())
         coll.objects.link(o)
+
+
+def drive_in_window(run, results, path, interval):
+    """Drive the generator ``run()`` from a timer in a real window (it yields where Blender
+    must process events before it goes on); then write ``results`` (with the traceback of
+    a failure under "error") as JSON to ``path`` and quit Blender."""
+    import json
+    import traceback
+
+    steps = []
+
+    def tick():
+        if not steps:
+            steps.append(run())
+        try:
+            next(steps[0])
+            return interval
+        except StopIteration:
+            pass
+        except Exception:
+            results["error"] = traceback.format_exc()
+        with open(path, "w") as f:
+            json.dump(results, f, indent=1)
+        bpy.ops.wm.quit_blender()
+        return None
+
+    bpy.app.timers.register(tick, first_interval=1.0)

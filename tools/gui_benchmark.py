@@ -10,18 +10,16 @@ street level, times ``wm.redraw_timer`` with and without culling, times cull
 passes as live mode runs them, saves a screenshot, writes OUT_DIR/gui.json, quits.
 """
 
-import json
 import os
 import sys
 import time
-import traceback
 
 import bpy
 import mathutils
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from blender_scene import build_scene  # noqa: E402
+from blender_scene import build_scene, drive_in_window  # noqa: E402
 
 ARGS = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
 OUT = os.path.abspath(ARGS[0] if ARGS else "gui_out")
@@ -219,24 +217,4 @@ def modal_operators(win, area, region, sess, frames):
                                      "written": os.path.exists(done)}
 
 
-_steps = []
-
-
-def main():
-    """A timer: ``run`` yields where Blender must process events before it goes on."""
-    if not _steps:
-        _steps.append(run())
-    try:
-        next(_steps[0])
-        return 0.3
-    except StopIteration:
-        pass
-    except Exception:
-        results["error"] = traceback.format_exc()
-    with open(os.path.join(OUT, "gui.json"), "w") as f:
-        json.dump(results, f, indent=1)
-    bpy.ops.wm.quit_blender()
-    return None
-
-
-bpy.app.timers.register(main, first_interval=1.0)
+drive_in_window(run, results, os.path.join(OUT, "gui.json"), 0.3)

@@ -21,14 +21,15 @@ timer, whose context has no 3D view), and records whether the box was hidden.
 Writes OUT_DIR/view_filters.json and quits.
 """
 
-import json
 import os
 import sys
-import traceback
 
 import bpy
 import mathutils
 import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "tools"))
+from blender_scene import drive_in_window  # noqa: E402
 
 ARGS = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
 OUT = os.path.abspath(ARGS[0] if ARGS else "view_filters_out")
@@ -255,24 +256,4 @@ def run():
     del curve
 
 
-_steps = []
-
-
-def main():
-    """A timer: ``run`` yields where Blender must process events before it goes on."""
-    if not _steps:
-        _steps.append(run())
-    try:
-        next(_steps[0])
-        return 0.2
-    except StopIteration:
-        pass
-    except Exception:
-        results["error"] = traceback.format_exc()
-    with open(os.path.join(OUT, "view_filters.json"), "w") as f:
-        json.dump(results, f, indent=1)
-    bpy.ops.wm.quit_blender()
-    return None
-
-
-bpy.app.timers.register(main, first_interval=1.0)
+drive_in_window(run, results, os.path.join(OUT, "view_filters.json"), 0.2)
