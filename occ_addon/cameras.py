@@ -43,9 +43,14 @@ def view_state(space) -> tuple | None:
     set holds only while this stays as it was (a wall filtered out occludes nothing)."""
     if space is None:
         return None
-    filters = tuple(getattr(space, p.identifier) for p in space.bl_rna.properties
-                    if p.identifier.startswith("show_object_viewport_"))
+    if not _FILTERS:                          # read once: the redraw guard asks on every redraw
+        _FILTERS.extend(p.identifier for p in space.bl_rna.properties
+                        if p.identifier.startswith("show_object_viewport_"))
+    filters = tuple(getattr(space, name) for name in _FILTERS)
     return (space.local_view is not None, bool(getattr(space, "use_local_collections", False)), filters)
+
+
+_FILTERS: list[str] = []                      # SpaceView3D's object-type filters (they vary by version)
 
 
 def region_camera(rv3d) -> Camera:
