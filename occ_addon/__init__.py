@@ -20,6 +20,7 @@ def register():
     props.register()
     for cls in CLASSES:
         bpy.utils.register_class(cls)
+    operators.register_keys()
     handlers.register()
     handlers.subscribe(live.changed)                 # live mode re-culls after every change
     if isinstance(bpy.data, bpy.types.BlendData):    # enabled on an open file: show what a record hides
@@ -35,6 +36,7 @@ def unregister():
     SESSION.shutdown()
     handlers.unsubscribe(live.changed)
     handlers.unregister()
+    operators.unregister_keys()
     for cls in reversed(CLASSES):
         bpy.utils.unregister_class(cls)
     props.unregister()

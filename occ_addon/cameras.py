@@ -7,6 +7,7 @@ import bpy
 import numpy as np
 
 from ..core import Camera, OccError
+from . import localview
 
 
 def find_viewport(context):
@@ -37,6 +38,24 @@ def pass_view(context):
     return None if found is None else found[0].spaces.active
 
 
+def hide_view(context):
+    """``(window, area)`` of the 3D view a pass hides in (its local-view bits, see
+    :mod:`.localview`), or None: everywhere (``hide_viewport``).  The culled view:
+    the active 3D viewport (the one the scene camera is looked through, too), with
+    the "Hide In" setting at This View, or at Auto in a window (not background mode)."""
+    mode = context.scene.occ.hide_in
+    if mode == "EVERYWHERE" or (mode == "AUTO" and bpy.app.background):
+        return None
+    found = find_viewport(context)
+    if found is None:
+        return None
+    area = found[0]
+    wm = context.window_manager
+    win = context.window if context.window is not None and area in context.window.screen.areas[:] else None
+    win = win or next((w for w in (wm.windows if wm else ()) if area in w.screen.areas[:]), None)
+    return None if win is None else (win, area)
+
+
 def view_state(space) -> tuple | None:
     """What of a 3D view, beside its camera, decides which objects it draws: local view,
     local collections and every object-type filter; None without a view.  A pass's hidden
@@ -47,7 +66,8 @@ def view_state(space) -> tuple | None:
         _FILTERS.extend(p.identifier for p in space.bl_rna.properties
                         if p.identifier.startswith("show_object_viewport_"))
     filters = tuple(getattr(space, name) for name in _FILTERS)
-    return (space.local_view is not None, bool(getattr(space, "use_local_collections", False)), filters)
+    # the add-on's own local view (its hiding) draws what the view drew: not the user's
+    return (localview.user_local(space), bool(getattr(space, "use_local_collections", False)), filters)
 
 
 _FILTERS: list[str] = []                      # SpaceView3D's object-type filters (they vary by version)

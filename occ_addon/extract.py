@@ -286,14 +286,18 @@ TYPE_FILTERS = {"MESH": "show_object_viewport_mesh", "CURVE": "show_object_viewp
                 "FONT": "show_object_viewport_font", "EMPTY": "show_object_viewport_empty"}
 
 
-def view_shows(obj, space) -> bool:
+def view_shows(obj, space, stale: bool = True) -> bool:
     """Whether 3D view ``space`` draws ``obj``, which the add-on hid, once it is shown
-    again, as far as that can be told while it is hidden: its object-type filter.  In
-    local view or with local collections it cannot (Blender brings an object's
-    membership up to date only while it is drawn: ``visible_in_viewport_get`` and
-    ``local_view_get`` read stale bits): False, so it is given back and evaluated."""
-    return space.local_view is None and not space.use_local_collections \
-        and getattr(space, TYPE_FILTERS.get(obj.type, ""), True)
+    again, as far as that can be told while it is hidden: its object-type filter.
+    Hidden everywhere (``stale``: not evaluated), in local view or with local
+    collections it cannot (Blender brings an object's membership up to date only while
+    it is drawn: ``visible_in_viewport_get`` and ``local_view_get`` read stale bits):
+    False, so it is given back and evaluated.  Hidden in a view's local view by the
+    add-on, it was in that local view when hidden, and nothing but leaving the local
+    view (which ends the hiding) changes that."""
+    if space.use_local_collections or (stale and space.local_view is not None):
+        return False
+    return getattr(space, TYPE_FILTERS.get(obj.type, ""), True)
 
 
 def filters_geometry(space) -> bool:
@@ -336,14 +340,16 @@ class Candidates:
         context's 3D view, if any)."""
         self.view_layer = view_layer
         layer = view_layer.objects
-        culled_all = visibility.flags("occ_culled", layer)
+        stale_all = visibility.flags("occ_culled", layer)      # hidden everywhere: not evaluated
+        culled_all = stale_all | visibility.flags(visibility.VIEW_RECORD, layer)
         uids_all = visibility.uids(layer)
         info = extractor.info
         no_instances = filters_geometry(space)
         objects, index, kinds, give_back, memo = [], [], [], [], {}
-        for i, (o, uid, culled) in enumerate(zip(layer.values(), uids_all.tolist(), culled_all.tolist(),
-                                                 strict=True)):   # one visible_get per object; no bulk form
-            if culled and verify:                     # edits to hidden objects are not reported
+        for i, (o, uid, culled, stale) in enumerate(zip(layer.values(), uids_all.tolist(), culled_all.tolist(),
+                                                        stale_all.tolist(), strict=True)):
+            # one visible_get per object; no bulk form
+            if stale and verify:                      # edits to hidden objects are not reported
                 extractor.forget(uid)
             entry = info.get(uid)
             if entry is None:
@@ -355,9 +361,11 @@ class Candidates:
                 continue
             if culled:
                 # the user hid it too, or it may have changed unseen: give it back
-                if not extractor.user_shown(o, uid, view_layer) or extractor.is_dynamic(o, uid) \
-                        or not extractor.knows(o, k) or (verify and not extractor.unchanged(o, uid, k, memo)) \
-                        or (space is not None and not view_shows(o, space)):
+                # (hidden in one view only, it is evaluated and its edits are reported)
+                if not extractor.user_shown(o, uid, view_layer) or not extractor.knows(o, k) \
+                        or (stale and (extractor.is_dynamic(o, uid)
+                                       or (verify and not extractor.unchanged(o, uid, k, memo)))) \
+                        or (space is not None and not view_shows(o, space, stale)):
                     give_back.append(uid)
                     continue
             elif not o.visible_get(viewport=space):   # None: the context's 3D view, if any
@@ -368,7 +376,7 @@ class Candidates:
         index = np.array(index, dtype=np.int64)
         self.culled = culled_all[index]
         m = bulk_matrices(layer, "matrix_world")[index] if len(index) else np.zeros((0, 4, 4))
-        hidden = np.flatnonzero(self.culled)
+        hidden = np.flatnonzero(stale_all[index])
         if len(hidden):                               # stale matrix_world: rebuilt from matrix_basis
             m[hidden] = bulk_matrices(layer, "matrix_basis")[index[hidden]]
             for k in hidden:

@@ -13,7 +13,7 @@ from collections.abc import Callable
 import bpy
 from bpy.app.handlers import persistent
 
-from . import live, visibility
+from . import live, localview, visibility
 from .session import SESSION
 from .visibility import ident
 
@@ -46,6 +46,8 @@ def on_depsgraph_update(scene, depsgraph):
     if SESSION.applying:
         return
     visibility.reconcile()
+    if depsgraph.id_type_updated("SCENE") or depsgraph.id_type_updated("COLLECTION"):
+        localview.adopt()           # what joined the view layer is drawn in the add-on's local view
     _mark(depsgraph)
     live.guard_camera(scene)        # the scene camera moved by an edit: as for a new frame
     notify()
@@ -85,15 +87,21 @@ def on_load(*_args):
     """A file opens with everything the add-on hid shown again (files saved by
     older versions, or by a crash), and live mode off: nothing runs by itself."""
     SESSION.reset()
-    visibility.restore()
+    visibility.after_load()
     live.after_load()
 
 
 @persistent
 def on_undo(*_args):
     """Undo and redo replace Blender's data: caches and references are dropped,
-    the live timer follows the restored state."""
+    the live timer follows the restored state; the add-on's own local view follows
+    the restored record."""
     SESSION.reset()
+    SESSION.applying = True
+    try:
+        visibility.after_undo()
+    finally:
+        SESSION.applying = False
     live.resync()
 
 

@@ -7,7 +7,7 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, IntProperty, StringProperty
 
 from ..core import OccError
-from . import live, overlay, visibility
+from . import live, localview, overlay, visibility
 from .analysis import analysis_steps, link_collection, push_undo, report_path, write_report
 from .cameras import camera_for
 from .session import SESSION
@@ -170,6 +170,24 @@ class OCC_OT_restore(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class OCC_OT_local_view(bpy.types.Operator):
+    """Local view (Numpad /) in a view the occlusion culler hides in: its own local view
+    ends, everything it hid is shown, and Blender's local view of the selection begins"""
+
+    bl_idname = "occ.local_view"
+    bl_label = "Local View"
+
+    @classmethod
+    def poll(cls, context):
+        # elsewhere the key falls through to Blender's own local view
+        return localview.is_own(context.space_data)
+
+    def invoke(self, context, event):
+        visibility.restore()             # live mode, if on, culls again inside the new local view
+        SESSION.shown = None
+        return bpy.ops.view3d.localview("INVOKE_DEFAULT")
+
+
 class OCC_OT_live(Stepped, bpy.types.Operator):
     """Re-cull whenever the view changes (toggle)"""
 
@@ -297,4 +315,23 @@ def failed(op, error):
     return {"CANCELLED"}
 
 
-CLASSES = (OCC_OT_cull, OCC_OT_restore, OCC_OT_live, OCC_OT_analyze)
+CLASSES = (OCC_OT_cull, OCC_OT_restore, OCC_OT_local_view, OCC_OT_live, OCC_OT_analyze)
+
+_keymaps = []
+
+
+def register_keys():
+    """Numpad / and / in the 3D view: :class:`OCC_OT_local_view` first (it passes the key
+    on to Blender's local view wherever the add-on has no local view of its own)."""
+    kc = bpy.context.window_manager.keyconfigs.addon if bpy.context.window_manager else None
+    if kc is None:                                   # background mode: no key configuration
+        return
+    km = kc.keymaps.new(name="3D View", space_type="VIEW_3D")
+    for key in ("NUMPAD_SLASH", "SLASH"):
+        _keymaps.append((km, km.keymap_items.new(OCC_OT_local_view.bl_idname, key, "PRESS")))
+
+
+def unregister_keys():
+    while _keymaps:
+        km, item = _keymaps.pop()
+        km.keymap_items.remove(item)

@@ -6,6 +6,7 @@ import bpy
 import numpy as np
 
 from ..core.overlay import box_lines, occupancy_quads
+from . import visibility
 from .session import SESSION
 
 MAX_BOXES = 4000            # wireframes drawn at most (the largest culled ones)
@@ -34,20 +35,29 @@ def _geometry():
             size = np.prod(np.maximum(boxes[:, 1] - boxes[:, 0], 1e-9), axis=1)
             boxes = boxes[np.argsort(size)[-MAX_BOXES:]]
         grid = last.occupancy if last.occupancy is not None else np.zeros((0, 0), dtype=bool)
-        _cache.update(key=SESSION.version, lines=box_lines(boxes), grid=grid)
+        _cache.update(key=SESSION.version, lines=box_lines(boxes), grid=grid, batch=None)
     return _cache
+
+
+def _in_culled_view() -> bool:
+    """Whether this redraw is of a view the add-on hides in (all, when it hides everywhere)."""
+    view = visibility.hiding_view()
+    space = bpy.context.space_data
+    return view is None or (space is not None and space.as_pointer() == view)
 
 
 def _draw_view():
     scene = bpy.context.scene
     geo = _geometry()
-    if geo is None or not scene.occ.show_overlay or not len(geo["lines"]):
+    if geo is None or not scene.occ.show_overlay or not len(geo["lines"]) or not _in_culled_view():
         return
     import gpu
     from gpu_extras.batch import batch_for_shader
     shader = _shader("3D")
     gpu.state.blend_set("ALPHA")
-    batch = batch_for_shader(shader, "LINES", {"pos": geo["lines"]})
+    if geo.get("batch") is None:                    # one batch per pass, not per redraw
+        geo["batch"] = batch_for_shader(shader, "LINES", {"pos": geo["lines"]})
+    batch = geo["batch"]
     shader.bind()
     shader.uniform_float("color", (1.0, 0.35, 0.25, 0.5))
     batch.draw(shader)
@@ -57,7 +67,7 @@ def _draw_view():
 def _draw_pixel():
     scene = bpy.context.scene
     geo = _geometry()
-    if geo is None or not scene.occ.show_overlay:
+    if geo is None or not scene.occ.show_overlay or not _in_culled_view():
         return
     import blf
     import gpu
@@ -99,4 +109,4 @@ def uninstall():
     space = bpy.types.SpaceView3D
     while _handles:
         space.draw_handler_remove(_handles.pop(), "WINDOW")
-    _cache.update(key=None, lines=None, grid=None)
+    _cache.update(key=None, lines=None, grid=None, batch=None)

@@ -1,4 +1,4 @@
-"""Settings on ``scene.occ``, the per-object "never cull" flag and the hide record."""
+"""Settings on ``scene.occ``, the per-object "never cull" flag and the hide records."""
 
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
@@ -44,6 +44,15 @@ class OccSettings(bpy.types.PropertyGroup):
         update=_changed)
     exclude_children: BoolProperty(name="Include Child Collections", default=True, update=_changed)
     live: BoolProperty(name="Live", default=False, description="Re-cull when the view changes")
+    hide_in: EnumProperty(
+        name="Hide In", default="AUTO", update=_changed,
+        items=[("AUTO", "Auto", "In the culled 3D view only, in a window; everywhere in background mode "
+                                "(scripts and viewport renders see hide_viewport)"),
+               ("VIEW", "This View", "Only in the culled 3D view (its local view): other views, windows "
+                                     "and scenes keep drawing everything"),
+               ("EVERYWHERE", "Every View", "With the monitor icon (hide_viewport), in every view and "
+                                            "viewport render; Blender rebuilds its dependency graph "
+                                            "after each change (slower at scale)")])
     cull_raytraced: BoolProperty(
         name="Cull Under Ray Tracing", default=False, update=_changed,
         description="Hide occluded objects even where Blender traces rays (Cycles, EEVEE ray tracing): "
@@ -73,9 +82,13 @@ def register():
     # Files are saved without it; one that carries it (older versions) is restored on load.
     bpy.types.Object.occ_culled = BoolProperty(name="Hidden by Occlusion Culling", default=False,
                                                options={"HIDDEN"})
+    # The same for the culled 3D view's local-view bits (visibility.py, localview.py).
+    bpy.types.Object.occ_view_culled = BoolProperty(name="Hidden in the Culled View", default=False,
+                                                    options={"HIDDEN"})
 
 
 def unregister():
+    del bpy.types.Object.occ_view_culled
     del bpy.types.Object.occ_culled
     del bpy.types.Object.occ_never_cull
     del bpy.types.Scene.occ

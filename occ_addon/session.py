@@ -22,6 +22,7 @@ from ..core.motion import LivePolicy
 from ..core.settings import preset, query_resolution
 from ..core.units import ChunkCache
 from . import policy, shading, visibility
+from .cameras import hide_view
 from .extract import Candidates, Extractor, Kind
 from .passes import LastPass, Shown, shown_by
 from .worker import EngineThread, drive
@@ -244,7 +245,7 @@ class Session:
             if show_only:
                 visibility.release(~hide)
             else:
-                visibility.apply(hide)
+                visibility.apply(hide, hide_view(context))
             # Showing an object again makes the depsgraph report it, and every
             # object sharing its mesh, as changed geometry.  Nothing else can have
             # changed since the update above, so evaluate now and let the handler

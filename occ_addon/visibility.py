@@ -1,6 +1,14 @@
 """Hiding and restoring, non-destructively, in bulk; the user owns every hide flag.
 
-The add-on hides with ``hide_viewport`` (the monitor icon) written by one
+Two channels, one record each:
+
+- **In one 3D view** (where a pass has a view: :func:`.cameras.hide_view`): the
+  view's local-view bits (:mod:`.localview`), recorded in ``Object.occ_view_culled``.
+  Nothing changes in any other view, window or scene; the objects stay evaluated.
+- **Everywhere** (background mode, or the "Every View" setting): ``hide_viewport``,
+  below.
+
+The add-on hides everywhere with ``hide_viewport`` (the monitor icon) written by one
 ``foreach_set`` over ``bpy.data.objects`` and records what it hid in
 ``Object.occ_culled``.  The pair (``occ_culled``, ``hide_viewport``) is the
 record: ``occ_culled`` set means "the add-on wrote hide_viewport = True here".
@@ -29,6 +37,8 @@ tagged (O(shown), cheap), and one ordinary assignment re-syncs the bases.
 
 import bpy
 import numpy as np
+
+from . import localview
 
 # Shown again: re-evaluate transform, geometry and animation at the current frame.
 SHOW_TAG = {"OBJECT", "DATA", "TIME"}
@@ -85,61 +95,184 @@ def write(hide, record):
     first.hide_viewport = bool(hide[changed[0]])   # the RNA update: bases re-synced, relations rebuilt
 
 
+VIEW_RECORD = "occ_view_culled"
+# the 3D view (SpaceView3D pointer) whose local-view bits the view record cleared
+_view = {"pointer": None}
+
+
+def hiding_view() -> int | None:
+    """The 3D view (``SpaceView3D.as_pointer()``) the add-on hides in now; None: none, or everywhere."""
+    return _view["pointer"]
+
+
+def culled(collection=None):
+    """``(n,) bool``: hidden by the add-on now, in either channel."""
+    return flags("occ_culled", collection) | flags(VIEW_RECORD, collection)
+
+
 def reconcile():
-    """Drop from the record every object the user showed since the add-on hid it;
-    returns how many."""
+    """Drop from the record every object the user showed since the add-on hid it
+    (the monitor icon; for the view channel, the view left local view: Numpad /, or
+    it was closed); returns how many."""
+    n = _reconcile_view()
     culled = flags("occ_culled")
     if not culled.any():
-        return 0
+        return n
     touched = culled & ~flags("hide_viewport")
     if touched.any():
         bpy.data.objects.foreach_set("occ_culled", culled & ~touched)
-    return int(touched.sum())
+    return n + int(touched.sum())
 
 
-def apply(hide):
+def _view_space():
+    """The 3D view the view record hides in, while it is in local view; else None."""
+    found = localview.find(_view["pointer"]) if _view["pointer"] is not None else None
+    return found[2] if found is not None and found[2].local_view is not None else None
+
+
+def _reconcile_view():
+    """With the view gone or out of local view, everything draws there: no record."""
+    if _view["pointer"] is None or _view_space() is not None:
+        return 0
+    _view["pointer"] = None
+    record = flags(VIEW_RECORD)
+    if record.any():
+        bpy.data.objects.foreach_set(VIEW_RECORD, np.zeros(len(record), dtype=bool))
+    return int(record.sum())
+
+
+def _set_bits(space, mask, state):
+    items = bpy.data.objects.values()              # one list; ListBase indexing is O(i) per call
+    for i in np.flatnonzero(mask):                 # O(changed): Blender tags once per update
+        items[i].local_view_set(space, state)
+
+
+def apply(hide, view=None):
     """Make exactly ``hide`` (``(n,) bool`` over ``bpy.data.objects``) hidden by the
-    add-on; every other object it hid comes back.  Returns how many are hidden."""
+    add-on; every other object it hid comes back.  ``view``: ``(window, area)`` of the
+    3D view to hide in (its local-view bits), None: everywhere (``hide_viewport``).
+    Returns how many are hidden."""
     reconcile()
-    culled = flags("occ_culled")
-    hidden = flags("hide_viewport")
-    want = np.asarray(hide, dtype=bool) & (culled | ~hidden)   # never take over a user's hide
-    write(np.where(culled, False, hidden) | want, want)
-    return int(want.sum())
+    hide = np.array(hide, dtype=bool)
+    if view is None:
+        _release_view(np.ones(len(hide), dtype=bool))
+        localview.leave_all()
+        culled = flags("occ_culled")
+        hidden = flags("hide_viewport")
+        want = hide & (culled | ~hidden)            # never take over a user's hide
+        write(np.where(culled, False, hidden) | want, want)
+        return int(want.sum())
+    win, area = view
+    space = area.spaces.active
+    if _view["pointer"] not in (None, space.as_pointer()):
+        _release_view(np.ones(len(hide), dtype=bool))   # the record moves to this view
+    localview.leave_all(but=space)
+    release_monitor = flags("occ_culled")
+    if release_monitor.any():
+        write(flags("hide_viewport") & ~release_monitor, np.zeros(len(hide), dtype=bool))
+    if space.local_view is None:
+        if not hide.any():
+            return 0
+        localview.enter(win, area)
+        if space.local_view is None:               # no local view to be had: hide nothing
+            return 0
+    record = flags(VIEW_RECORD)
+    change = record != hide
+    if not localview.is_own(space):
+        # in the user's local view: only its members are drawn there, only they are hidden
+        items = bpy.data.objects.values()
+        for i in np.flatnonzero(change & hide):
+            if not items[i].local_view_get(space):
+                hide[i] = change[i] = False
+    _set_bits(space, change & hide, False)
+    _set_bits(space, change & ~hide, True)
+    if change.any():
+        bpy.data.objects.foreach_set(VIEW_RECORD, hide)
+    _view["pointer"] = space.as_pointer() if hide.any() else _view["pointer"]
+    return int(hide.sum())
+
+
+def _release_view(give):
+    """Give back the objects of ``give`` that the view record hides; returns how many."""
+    record = flags(VIEW_RECORD)
+    give = record & give
+    if not give.any():
+        return 0
+    space = _view_space()
+    if space is not None:
+        _set_bits(space, give, True)
+    elif _view["pointer"] is None:
+        # a record without its view (a file saved by a crash or an autosave): every
+        # view in local view draws them
+        for _, _, other in localview.spaces():
+            if other.local_view is not None:
+                _set_bits(other, give, True)
+    bpy.data.objects.foreach_set(VIEW_RECORD, record & ~give)
+    if not (record & ~give).any():
+        _view["pointer"] = None
+    return int(give.sum())
 
 
 def release(mask):
     """Show again the objects of ``mask`` (``(n,) bool``) that the add-on hid; returns how many."""
     reconcile()
+    mask = np.asarray(mask, dtype=bool)
+    n = _release_view(mask)
     culled = flags("occ_culled")
-    give = culled & np.asarray(mask, dtype=bool)
+    give = culled & mask
     if not give.any():
-        return 0
+        return n
     write(flags("hide_viewport") & ~give, culled & ~give)
-    return int(give.sum())
+    return n + int(give.sum())
 
 
 def restore():
-    """Show again every object the add-on hid (and only those); returns how many."""
-    return release(np.ones(len(bpy.data.objects), dtype=bool))
+    """Show again every object the add-on hid (and only those), and end the add-on's
+    own local view; returns how many."""
+    n = release(np.ones(len(bpy.data.objects), dtype=bool))
+    localview.leave_all()
+    return n
+
+
+def after_undo():
+    """Undo and redo bring the record and the bits back with the data, not the views:
+    an own local view holds every object but those its record hides; a record whose
+    view is gone or out of local view is dropped."""
+    _reconcile_view()
+    record = flags(VIEW_RECORD)
+    localview.resync(uids()[record] if _view["pointer"] is not None else uids()[:0])
+    if _view["pointer"] is None and record.any():
+        bpy.data.objects.foreach_set(VIEW_RECORD, np.zeros(len(record), dtype=bool))
+
+
+def after_load():
+    """A file opens with everything the add-on hid shown again (files saved by older
+    versions, a crash or an autosave)."""
+    _view["pointer"] = None
+    localview.forget()
+    restore()
 
 
 # --- files are saved without the add-on's hiding ------------------------------------
-_lifted = {"uids": None}
+_lifted = {"uids": None, "view": None}
 
 
 def lift():
-    """Before a save: show what the add-on hid, remembering it (session ids)."""
-    culled = flags("occ_culled")
-    _lifted["uids"] = uids()[culled] if culled.any() else None
-    if culled.any():
+    """Before a save: show what the add-on hid and end its own local view, remembering
+    both (session ids, the view)."""
+    record = culled()
+    _lifted["uids"] = uids()[record] if record.any() else None
+    found = localview.find(_view["pointer"]) if _view["pointer"] is not None else None
+    _lifted["view"] = (found[0], found[1]) if found is not None and flags(VIEW_RECORD).any() else None
+    if record.any():
         restore()
 
 
 def reapply():
     """After a save: hide again what :func:`lift` showed, where the user has not
     hidden it since (nothing can change in between but the file on disk)."""
-    lifted, _lifted["uids"] = _lifted["uids"], None
+    lifted, view = _lifted["uids"], _lifted["view"]
+    _lifted.update(uids=None, view=None)
     if lifted is None:
         return
-    apply(np.isin(uids(), lifted))
+    apply(np.isin(uids(), lifted), view)

@@ -16,7 +16,7 @@ import traceback
 import bpy
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from in_blender import analysis, cameras, common, handlers, live, policy, session, visibility  # noqa: E402
+from in_blender import analysis, cameras, common, handlers, live, localview, policy, session, visibility  # noqa: E402
 
 # In one Blender session, in this order (add-on settings a case changes stay for the next).
 CASES = (policy.user_hidden_objects, policy.dynamic_objects, cameras.camera_as_rendered, policy.instancers,
@@ -28,7 +28,9 @@ CASES = (policy.user_hidden_objects, policy.dynamic_objects, cameras.camera_as_r
          session.instanced_child_edited, session.instance_source_deleted, session.click_restarts,
          policy.instance_wire_member_analyzed, policy.wire_collection_instance,
          analysis.never_visible_adds_no_path, policy.view_rules, policy.lit_renders,
-         live.camera_moves_between_ticks, live.live_cut_is_the_engines_camera_cut)
+         live.camera_moves_between_ticks, live.live_cut_is_the_engines_camera_cut,
+         localview.hides_in_one_view, localview.new_objects_drawn, localview.users_local_view,
+         localview.undo_and_files)
 # Cases whose failure was a crash of Blender: each runs only when named (a process of its own).
 ALONE = (analysis.undo_after_collect,)
 

@@ -43,6 +43,14 @@ CHECKS = {
         "click_restarts_fresh", "click_restarts_same_answer", "click_restarts_truth",
     ],
     "visibility": ["user_hide_kept_by_restore", "user_hide_kept_by_pass"],
+    "localview": [
+        "view_hides_in_its_view", "view_other_view_draws_everything", "view_visible_still_drawn",
+        "view_entering_moves_nothing", "view_truth", "view_restore_leaves_view_unmoved",
+        "view_selection_untouched", "view_everywhere_is_monitor",
+        "view_new_object_drawn", "view_included_collection_drawn", "view_new_truth",
+        "view_user_local_culls", "view_user_local_restored", "view_user_leaves_local_record_ends",
+        "view_undo_keeps_visible_drawn", "view_save_keeps_culled", "view_saved_file_opens_drawn",
+    ],
     "handlers": ["save_keeps_culled", "saved_file_opens_shown_without_addon", "old_file_restored_on_enable",
                  "old_file_restored_on_load"],
     "live": [

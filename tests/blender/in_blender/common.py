@@ -188,8 +188,9 @@ def seen_names():
 
 
 def hidden_but_seen():
-    """Objects the add-on hides that cover a pixel: must be empty."""
-    return sorted(n for n in seen_names() if n in bpy.data.objects and bpy.data.objects[n].occ_culled)
+    """Objects the add-on hides (in either channel) that cover a pixel: must be empty."""
+    return sorted(n for n in seen_names() if n in bpy.data.objects
+                  and (bpy.data.objects[n].occ_culled or bpy.data.objects[n].occ_view_culled))
 
 
 def promise(name):

@@ -1,0 +1,196 @@
+"""Hiding in one 3D view only: Blender's local-view bits.
+
+Blender draws an object in a 3D view that is in local view only where the
+object's base carries that view's bit (``Object.local_view_set``).  A bit changed
+costs Blender one base-flags update (no dependency-graph relations rebuild,
+unlike ``hide_viewport``) and changes nothing drawn in any other view, window or
+scene: the add-on hides there (:mod:`.visibility`, the view channel).
+
+A view the user put in local view (Numpad /) is used as it is: the add-on clears
+the bits of what it culls and sets them back.  A view that is not in local view is
+put in the add-on's *own* local view, holding every object of the window's view
+layer, so it draws what it drew before:
+
+- entering never moves the view (``frame_selected=False``) and leaves the user's
+  selection as it was; leaving puts the view back where it is now (Blender's
+  local view would go back to where it was on entering);
+- an object that joins the view layer while it is in force (added, linked,
+  appended, its collection included again) gets the bit at once
+  (:func:`adopt`, from the depsgraph handler), as do all objects after an undo
+  (:func:`resync`) or in another view layer shown in that window;
+- it ends with the add-on's hiding (Restore, live off, before a save): the view
+  is as the user left it, no local view.
+
+The add-on's own local view is known by its ``SpaceView3D`` (``as_pointer``):
+Blender's user interface survives undo, not a file load, and a file is never
+saved with it (:func:`.visibility.lift`).
+"""
+
+import bpy
+import numpy as np
+
+# the add-on's own local views: SpaceView3D pointer -> the session ids of the objects
+# of its window's view layer that hold the bit (sorted), and that layer's name
+_own: dict[int, dict] = {}
+
+
+def spaces():
+    """Every ``(window, area, space)`` of a 3D view in the open windows."""
+    wm = bpy.context.window_manager
+    for win in (wm.windows if wm is not None else ()):
+        for area in win.screen.areas:
+            if area.type == "VIEW_3D":
+                yield win, area, area.spaces.active
+
+
+def find(pointer: int):
+    """``(window, area, space)`` of the 3D view whose space is ``pointer``, or None."""
+    return next(((w, a, s) for w, a, s in spaces() if s.as_pointer() == pointer), None)
+
+
+def is_own(space) -> bool:
+    return space is not None and space.as_pointer() in _own
+
+
+def user_local(space) -> bool:
+    """Whether ``space`` is in a local view of the user's (not the add-on's own)."""
+    return space.local_view is not None and not is_own(space)
+
+
+def _region(area):
+    return next(r for r in area.regions if r.type == "WINDOW")
+
+
+def _layer_uids(layer):
+    from .visibility import uids
+    return np.sort(uids(layer.objects))
+
+
+def _set_all(layer, space, state=True, only=None):
+    """Set ``space``'s bit of the objects of ``layer`` (``only``: ``(n,) bool`` over
+    ``layer.objects``) to ``state``: one call each, no update each (Blender tags once)."""
+    items = layer.objects.values()
+    for i in (range(len(items)) if only is None else np.flatnonzero(only)):
+        items[i].local_view_set(space, state)
+
+
+def enter(win, area) -> None:
+    """Put ``area``'s 3D view in the add-on's own local view holding every object of
+    the window's view layer, the view unmoved and the selection unchanged."""
+    space = area.spaces.active
+    if space.local_view is not None:
+        return
+    layer = win.view_layer
+    picked = None
+    if not any(o.visible_get(view_layer=layer, viewport=space) for o in layer.objects.selected):
+        # Blender enters local view with the selection: one visible object, for the call only
+        picked = next((o for o in layer.objects if o.visible_get(view_layer=layer, viewport=space)), None)
+        if picked is None:
+            return                                   # nothing drawn: nothing to hide either
+        picked.select_set(True, view_layer=layer)
+    try:
+        with bpy.context.temp_override(window=win, area=area, region=_region(area)):
+            bpy.ops.view3d.localview(frame_selected=False)
+    finally:
+        if picked is not None:
+            picked.select_set(False, view_layer=layer)
+    if space.local_view is None:                     # Blender has no local view left (16 at most)
+        return
+    _own[space.as_pointer()] = {"layer": layer.name, "uids": _layer_uids(layer)}
+    _set_all(layer, space)
+
+
+# the view of a 3D region, kept across leaving local view
+_VIEW_PROPS = ("view_location", "view_rotation", "view_distance", "view_perspective",
+               "view_camera_zoom", "view_camera_offset")
+
+
+def leave(win, area) -> None:
+    """End the add-on's own local view of ``area``: every object is drawn again and
+    the view stays where it is (Blender would go back to where it was on entering)."""
+    space = area.spaces.active
+    _own.pop(space.as_pointer(), None)
+    if space.local_view is None:
+        return
+    regions = [space.region_3d, *space.region_quadviews]
+    views = [(r, {p: _copy(getattr(r, p)) for p in _VIEW_PROPS}) for r in regions if r is not None]
+    camera = space.camera
+    prefs = bpy.context.preferences
+    smooth, dirty = prefs.view.smooth_view, prefs.is_dirty
+    prefs.view.smooth_view = 0                       # no animated move back
+    try:
+        with bpy.context.temp_override(window=win, area=area, region=_region(area)):
+            bpy.ops.view3d.localview(frame_selected=False)
+    finally:
+        prefs.view.smooth_view = smooth
+        prefs.is_dirty = dirty
+        for rv3d, saved in views:
+            for p, v in saved.items():
+                setattr(rv3d, p, v)
+        space.camera = camera
+
+
+def _copy(v):
+    return v.copy() if hasattr(v, "copy") else v
+
+
+def leave_all(but=None) -> int:
+    """End every own local view (Restore, before a save, the add-on goes away), ``but``
+    that of this space; returns how many."""
+    n = 0
+    for pointer in list(_own):
+        if but is not None and pointer == but.as_pointer():
+            continue
+        found = find(pointer)
+        if found is None:
+            _own.pop(pointer, None)
+            continue
+        leave(found[0], found[1])
+        n += 1
+    return n
+
+
+def adopt() -> None:
+    """Objects that joined a view layer shown in an own local view get its bit (the
+    depsgraph handler, after every change): nothing new is hidden there."""
+    for pointer, own in list(_own.items()):
+        found = find(pointer)
+        if found is None or found[2].local_view is None:
+            _own.pop(pointer, None)                  # closed, or left by the user (Numpad /)
+            continue
+        win, _, space = found
+        layer = win.view_layer
+        now = _layer_uids(layer)
+        if layer.name != own["layer"]:
+            fresh = np.ones(len(now), dtype=bool)
+        else:
+            fresh = ~np.isin(now, own["uids"], assume_unique=True)
+        if fresh.any():
+            from .visibility import uids
+            ids = uids(layer.objects)
+            _set_all(layer, space, True, np.isin(ids, now[fresh]))
+        own.update(layer=layer.name, uids=now)
+
+
+def resync(culled) -> None:
+    """After an undo or redo (the bits come back with the data, the view does not):
+    every object of an own local view holds its bit but those ``culled`` (``(m,)
+    int64`` session ids the restored record hides there)."""
+    from .visibility import uids
+    for pointer, own in list(_own.items()):
+        found = find(pointer)
+        if found is None or found[2].local_view is None:
+            _own.pop(pointer, None)
+            continue
+        win, _, space = found
+        layer = win.view_layer
+        ids = uids(layer.objects)
+        keep = np.isin(ids, culled)
+        _set_all(layer, space, True, ~keep)
+        _set_all(layer, space, False, keep)
+        own.update(layer=layer.name, uids=np.sort(ids))
+
+
+def forget() -> None:
+    """A file was loaded: its views are new (no own local view is saved in a file)."""
+    _own.clear()
