@@ -1,5 +1,6 @@
 """What a 3D view does not draw never occludes what it draws: local view and the
-viewport's object-type filters, in a real window (Debian's Blender 3.4 under
+viewport's object-type filters; and what a cull hides in one view, another view
+still draws (two views side by side), in a real window (Debian's Blender 3.4 under
 Xvfb, the add-on loaded as a legacy add-on from this checkout), through the Cull
 operator in the view and through live mode's timer (whose context has no 3D
 view).  ``view_filters.py`` drives Blender; see it for the scenes.
@@ -61,3 +62,13 @@ def test_a_wall_filtered_out_after_a_pass_gives_back_what_it_hid(results):
     r = results["filter_toggled_after_pass"]
     assert r["operator_hid_first"] and r["live_hid_first"], r
     assert (r["operator"], r["live"]) == (False, False), r
+
+
+def test_a_cull_from_one_view_leaves_the_other_drawing_everything(results):
+    """Two views side by side: the box hidden behind the wall in one stays on the
+    other's screen: its red pixels, as many as before the cull within a few edge pixels
+    (hidden there, none would be left)."""
+    r = results["two_views"]
+    assert r["cull_result"] == ["FINISHED"] and r["hidden_in_culled"] and not r["hide_viewport"], r
+    assert r["drawn_in_other"] and r["other_red_before"] > 50, r
+    assert r["other_red_after"] >= 0.98 * r["other_red_before"], r

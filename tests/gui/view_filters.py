@@ -16,7 +16,9 @@ timer, whose context has no 3D view), and records whether the box was hidden.
   the box behind the curve wall: the box must come back (a Cull click's redraw
   guard, live mode's tick);
 - ``hidden_out_of_local_view``: a cube the add-on hid (behind the wall) is out of
-  the local view that holds a second box, which it covers from the next view.
+  the local view that holds a second box, which it covers from the next view;
+- ``two_views``: two 3D views side by side; a cull from one leaves the other drawing
+  the box (its pixels on screen).
 
 Writes OUT_DIR/view_filters.json and quits.
 """
@@ -95,7 +97,8 @@ def clear_scene():
 
 
 def hidden(ob):
-    return bool(ob.occ_culled and ob.hide_viewport)
+    """Hidden by the add-on: in the culled view (its local view), or everywhere."""
+    return bool(ob.occ_view_culled or (ob.occ_culled and ob.hide_viewport))
 
 
 class Case:
@@ -119,13 +122,17 @@ class Case:
         self.session.reset()
 
     def local_view(self, objects):
-        """Local view with ``objects`` only (Numpad /, without framing)."""
+        """Local view with ``objects`` only, as Numpad / makes it: through the add-on's
+        key (which ends its own local view first) where the add-on hides in this view."""
         with bpy.context.temp_override(**self.ctx):
             bpy.ops.object.select_all(action="DESELECT")
             for ob in objects:
                 ob.select_set(True)
             bpy.context.view_layer.objects.active = objects[0]
-            bpy.ops.view3d.localview(frame_selected=False)
+            if bpy.ops.occ.local_view.poll():
+                bpy.ops.occ.local_view("INVOKE_DEFAULT")
+            else:
+                bpy.ops.view3d.localview(frame_selected=False)
         assert self.space.local_view is not None, "not in local view"
 
     def leave_local_view(self):
@@ -254,6 +261,62 @@ def run():
         c.leave_local_view()
         yield
     del curve
+    yield from two_views(c)
+
+
+def red_pixels(path, area):
+    """Pixels of a window screenshot inside ``area`` that are pure red (the box's colour)."""
+    img = bpy.data.images.load(path)
+    w, h = img.size
+    px = np.array(img.pixels[:], dtype=np.float32).reshape(h, w, 4)
+    bpy.data.images.remove(img)
+    part = px[area.y:area.y + area.height, area.x:area.x + area.width]
+    return int(((part[..., 0] > 0.5) & (part[..., 1] < 0.2) & (part[..., 2] < 0.2)).sum())
+
+
+def two_views(c):
+    """Two 3D views side by side: a cull from one (where the box stands behind the
+    wall) leaves the other (looking from beside the wall) drawing the box, on screen
+    (a screenshot's red pixels) and by Blender's own test."""
+    clear_scene()
+    cube("wall", (0.0, 0.0, 0.0), (6.0, 0.2, 6.0)).color = (0.5, 0.5, 0.5, 1.0)
+    box = cube("box", (0.0, 5.0, 0.0), (1.0, 1.0, 1.0))
+    box.color = (1.0, 0.0, 0.0, 1.0)
+    bpy.context.scene.display.viewport_aa = "OFF"      # no sample accumulation between screenshots
+    with bpy.context.temp_override(**c.ctx):
+        bpy.ops.screen.area_split(direction="VERTICAL", factor=0.5)
+    culled = c.area
+    other = next(a for a in c.win.screen.areas if a.type == "VIEW_3D" and a != culled)
+    for area in (culled, other):
+        sp = area.spaces.active
+        sp.shading.type, sp.shading.light = "SOLID", "FLAT"
+        sp.shading.color_type = "OBJECT"
+        sp.overlay.show_floor = sp.overlay.show_axis_x = sp.overlay.show_axis_y = False
+        sp.show_gizmo = sp.overlay.show_cursor = False   # their red is no box
+    c.region = next(r for r in culled.regions if r.type == "WINDOW")
+    c.ctx["region"] = c.region
+    c.view((0.0, -12.0, 0.0), (0.0, 5.0, 0.0))
+    rv3d = other.spaces.active.region_3d
+    rv3d.view_perspective = "PERSP"
+    rv3d.view_matrix = look_at((12.0, 5.0, 0.0), (0.0, 5.0, 0.0))
+    for _ in range(3):
+        yield
+    shot = os.path.join(OUT, "two_views_before.png")
+    with bpy.context.temp_override(**c.ctx):
+        bpy.ops.screen.screenshot(filepath=shot)
+    before = red_pixels(shot, other)
+    shot = os.path.join(OUT, "two_views_culled.png")
+    out = results["two_views"] = {"cull_result": c.cull()}
+    for _ in range(3):
+        yield
+    with bpy.context.temp_override(**c.ctx):
+        bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
+        bpy.ops.screen.screenshot(filepath=shot)
+    after = red_pixels(shot, other)
+    out.update(hidden_in_culled=hidden(box) and not box.visible_get(viewport=culled.spaces.active),
+               drawn_in_other=box.visible_get(viewport=other.spaces.active),
+               other_red_before=before, other_red_after=after, hide_viewport=box.hide_viewport)
+    c.restore()
 
 
 drive_in_window(run, results, os.path.join(OUT, "view_filters.json"), 0.2)
