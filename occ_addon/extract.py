@@ -323,6 +323,45 @@ def bystanders(view_layer, held: np.ndarray) -> list:
             if (o.type in DRAWN_TYPES or is_instancer(o)) and o.visible_get()]
 
 
+def drawn(view_layer, uids_all: np.ndarray, space=None) -> np.ndarray:
+    """``(n,) bool`` over ``view_layer.objects``: what Blender draws in 3D view ``space``
+    (None: the context's 3D view, if any; "BASE": no view, the view layer's eye,
+    collection and monitor flags), as ``visible_get(viewport=space)`` tells one object at
+    a time, in bulk: ``context.visible_objects`` in that view's context (one list, a
+    fraction of a ``visible_get`` per object)."""
+    context = bpy.context
+    found = None
+    if space == "BASE":                              # no view: the view layer's own visibility
+        if context.view_layer != view_layer:
+            return np.fromiter((o.visible_get(view_layer=view_layer, viewport=None) if context.area is None
+                                else user_shown(o, view_layer, shown_by_collections(view_layer))
+                                for o in view_layer.objects), dtype=bool, count=len(uids_all))
+        if context.area is None:
+            shown = context.visible_objects
+        else:
+            with context.temp_override(area=None, region=None):
+                shown = bpy.context.visible_objects
+        ids = np.fromiter((ident(o) for o in shown), dtype=np.int64, count=len(shown))
+        return np.isin(uids_all, ids)
+    if space is not None:
+        found = next(((w, a) for w in context.window_manager.windows for a in w.screen.areas
+                      if a.spaces.active == space), None)
+        if found is None or found[0].view_layer != view_layer:   # not a view of this layer's window
+            return np.fromiter((o.visible_get(viewport=space) for o in view_layer.objects), dtype=bool,
+                               count=len(uids_all))
+    if found is None:
+        if context.view_layer != view_layer:
+            return np.fromiter((o.visible_get() for o in view_layer.objects), dtype=bool, count=len(uids_all))
+        shown = context.visible_objects
+    else:
+        win, area = found
+        region = next((r for r in area.regions if r.type == "WINDOW"), None)
+        with context.temp_override(window=win, area=area, region=region):
+            shown = bpy.context.visible_objects
+    ids = np.fromiter((ident(o) for o in shown), dtype=np.int64, count=len(shown))
+    return np.isin(uids_all, ids)
+
+
 class Candidates:
     """The objects that take part in a pass, in view-layer order.
 
@@ -345,10 +384,15 @@ class Candidates:
         uids_all = visibility.uids(layer)
         info = extractor.info
         no_instances = filters_geometry(space)
+        # drawn now, or hidden by the add-on: only those can take part (what else the user
+        # or the view hides is not looked at one by one)
+        shown = drawn(view_layer, uids_all, space)
+        # hidden in one view only, what the user shows is what the view layer shows
+        base = drawn(view_layer, uids_all, "BASE") if (culled_all & ~stale_all).any() else None
+        items = layer.values()                        # one list; indexing the collection is O(i)
         objects, index, kinds, give_back, memo = [], [], [], [], {}
-        for i, (o, uid, culled, stale) in enumerate(zip(layer.values(), uids_all.tolist(), culled_all.tolist(),
-                                                        stale_all.tolist(), strict=True)):
-            # one visible_get per object; no bulk form
+        for i in np.flatnonzero(shown | culled_all).tolist():
+            o, uid, culled, stale = items[i], int(uids_all[i]), bool(culled_all[i]), bool(stale_all[i])
             if stale and verify:                      # edits to hidden objects are not reported
                 extractor.forget(uid)
             entry = info.get(uid)
@@ -362,14 +406,13 @@ class Candidates:
             if culled:
                 # the user hid it too, or it may have changed unseen: give it back
                 # (hidden in one view only, it is evaluated and its edits are reported)
-                if not extractor.user_shown(o, uid, view_layer) or not extractor.knows(o, k) \
+                if not (base[i] if not stale else extractor.user_shown(o, uid, view_layer)) \
+                        or not extractor.knows(o, k) \
                         or (stale and (extractor.is_dynamic(o, uid)
                                        or (verify and not extractor.unchanged(o, uid, k, memo)))) \
                         or (space is not None and not view_shows(o, space, stale)):
                     give_back.append(uid)
                     continue
-            elif not o.visible_get(viewport=space):   # None: the context's 3D view, if any
-                continue
             objects.append(o)
             index.append(i)
             kinds.append(k)

@@ -25,7 +25,9 @@ class LastPass:
     state: ``(k,) uint8`` :class:`..core.Visibility`; protected: ``(k,) bool`` never
     hidden (:mod:`.policy`); bounds: ``(k, 2, 3)`` world boxes; occupancy: the
     occupancy map ``(rows, cols) bool`` or None; stats: the engine's figures
-    (:attr:`..core.CullResult.stats`); ms: the whole pass, Blender's update included.
+    (:attr:`..core.CullResult.stats`); ms: the whole pass, Blender's update included;
+    blender_ms: of it, Blender's own updates (the edits pending before the pass, and
+    the hiding's); changed: how many objects' hiding the pass changed.
     """
 
     state: np.ndarray
@@ -34,6 +36,8 @@ class LastPass:
     occupancy: np.ndarray | None
     stats: PassStats
     ms: float
+    blender_ms: float = 0.0
+    changed: int = 0
 
     @property
     def hidden(self) -> np.ndarray:

@@ -230,7 +230,9 @@ class Session:
         settings = context.scene.occ
         t = time.perf_counter()
         visibility.reconcile()                 # what the user showed is the user's
+        t_update = time.perf_counter()
         context.view_layer.update()            # edits still pending reach the handler now, not below
+        blender_s = time.perf_counter() - t_update
         view_rule = shading.rule(context)
         result, objects = self.compute(context, camera, display, fresh, progress, restart, envelope,
                                        view_rule.lights)
@@ -240,6 +242,7 @@ class Session:
         protected |= policy.drawn_beyond_depth(view_rule, state, settings.cull_raytraced)
         settings.last_rule = view_rule.why
         hide = np.isin(visibility.uids(), held.uids[culled & ~protected])
+        before = visibility.COUNT["changed"]
         self.applying = True
         try:
             if show_only:
@@ -250,11 +253,14 @@ class Session:
             # object sharing its mesh, as changed geometry.  Nothing else can have
             # changed since the update above, so evaluate now and let the handler
             # ignore it all: hiding never costs an engine rebuild on the next pass.
+            t_update = time.perf_counter()
             context.view_layer.update()
+            blender_s += time.perf_counter() - t_update
         finally:
             self.applying = False
+        changed = visibility.COUNT["changed"] - before
         self.last = LastPass(state, protected, self.culler.scene.bounds, result.occupancy, result.stats,
-                             1e3 * (time.perf_counter() - t))
+                             1e3 * (time.perf_counter() - t), 1e3 * blender_s, changed)
         self.last.publish(settings, self.culler.scene.triangle_counts)
         self.shown = shown_by(result, camera)
         self.version += 1

@@ -12,9 +12,11 @@ do) and builds, each in a fresh file, the scenes of the scale issue:
 - ``grid``: one grid mesh of V vertices (default 10 million), partly behind a wall;
 - ``analyze``: ``occ.analyze`` over F frames (default 200) of a 3,000-object scene.
 
-and times, from the scene camera: the first ``occ.cull`` (extraction, build,
-pass, hiding), the pass after a 0.01 rad turn of the camera (median of
-``--turns``), ``occ.restore``, analyze, and memory: resident set before the
+and times, from the scene camera (with the add-on's ``--hide-in`` setting; each
+pass's note splits Blender's own updates from the add-on's work): the first ``occ.cull`` (extraction, build,
+pass, hiding), the passes after small turns of the camera to and fro (median of
+``--turns`` for each of ``--turn-rad``), ``occ.restore`` and Blender's update
+after it, analyze, and memory: resident set before the
 add-on ran (the scene's own), the peak above it (``VmHWM``, reset before each
 scene with ``/proc/self/clear_refs``) and what stays after.  ``--profile DIR``
 writes a cProfile of each phase.
@@ -431,8 +433,7 @@ def _false_negatives(bpy):
         camera, _ = _addon("occ_addon.cameras").camera_for(bpy.context)
         truth = sess.worker.run(sess.culler.truth, camera)
         objs = bpy.data.objects
-        flags = np.zeros(len(objs), dtype=bool)
-        objs.foreach_get("occ_culled", flags)               # one bulk read, not a name lookup per object
+        flags = _addon("occ_addon.visibility").culled()    # either channel, one bulk read each
         ids = _addon("occ_addon.visibility").uids(objs)     # the engine's objects by session id
         by_id = np.argsort(ids)
         hidden = flags[by_id[np.searchsorted(ids, sess.held.uids, sorter=by_id)]]
@@ -462,6 +463,7 @@ def child_main(args):
         label = f"analyze: {args.analyze_objects:,} objects, {args.frames} frames"
     bpy.context.view_layer.update()
     scene.occ.source = "CAMERA"
+    scene.occ.hide_in = args.hide_in
     if args.strategy:
         scene.occ.strategy = args.strategy
     build_s = time.perf_counter() - t
@@ -486,29 +488,42 @@ def child_main(args):
         if undo is not None:              # the later passes are not stepped
             undo()
             rows += steps
+        last = _addon("occ_addon.session").SESSION.last
         fn, hidden = _false_negatives(bpy)
-        cull_row["note"] = f"{r}, {hidden} hidden, false negatives {fn}"
-        result.update(false_negatives=fn, hidden=hidden)
-        times, cpus = [], []
-        peak_before = memory()[1]
-        for k in range(args.turns):
-            cam.rotation_euler.z += 0.01
-            p = Phase([], f"turn{k}", base, prof if k == 0 else None)
-            with p:
-                bpy.ops.occ.cull()
-            times.append(p.table[-1]["seconds"])
-            cpus.append(p.table[-1]["cpu_seconds"])
-            fn_k, _ = _false_negatives(bpy)
-            if fn_k:
-                result["false_negatives"] = (result["false_negatives"] or 0) + fn_k
-        rss = memory()[0]
-        rows.append({"phase": f"pass after 0.01 rad turn (median of {len(times)})",
-                     "seconds": float(np.median(times)) if times else float("nan"),
-                     "cpu_seconds": float(np.median(cpus)) if cpus else float("nan"),
-                     "peak_above_MB": (max(memory()[1], peak_before) - base) / MB,
-                     "after_above_MB": (rss - base) / MB, "note": f"max {max(times, default=0):.3f} s"})
-        with Phase(rows, "restore", base, prof):
+        cull_row["note"] = (f"{r}, {hidden} hidden, false negatives {fn}; Blender's updates "
+                            f"{last.blender_ms / 1e3:.3f} s, add-on {cull_row['seconds'] - last.blender_ms / 1e3:.3f} s")
+        result.update(false_negatives=fn, hidden=hidden, first_blender_s=last.blender_ms / 1e3)
+        for turn in args.turn_rad:
+            times, cpus, blender, changed = [], [], [], []
+            peak_before = memory()[1]
+            for k in range(args.turns):
+                cam.rotation_euler.z += turn * (1 if k % 2 == 0 else -1)   # to and fro: objects come and go
+                p = Phase([], f"turn{k}", base, prof if k == 0 else None)
+                with p:
+                    bpy.ops.occ.cull()
+                last = _addon("occ_addon.session").SESSION.last
+                times.append(p.table[-1]["seconds"])
+                cpus.append(p.table[-1]["cpu_seconds"])
+                blender.append(last.blender_ms / 1e3)
+                changed.append(last.changed)
+                fn_k, _ = _false_negatives(bpy)
+                if fn_k:
+                    result["false_negatives"] = (result["false_negatives"] or 0) + fn_k
+            rss = memory()[0]
+            med = float(np.median(times)) if times else float("nan")
+            rows.append({"phase": f"pass after {turn:g} rad turn (median of {len(times)})",
+                         "seconds": med, "cpu_seconds": float(np.median(cpus)) if cpus else float("nan"),
+                         "peak_above_MB": (max(memory()[1], peak_before) - base) / MB,
+                         "after_above_MB": (rss - base) / MB,
+                         "note": f"max {max(times, default=0):.3f} s; Blender's updates median "
+                                 f"{np.median(blender):.3f} s, add-on {med - np.median(blender):.3f} s; "
+                                 f"hiding changed {min(changed, default=0)}-{max(changed, default=0)} objects"})
+            result[f"turn_{turn:g}"] = {"seconds": med, "blender_s": float(np.median(blender)),
+                                        "changed": changed}
+        with Phase(rows, "restore (the operator)", base, prof):
             bpy.ops.occ.restore()
+        with Phase(rows, "restore: Blender's update after it", base, prof):
+            bpy.context.view_layer.update()
     result["rows"] = rows
     print_table(label, rows)
     print("SCALE_RESULT " + json.dumps(result), flush=True)
@@ -529,7 +544,13 @@ def blender_main(argv):
     ap.add_argument("--vertices", type=int, help="vertices of the grid mesh (default 10 million)")
     ap.add_argument("--analyze-objects", type=int, default=3000)
     ap.add_argument("--frames", type=int, help="frames of the analyze run (default 200)")
-    ap.add_argument("--turns", type=int, default=7, help="passes after a 0.01 rad camera turn")
+    ap.add_argument("--turns", type=int, default=7, help="passes after each camera turn (to and fro)")
+    ap.add_argument("--turn-rad", type=lambda s: [float(x) for x in s.split(",")], default=[0.01, 0.1],
+                    help="camera turns, comma-separated radians (default 0.01,0.1: the larger one brings "
+                         "columns of objects into the view and takes others out)")
+    ap.add_argument("--hide-in", default="AUTO", choices=("AUTO", "VIEW", "EVERYWHERE"),
+                    help="the add-on's Hide In setting (AUTO in background mode: everywhere, hide_viewport; "
+                         "VIEW: the window's 3D view's local-view bits)")
     ap.add_argument("--only", default="shared,unique,grid,analyze", help="scenes to run, comma-separated")
     ap.add_argument("--profile", help="a folder for cProfile output of each phase")
     ap.add_argument("--top", type=int, default=0, help="print the top N profile entries of each phase")
