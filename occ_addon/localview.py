@@ -61,6 +61,22 @@ def _region(area):
     return next(r for r in area.regions if r.type == "WINDOW")
 
 
+def _toggle(win, area) -> None:
+    """Blender's local-view toggle in ``area``, without the view-layer updates ``bpy.ops``
+    makes before and after every call (two full base updates at scale: the one the
+    pass makes after hiding covers them)."""
+    with bpy.context.temp_override(window=win, area=area, region=_region(area)):
+        op = bpy.ops.view3d.localview
+        try:
+            from _bpy import ops
+            try:
+                ops.call(op.idname_py(), {"frame_selected": False})            # Blender 4+
+            except TypeError:
+                ops.call(op.idname_py(), None, {"frame_selected": False})      # Blender 3.x
+        except ImportError:                                                    # no private module: the public call
+            op(frame_selected=False)
+
+
 def _layer_uids(layer):
     from .visibility import uids
     return np.sort(uids(layer.objects))
@@ -89,8 +105,7 @@ def enter(win, area) -> None:
             return                                   # nothing drawn: nothing to hide either
         picked.select_set(True, view_layer=layer)
     try:
-        with bpy.context.temp_override(window=win, area=area, region=_region(area)):
-            bpy.ops.view3d.localview(frame_selected=False)
+        _toggle(win, area)
     finally:
         if picked is not None:
             picked.select_set(False, view_layer=layer)
@@ -119,8 +134,7 @@ def leave(win, area) -> None:
     smooth, dirty = prefs.view.smooth_view, prefs.is_dirty
     prefs.view.smooth_view = 0                       # no animated move back
     try:
-        with bpy.context.temp_override(window=win, area=area, region=_region(area)):
-            bpy.ops.view3d.localview(frame_selected=False)
+        _toggle(win, area)
     finally:
         prefs.view.smooth_view = smooth
         prefs.is_dirty = dirty

@@ -13,6 +13,7 @@ import time
 from collections.abc import Callable, Generator
 from dataclasses import dataclass
 
+import bpy
 import numpy as np
 
 from ..core import Camera, Culler, CullResult, OccError, Visibility
@@ -97,15 +98,17 @@ class Session:
         ``verify``, edited since they were read) are shown first and evaluated,
         so the pass sees them as Blender draws them."""
         layer = (context.scene.name, context.view_layer.name)
-        if layer != self.layer:
+        # (with one scene of one view layer no object can have moved elsewhere)
+        alone = len(bpy.data.scenes) == 1 and len(context.scene.view_layers) == 1
+        if layer != self.layer and not alone:
             # Another view layer than the last pass's: an object moved while it was not in
             # the evaluated layer keeps a stale original matrix_world until this layer's
             # evaluation writes it back, and the candidates read originals in bulk.
             # Once per switch: tag every transform and evaluate.
-            self.layer = layer
             for ob in context.scene.objects:
                 ob.update_tag(refresh={"OBJECT"})
             context.view_layer.update()
+        self.layer = layer
         cand = self.extractor.candidates(context, verify)
         if len(cand.give_back):
             visibility.release(np.isin(visibility.uids(), cand.give_back))

@@ -11,7 +11,9 @@ Blender offers to Python, median of ``--repeat``:
 - ``hide_viewport`` of a third of the objects (one ``foreach_set`` and one
   ordinary assignment, as the add-on writes it), then all shown again;
 - ``hide_set`` (the eye: the user's own per-view-layer hide) of one object,
-  and of 1,000 objects one call each (every call re-syncs the view layer).
+  and of 1,000 objects one call each (every call re-syncs the view layer);
+- a 3D view's local-view bit (``local_view_set``, what the add-on writes to hide in
+  one view) of one object, and of a third of the objects, one call each, and back.
 
 Any of these is a cost a culling pass pays on top of its own work whenever
 what it hides changes; the README's "Blender at scale" section quotes it.
@@ -37,6 +39,34 @@ def build(n):
     bpy.context.view_layer.update()
 
 
+def _view():
+    win = bpy.context.window_manager.windows[0]
+    area = next(a for a in win.screen.areas if a.type == "VIEW_3D")
+    return win, area, next(r for r in area.regions if r.type == "WINDOW")
+
+
+def local_view(items):
+    """The window's 3D view in local view holding every object (as the add-on's own):
+    its ``SpaceView3D``."""
+    win, area, region = _view()
+    items[0].select_set(True)
+    with bpy.context.temp_override(window=win, area=area, region=region):
+        bpy.ops.view3d.localview(frame_selected=False)
+    items[0].select_set(False)
+    space = area.spaces.active
+    for o in items:
+        o.local_view_set(space, True)
+    bpy.context.view_layer.update()
+    return space
+
+
+def leave_local_view():
+    win, area, region = _view()
+    with bpy.context.temp_override(window=win, area=area, region=region):
+        bpy.ops.view3d.localview(frame_selected=False)
+    bpy.context.view_layer.update()
+
+
 def timed_update():
     t = time.perf_counter()
     bpy.context.view_layer.update()
@@ -57,7 +87,10 @@ def main():
     third[::3] = True
     rows = {k: [] for k in ("nothing changed", "hide_viewport, one object",
                             f"hide_viewport, {third.sum():,} objects", f"show those {third.sum():,} again",
-                            "hide_set, one object", "hide_set, 1,000 objects (calls + update)")}
+                            "hide_set, one object", "hide_set, 1,000 objects (calls + update)",
+                            "local-view bit, one object (in a view's local view)",
+                            f"local-view bits, {third.sum():,} objects (calls + update)",
+                            f"local-view bits of those {third.sum():,} back (calls + update)")}
     keys = list(rows)
     items = objs.values()
     for _ in range(args.repeat):
@@ -85,6 +118,18 @@ def main():
         for o in items[:1000]:
             o.hide_set(False)
         bpy.context.view_layer.update()
+        space = local_view(items)
+        ob.local_view_set(space, False)
+        rows[keys[6]].append(timed_update())
+        ob.local_view_set(space, True)
+        bpy.context.view_layer.update()
+        for state, key in ((False, keys[7]), (True, keys[8])):
+            t = time.perf_counter()
+            for i in np.flatnonzero(third):
+                items[i].local_view_set(space, state)
+            bpy.context.view_layer.update()
+            rows[key].append(time.perf_counter() - t)
+        leave_local_view()
     print(f"{'change, then view_layer.update()':44s} {'median s':>9s} {'max s':>7s}")
     for k, v in rows.items():
         print(f"{k:44s} {statistics.median(v):9.3f} {max(v):7.3f}")
