@@ -19,10 +19,14 @@ venv: $(STAMP)
 demo: $(STAMP)
 	$(VPY) -m core demo
 
-# The engine suite a second time on the OpenGL 4.1 path (what macOS gets; core/gl/context.py).
+# The engine's GL answers a second time on the OpenGL 4.1 path (what macOS gets;
+# core/gl/context.py): the modules whose tests cull, render truths or read GL state.
+GL41_TESTS := $(addprefix tests/,test_conservative_answers.py test_engine.py test_envelope.py \
+	test_gl.py test_gl_layout.py test_gpu_strategy.py test_strategies.py test_fuzz_truth.py \
+	test_lights.py test_repeatable_answers.py test_upload_dtypes.py)
 test: $(STAMP)
 	$(VPY) -m pytest -q
-	OCC_GL=4.1 $(VPY) -m pytest -q -m "not blender and not gui" tests/
+	OCC_GL=4.1 $(VPY) -m pytest -q -m "not blender and not gui" $(GL41_TESTS)
 
 # Python 3.13 with numpy 2.x and Blender 5.2 (bpy from PyPI): the whole suite again,
 # on the other numpy and the other Blender line the extension supports.

@@ -142,6 +142,8 @@ def leave(win, area) -> None:
             for p, v in saved.items():
                 setattr(rv3d, p, v)
         space.camera = camera
+        if space.local_view is not None:             # still in it (the call failed): draw everything
+            _set_all(win.view_layer, space)
 
 
 def _copy(v):

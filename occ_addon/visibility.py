@@ -210,14 +210,17 @@ def apply(hide, view=None):
     return int(hide.sum())
 
 
-def _release_view(give):
-    """Give back the objects of ``give`` that the view record hides; returns how many."""
+def _release_view(give, leaving=False):
+    """Give back the objects of ``give`` that the view record hides (``leaving``: the
+    add-on's own local view ends right after); returns how many."""
     record = flags(VIEW_RECORD)
     give = record & give
     if not give.any():
         return 0
     space = _view_space()
-    if space is not None:
+    if space is not None and leaving and localview.is_own(space) and not (record & ~give).any():
+        pass                                       # leaving the own local view draws everything
+    elif space is not None:
         _set_bits(space, give, True)
     elif _view["pointer"] is None:
         # a record without its view (a file saved by a crash or an autosave): every
@@ -231,11 +234,11 @@ def _release_view(give):
     return int(give.sum())
 
 
-def release(mask):
+def release(mask, leaving=False):
     """Show again the objects of ``mask`` (``(n,) bool``) that the add-on hid; returns how many."""
     reconcile()
     mask = np.asarray(mask, dtype=bool)
-    n = _release_view(mask)
+    n = _release_view(mask, leaving)
     culled = flags("occ_culled")
     give = culled & mask
     if not give.any():
@@ -247,7 +250,7 @@ def release(mask):
 def restore():
     """Show again every object the add-on hid (and only those), and end the add-on's
     own local view; returns how many."""
-    n = release(np.ones(len(bpy.data.objects), dtype=bool))
+    n = release(np.ones(len(bpy.data.objects), dtype=bool), leaving=True)
     localview.leave_all()
     return n
 

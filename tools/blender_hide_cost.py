@@ -130,9 +130,9 @@ def main():
             bpy.context.view_layer.update()
             rows[key].append(time.perf_counter() - t)
         leave_local_view()
-    print(f"{'change, then view_layer.update()':44s} {'median s':>9s} {'max s':>7s}")
+    print(f"{'change, then view_layer.update()':58s} {'median s':>9s} {'max s':>7s}")
     for k, v in rows.items():
-        print(f"{k:44s} {statistics.median(v):9.3f} {max(v):7.3f}")
+        print(f"{k:58s} {statistics.median(v):9.3f} {max(v):7.3f}")
 
 
 if __name__ == "__main__":

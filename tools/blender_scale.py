@@ -490,8 +490,9 @@ def child_main(args):
             rows += steps
         last = _addon("occ_addon.session").SESSION.last
         fn, hidden = _false_negatives(bpy)
+        blender_s = last.blender_ms / 1e3
         cull_row["note"] = (f"{r}, {hidden} hidden, false negatives {fn}; Blender's updates "
-                            f"{last.blender_ms / 1e3:.3f} s, add-on {cull_row['seconds'] - last.blender_ms / 1e3:.3f} s")
+                            f"{blender_s:.3f} s, add-on {cull_row['seconds'] - blender_s:.3f} s")
         result.update(false_negatives=fn, hidden=hidden, first_blender_s=last.blender_ms / 1e3)
         for turn in args.turn_rad:
             times, cpus, blender, changed = [], [], [], []
