@@ -15,7 +15,11 @@ def corner_area(lo, hi):
 
 
 def _scan(ufunc, a):
-    """``ufunc.accumulate(a, axis=0)`` for a short first axis (whole slabs: much faster)."""
+    """``ufunc.accumulate(a, axis=0)``; for a short first axis of large slabs (the
+    hierarchy's many segments), slab by slab, much faster; for small slabs (one mesh
+    node's bins) one ``accumulate`` call, where a Python loop per bin would dominate."""
+    if a[:1].size <= 256:
+        return ufunc.accumulate(a, axis=0)
     out = a.copy()
     for i in range(1, len(out)):
         ufunc(out[i - 1], out[i], out=out[i])
