@@ -41,7 +41,7 @@ def view3d():
 
 def redraw_ms(win, area, region):
     with bpy.context.temp_override(window=win, area=area, region=region):
-        bpy.ops.wm.redraw_timer(type="DRAW", iterations=1)
+        bpy.ops.wm.redraw_timer(type="DRAW", iterations=3)    # Blender's update and draw caches first
         t = time.perf_counter()
         bpy.ops.wm.redraw_timer(type="DRAW", iterations=REDRAWS)
     return 1e3 * (time.perf_counter() - t) / REDRAWS
@@ -78,16 +78,21 @@ def run():
     s = bpy.context.scene.occ
     results.update(cull_result=list(r), tested=s.last_tested, occluded=s.last_occluded,
                    outside=s.last_outside, triangles_hidden=s.last_triangles_hidden)
-    s.show_overlay = False                       # time the scene, not the debugging overlay
-    results["redraw_ms_with"] = redraw_ms(win, area, region)
-    s.show_overlay = True
-    # the add-on's own work per redraw: its draw handlers (the redraw guard, the overlay of
-    # culled boxes and the figures) against none of them, the same culled view
-    results["redraw_ms_with_overlay"] = redraw_ms(win, area, region)
+    # the culled view without the overlay, with it, and without any of the add-on's draw
+    # handlers (the redraw guard, the overlay of culled boxes and the figures: its own
+    # work per redraw), interleaved twice, the faster of each (the first redraws after a
+    # change of what is drawn build Blender's draw caches)
     overlay = sys.modules[f"{ADDON}.occ_addon.overlay"]
-    overlay.uninstall()
-    results["redraw_ms_with_no_handlers"] = redraw_ms(win, area, region)
-    overlay.install()
+    timed = {"redraw_ms_with": [], "redraw_ms_with_overlay": [], "redraw_ms_with_no_handlers": []}
+    for _ in range(2):
+        s.show_overlay = False
+        timed["redraw_ms_with"].append(redraw_ms(win, area, region))
+        s.show_overlay = True
+        timed["redraw_ms_with_overlay"].append(redraw_ms(win, area, region))
+        overlay.uninstall()
+        timed["redraw_ms_with_no_handlers"].append(redraw_ms(win, area, region))
+        overlay.install()
+    results.update({k: min(v) for k, v in timed.items()})
     results["addon_ms_per_redraw"] = results["redraw_ms_with_overlay"] - results["redraw_ms_with_no_handlers"]
     results["saved_ms_per_redraw"] = results["redraw_ms_without"] - results["redraw_ms_with_no_handlers"]
     space.show_region_ui = True
@@ -144,6 +149,8 @@ def run():
     objs.foreach_set("hide_viewport", shown)
     objs[0].hide_viewport = bool(shown[0])
     results["speedup"] = results["redraw_ms_without"] / max(results["redraw_ms_with"], 1e-9)
+    # as the user sees it: the overlay on, the add-on's draw handlers included
+    results["speedup_with_overlay"] = results["redraw_ms_without"] / max(results["redraw_ms_with_overlay"], 1e-9)
     yield from modal_operators(win, area, region, sess, frames)
     del addon
 
