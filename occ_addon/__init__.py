@@ -10,7 +10,7 @@ bus), and the faces: :mod:`.operators`, :mod:`.panel`, :mod:`.overlay`, :mod:`.p
 
 import bpy
 
-from . import handlers, live, operators, overlay, panel, props, visibility
+from . import handlers, live, localview, operators, overlay, panel, props, visibility
 from .session import SESSION
 
 CLASSES = operators.CLASSES + panel.CLASSES
@@ -21,6 +21,7 @@ def register():
     for cls in CLASSES:
         bpy.utils.register_class(cls)
     operators.register_keys()
+    localview.subscribe()
     handlers.register()
     handlers.subscribe(live.changed)                 # live mode re-culls after every change
     if isinstance(bpy.data, bpy.types.BlendData):    # enabled on an open file: show what a record hides
@@ -36,6 +37,7 @@ def unregister():
     SESSION.shutdown()
     handlers.unsubscribe(live.changed)
     handlers.unregister()
+    localview.unsubscribe()
     operators.unregister_keys()
     for cls in reversed(CLASSES):
         bpy.utils.unregister_class(cls)

@@ -367,7 +367,8 @@ class Candidates:
 
     objects: bpy objects; uids: ``(n,) int64`` session ids; kinds: see :func:`kind`;
     layer_index: ``(n,) int64`` position in ``view_layer.objects``;
-    culled: ``(n,) bool`` hidden by the add-on now; matrices: ``(n, 4, 4)``
+    culled: ``(n,) bool`` hidden by the add-on now; stale: of them, those hidden
+    everywhere (not evaluated: their geometry is the cached one); matrices: ``(n, 4, 4)``
     world matrices.  give_back: ``(m,) int64`` session ids of objects the add-on
     hid and must show again (the user hid them too, or their state is unknown);
     bad: names of objects left out for NaN or infinite values.
@@ -418,6 +419,7 @@ class Candidates:
             kinds.append(k)
         index = np.array(index, dtype=np.int64)
         self.culled = culled_all[index]
+        self.stale = stale_all[index]
         m = bulk_matrices(layer, "matrix_world")[index] if len(index) else np.zeros((0, 4, 4))
         hidden = np.flatnonzero(stale_all[index])
         if len(hidden):                               # stale matrix_world: rebuilt from matrix_basis
@@ -431,6 +433,7 @@ class Candidates:
         self.objects = [objects[k] for k in keep]
         self.kinds = [kinds[k] for k in keep]
         self.layer_index, self.culled, self.matrices = index[keep], self.culled[keep], m[keep]
+        self.stale = self.stale[keep]
         self.uids = uids_all[self.layer_index]
         self.give_back = np.array(give_back, dtype=np.int64)
 
@@ -532,7 +535,7 @@ class Extractor:
         if not self.dirty.keys().isdisjoint(cand.uids.tolist()):
             return True
         memo = {}                                     # collection -> its members, once a pass
-        for o, k, c in zip(cand.objects, cand.kinds, cand.culled, strict=True):
+        for o, k, c in zip(cand.objects, cand.kinds, cand.stale, strict=True):
             if not c and ((k is Kind.COLLECTION and self._instance_stale(o, memo))
                           or (k is Kind.INSTANCER and self._instancer_stale(o))):
                 return True
@@ -553,7 +556,7 @@ class Extractor:
         between).  Stopped early, what it read stays cached and nothing else changes."""
         seen = self.marks
         depsgraph = context.evaluated_depsgraph_get()
-        fresh = {ident(o): o for o, k, c in zip(cand.objects, cand.kinds, cand.culled, strict=True)
+        fresh = {ident(o): o for o, k, c in zip(cand.objects, cand.kinds, cand.stale, strict=True)
                  if not c and ((k is Kind.COLLECTION and self._instance_stale(o))
                                or (k is Kind.INSTANCER and self._instancer_stale(o)))}
         for uid, (v, f) in _instanced_geometry(depsgraph, fresh).items():
@@ -580,7 +583,7 @@ class Extractor:
             if time.perf_counter() >= due:
                 yield Progress("reading geometry", i / n)
                 due = time.perf_counter() + STEP_S
-            entry = self._geometry(obj, cand.kinds[i], cand.culled[i], depsgraph, read)
+            entry = self._geometry(obj, cand.kinds[i], cand.stale[i], depsgraph, read)
             if entry is None:
                 continue
             key, v, f = entry.key, entry.vertices, entry.faces

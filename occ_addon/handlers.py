@@ -46,7 +46,8 @@ def on_depsgraph_update(scene, depsgraph):
     if SESSION.applying:
         return
     visibility.reconcile()
-    if depsgraph.id_type_updated("SCENE") or depsgraph.id_type_updated("COLLECTION"):
+    if depsgraph.id_type_updated("SCENE") or depsgraph.id_type_updated("COLLECTION") \
+            or localview.layer_switched():
         localview.adopt()           # what joined the view layer is drawn in the add-on's local view
     _mark(depsgraph)
     live.guard_camera(scene)        # the scene camera moved by an edit: as for a new frame

@@ -270,6 +270,8 @@ def guard_camera(scene):
     if camera is not None and prev is not None and np.array_equal(prev.projection, camera.projection):
         _camera_motion["step"] = view_change(prev, camera)
     _camera_motion["view"] = camera
+    if SESSION.shown is None:        # evaluating the camera ran this handler again, which showed all
+        return
     centre, envelope = SESSION.shown
     if camera is None or not POLICY.safe(centre, envelope, camera, *_camera_motion["step"]):
         SESSION.shown = None

@@ -166,6 +166,36 @@ def leave_all(but=None) -> int:
     return n
 
 
+def layer_switched() -> bool:
+    """Whether a window with an own local view shows another view layer than when its
+    bits were last set (its bases there carry none yet)."""
+    for pointer, own in _own.items():
+        found = find(pointer)
+        if found is not None and found[0].view_layer.name != own["layer"]:
+            return True
+    return False
+
+
+def on_window_change(*_args) -> None:
+    """A window shows another view layer or scene (a message-bus subscription, GUI):
+    before it is drawn, its own local view holds every object of it."""
+    if _own and layer_switched():
+        adopt()
+
+
+_owner = object()
+
+
+def subscribe() -> None:
+    """The message bus tells a window's view-layer and scene switches (GUI only)."""
+    for prop in ("view_layer", "scene"):
+        bpy.msgbus.subscribe_rna(key=(bpy.types.Window, prop), owner=_owner, args=(), notify=on_window_change)
+
+
+def unsubscribe() -> None:
+    bpy.msgbus.clear_by_owner(_owner)
+
+
 def adopt() -> None:
     """Objects that joined a view layer shown in an own local view get its bit (the
     depsgraph handler, after every change): nothing new is hidden there."""

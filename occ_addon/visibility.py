@@ -199,9 +199,10 @@ def apply(hide, view=None):
     change = record != hide
     if not localview.is_own(space):
         # in the user's local view: only its members are drawn there, only they are hidden
-        items = bpy.data.objects.values()
+        # (``visible_get``: ``local_view_get`` can read a base Blender no longer draws)
+        items, layer = bpy.data.objects.values(), win.view_layer
         for i in np.flatnonzero(change & hide):
-            if not items[i].local_view_get(space):
+            if not items[i].visible_get(view_layer=layer, viewport=space):
                 hide[i] = change[i] = False
     _set_bits(space, change & hide, False)
     _set_bits(space, change & ~hide, True)

@@ -41,6 +41,32 @@ def workflows(tmp_path_factory):
     return run(["--zip", str(zip_path), "--seeds", ",".join(map(str, SEEDS)), "--steps", str(STEPS)], work, env)
 
 
+VIEW_SEEDS = (23, 35)      # with "Hide In: This View": seeds that found a view-layer switch and
+                           # cached geometry of view-hidden objects wrong before they were fixed
+
+
+@pytest.fixture(scope="module")
+def view_workflows(tmp_path_factory):
+    """The same sequences hiding in the window's 3D view (its local-view bits)."""
+    work = tmp_path_factory.mktemp("workflows_view")
+    zip_path = build_zip(work)
+    env = {**os.environ, "BLENDER_USER_RESOURCES": str(work / "user"), "PYTHONHASHSEED": "0"}
+    return run(["--zip", str(zip_path), "--seeds", ",".join(map(str, VIEW_SEEDS)), "--steps", str(STEPS),
+                "--hide-in", "VIEW"], work, env)
+
+
+@pytest.mark.parametrize("seed", VIEW_SEEDS)
+def test_seed_hiding_in_one_view(view_workflows, seed):
+    """Every invariant holds when the add-on hides in one 3D view; besides, what it did
+    not hide that view draws exactly as the user's flags say (new objects, undo, reload,
+    view-layer switches included)."""
+    results, _ = view_workflows
+    got = results["seeds"][str(seed)]
+    assert got["failure"] is None, explain(seed, got["failure"]) + " --hide-in VIEW"
+    assert got["steps"] == STEPS
+    assert got["stats"]["hidden_at_checks"] >= 50, got["stats"]
+
+
 def explain(seed, failure):
     return (f"seed {seed} failed at step {failure['step']} ({failure['kind']}):\n  "
             + "\n  ".join(failure["problems"])

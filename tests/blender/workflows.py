@@ -107,6 +107,8 @@ NOT_EXERCISED = {
     "live_operator": "occ.live refuses in background mode and timers never run headless: live mode is "
                      "started and stopped through its module (start / stop, as the operator does) and "
                      "its timer function is called by hand after every step, debounce off",
+    "message_bus": "the message bus is served by the window's event loop: the add-on's callback for a "
+                   "window's view-layer switch (localview.on_window_change) is called by hand after one",
 }
 LIVE_TICKS = 3        # a tick that sees a new view only records it; the next one culls
 
@@ -142,6 +144,8 @@ def parse_args(argv=None):
     p.add_argument("--validate", action="store_true",
                    help="harness self-check: never enable the add-on (every check must pass)")
     p.add_argument("--verbose", action="store_true", help="print each step")
+    p.add_argument("--hide-in", default="AUTO", choices=("AUTO", "VIEW", "EVERYWHERE"),
+                   help="the add-on's Hide In setting (VIEW: the window's 3D view's local-view bits)")
     p.add_argument("--tail", type=int, default=HISTORY_TAIL, help="history steps shown with a failure")
     return p.parse_args(argv)
 
@@ -153,22 +157,51 @@ def addon_enabled():
     return ADDON_MODULE in bpy.context.preferences.addons
 
 
+# the add-on's "Hide In" setting for every scene (--hide-in): AUTO hides everywhere in
+# background mode (hide_viewport), VIEW in the window's 3D view (its local-view bits)
+HIDE_IN = {"mode": "AUTO"}
+
+
+def window_view():
+    """The window's 3D view (``SpaceView3D``): no step enters local view, so a local view
+    there is the add-on's own."""
+    import bpy
+    wm = bpy.context.window_manager
+    for win in (wm.windows if wm is not None else ()):
+        for area in win.screen.areas:
+            if area.type == "VIEW_3D":
+                return area.spaces.active
+    return None
+
+
 def addon_hidden(obj):
-    """Whether the add-on's own record says it hid ``obj`` (the one place that knows the mechanism)."""
+    """Whether the add-on's own records say it hid ``obj`` (the one place that knows the mechanism)."""
     if not addon_enabled():
         return False
-    return bool(getattr(obj, "occ_culled", False))
+    return bool(getattr(obj, "occ_culled", False) or getattr(obj, "occ_view_culled", False))
 
 
 def hidden_by_addon(obj):
-    """The add-on hid ``obj`` and it is hidden now (its hide flag is the monitor icon)."""
-    return addon_hidden(obj) and obj.hide_viewport
+    """The add-on hid ``obj`` and it is hidden now: its monitor icon, or the window's 3D
+    view's local-view bit."""
+    import bpy
+    if not addon_hidden(obj):
+        return False
+    if obj.occ_culled and obj.hide_viewport:
+        return True
+    space = window_view()
+    layer = bpy.context.view_layer
+    # recorded, and the view does not draw what the view layer shows: its bit is clear
+    return bool(obj.occ_view_culled) and space is not None and space.local_view is not None \
+        and layer.objects.get(obj.name) is not None and obj.visible_get(view_layer=layer) \
+        and not obj.visible_get(view_layer=layer, viewport=space)
 
 
 def clear_addon_record(obj):
     """Make a copy plain: no record of the add-on's hiding."""
-    if hasattr(obj, "occ_culled"):
-        obj.occ_culled = False
+    for prop in ("occ_culled", "occ_view_culled"):
+        if hasattr(obj, prop):
+            setattr(obj, prop, False)
 
 
 # --------------------------------------------------------------------------- scene
@@ -362,6 +395,7 @@ def build_scene(w):
     place_camera(w, cam)
     if not w.validate:
         scene.occ.source = "CAMERA"
+        scene.occ.hide_in = HIDE_IN["mode"]
     bpy.context.view_layer.update()
     w.model = read_model(w)
     push_undo(w, "build")
@@ -691,6 +725,7 @@ def check_state(w, after_restore=False):
     for c in bpy.data.collections:
         if c.name in model["coll_monitor"] and c.hide_viewport != model["coll_monitor"][c.name]:
             problems.append(f"b: collection '{c.name}' monitor is {c.hide_viewport}")
+    space = window_view()
     for vl in scene.view_layers:
         for path, lc in layer_collections(vl):
             want = model["lc"].get((vl.name, path))
@@ -708,6 +743,14 @@ def check_state(w, after_restore=False):
                                 f"the user's flags say {want} (collections "
                                 f"{[c.name for c in o.users_collection]}; layer collections "
                                 f"{[('/'.join(p), lc.exclude, lc.hide_viewport) for p, lc in layer_collections(vl)]})")
+            if vl == bpy.context.view_layer and space is not None \
+                    and o.visible_get(view_layer=vl, viewport=space) != want:
+                # what the add-on did not hide, the window's 3D view draws as the flags say
+                # (its own local view holds every object: new ones, after undo and reload)
+                problems.append(f"b: '{o.name}' drawn in the window's 3D view: "
+                                f"{o.visible_get(view_layer=vl, viewport=space)}, the user's flags say {want} "
+                                f"(local view {space.local_view is not None}, record {addon_hidden(o)}, "
+                                f"monitor {o.hide_viewport}, layer {vl.name})")
     if addon_enabled():
         ex = scene.occ.exclude_collection
         if (ex.name if ex else None) != model["exclude"] or scene.occ.exclude_children != model["exclude_children"]:
@@ -794,9 +837,13 @@ def link_like(src, obj):
 
 
 def switch_view_layer(target):
-    """The window shows another view layer (the add-on re-evaluates transforms once after a switch)."""
+    """The window shows another view layer (the add-on re-evaluates transforms once after a
+    switch); a window evaluates the layer it shows before drawing it: so does this step."""
     import bpy
     bpy.context.window.view_layer = target
+    bpy.context.view_layer.update()
+    if addon_enabled():                        # the message bus's call, as the window's event loop makes it
+        sys.modules[f"{ADDON_MODULE}.occ_addon.localview"].on_window_change()
 
 
 # Each step applies one user action and returns a short description for the history.
@@ -1316,7 +1363,8 @@ def do_addon_toggle(w):
         bpy.ops.preferences.addon_disable(module=ADDON_MODULE)
         return "add-on disabled"
     bpy.ops.preferences.addon_enable(module=ADDON_MODULE)
-    bpy.context.scene.occ.source = "CAMERA"     # a setting, not a hide: not in the model
+    bpy.context.scene.occ.source = "CAMERA"     # settings, not hides: not in the model
+    bpy.context.scene.occ.hide_in = HIDE_IN["mode"]
     return "add-on enabled"
 
 
@@ -1406,6 +1454,7 @@ def main():
     import bpy
     seeds = list(args.seed or []) + [int(s) for s in (args.seeds or "").split(",") if s]
     seeds = seeds or [1]
+    HIDE_IN["mode"] = args.hide_in
     work = args.work or tempfile.mkdtemp(prefix="occ_workflows_")
     skip = {s for s in args.skip.split(",") if s}
     out = {"seeds": {}, "not_exercised": NOT_EXERCISED, "known_unfixed": KNOWN_UNFIXED}
