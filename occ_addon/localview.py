@@ -66,15 +66,16 @@ def _toggle(win, area) -> None:
     makes before and after every call (two full base updates at scale: the one the
     pass makes after hiding covers them)."""
     with bpy.context.temp_override(window=win, area=area, region=_region(area)):
-        op = bpy.ops.view3d.localview
+        op, kw = bpy.ops.view3d.localview, {"frame_selected": False}
         try:
             from _bpy import ops
-            try:
-                ops.call(op.idname_py(), {"frame_selected": False})            # Blender 4+
-            except TypeError:
-                ops.call(op.idname_py(), None, {"frame_selected": False})      # Blender 3.x
-        except ImportError:                                                    # no private module: the public call
-            op(frame_selected=False)
+        except ImportError:                          # no private module: the public call
+            op(**kw)
+            return
+        if bpy.app.version >= (4, 0, 0):
+            ops.call(op.idname_py(), kw)             # (idname, properties)
+        else:
+            ops.call(op.idname_py(), None, kw)       # (idname, context override, properties)
 
 
 def _layer_uids(layer):
