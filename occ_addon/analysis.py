@@ -81,7 +81,11 @@ def analysis_steps(context, frames: list[int], path: str, rule: str = "seen",
     try:
         for k, f in enumerate(frames):
             scene.frame_set(f)
-            context.view_layer.update()        # this layer's evaluation, written back to the originals
+            # this layer's evaluation, written back to the originals the candidates read in
+            # bulk; with several view layers or scenes every frame re-evaluates every
+            # transform first (another layer's evaluation can leave one behind)
+            SESSION.reread_transforms()
+            context.view_layer.update()
             camera, display = scene_camera(context)
             # nothing is hidden; every frame a new engine's first pass (restart): its answer
             # never depends on the frames before it, so chunks of the range merge exactly

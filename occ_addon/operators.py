@@ -142,6 +142,7 @@ class OCC_OT_cull(Stepped, bpy.types.Operator):
             # showing everything) takes over when the view leaves it
             s = context.scene.occ
             envelope = "rest" if s.source == "VIEWPORT" or s.live else None
+            SESSION.reread_transforms()
             SESSION.cull(context, camera, display, fresh=True, progress=progress, restart=True, envelope=envelope)
             live.track(context)
             overlay.install()

@@ -92,6 +92,13 @@ class Session:
         self.chunks = ChunkCache()
         self.worker.shutdown()
 
+    def reread_transforms(self) -> None:
+        """The next pass re-evaluates every transform before reading them (as after a
+        view-layer switch): a Cull click and an analysis's start, where the file has
+        several view layers or scenes, trust no original ``matrix_world`` another
+        layer's evaluation may have left behind."""
+        self.layer = None
+
     def candidates(self, context, verify: bool = False) -> Candidates:
         """The candidates of a pass; objects the add-on hid and must give back
         (hidden by the user too, not evaluated and able to change, or, with
