@@ -332,15 +332,20 @@ def drawn(view_layer, uids_all: np.ndarray, space=None) -> np.ndarray:
     context = bpy.context
     found = None
     if space == "BASE":                              # no view: the view layer's own visibility
-        if context.view_layer != view_layer:
-            return np.fromiter((o.visible_get(view_layer=view_layer, viewport=None) if context.area is None
-                                else user_shown(o, view_layer, shown_by_collections(view_layer))
+        shown = None
+        if context.view_layer == view_layer:
+            if context.area is None:
+                shown = context.visible_objects
+            else:
+                try:
+                    with context.temp_override(area=None, region=None):
+                        shown = bpy.context.visible_objects
+                except (TypeError, RuntimeError):    # no override without a view: one by one
+                    shown = None
+        if shown is None:                            # one by one: the eye, collections, monitor
+            ids = shown_by_collections(view_layer)
+            return np.fromiter((user_shown(o, view_layer, ids) and not o.hide_viewport
                                 for o in view_layer.objects), dtype=bool, count=len(uids_all))
-        if context.area is None:
-            shown = context.visible_objects
-        else:
-            with context.temp_override(area=None, region=None):
-                shown = bpy.context.visible_objects
         ids = np.fromiter((ident(o) for o in shown), dtype=np.int64, count=len(shown))
         return np.isin(uids_all, ids)
     if space is not None:
