@@ -63,14 +63,17 @@ def _region(area):
 
 def _toggle(win, area) -> None:
     """Blender's local-view toggle in ``area``, without the view-layer updates ``bpy.ops``
-    makes before and after every call (two full base updates at scale: the one the
-    pass makes after hiding covers them)."""
+    makes before and after every call up to Blender 5.1 (two full base updates at scale:
+    the one the pass makes after hiding covers them); 5.2's operators are called as they
+    are (its ``bpy.ops`` has no Python-side call left to go around)."""
     with bpy.context.temp_override(window=win, area=area, region=_region(area)):
         op, kw = bpy.ops.view3d.localview, {"frame_selected": False}
         try:
             from _bpy import ops
-        except ImportError:                          # no private module: the public call
-            op(**kw)
+        except ImportError:
+            ops = None
+        if ops is None or not hasattr(ops, "call") or not hasattr(op, "idname_py"):
+            op(**kw)                                 # Blender 5.2+: operators are C callables
             return
         if bpy.app.version >= (4, 0, 0):
             ops.call(op.idname_py(), kw)             # (idname, properties)
