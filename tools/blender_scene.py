@@ -31,6 +31,17 @@ def build_scene(scene, collection=None, limit=None):
         coll.objects.link(o)
 
 
+def view3d():
+    """``(window, area, region)`` of the first 3D viewport of the open windows."""
+    import bpy
+    for win in bpy.context.window_manager.windows:
+        for area in win.screen.areas:
+            if area.type == "VIEW_3D":
+                region = next(r for r in area.regions if r.type == "WINDOW")
+                return win, area, region
+    raise RuntimeError("no 3D viewport")
+
+
 def drive_in_window(run, results, path, interval):
     """Drive the generator ``run()`` from a timer in a real window (it yields where Blender
     must process events before it goes on); then write ``results`` (with the traceback of

@@ -19,7 +19,7 @@ import mathutils
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from blender_scene import build_scene, drive_in_window  # noqa: E402
+from blender_scene import build_scene, drive_in_window, view3d  # noqa: E402
 
 ARGS = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
 OUT = os.path.abspath(ARGS[0] if ARGS else "gui_out")
@@ -28,15 +28,6 @@ ADDON = "occlusion_culled_viewport"
 REDRAWS = 10
 TAB_FROM_TOP = 125          # pixels from the sidebar's top to the third tab ("Occlusion") in Blender 3.4
 results = {}
-
-
-def view3d():
-    for win in bpy.context.window_manager.windows:
-        for area in win.screen.areas:
-            if area.type == "VIEW_3D":
-                region = next(r for r in area.regions if r.type == "WINDOW")
-                return win, area, region
-    raise RuntimeError("no 3D viewport")
 
 
 def redraw_ms(win, area, region):

@@ -9,19 +9,14 @@ them) or where that Blender's Python cannot load this venv's moderngl wheel.
 
 import json
 import os
-import shutil
 
 import pytest
 
-from tests.gui.window import ROOT, blender_env, run_in_window
+from tests.gui.window import GUI_MARKS, ROOT, blender_env, run_in_window
 
 BENCH = os.path.join(ROOT, "tools", "gui_benchmark.py")
 
-pytestmark = [
-    pytest.mark.gui,
-    pytest.mark.skipif(shutil.which("blender") is None or shutil.which("xvfb-run") is None,
-                       reason="needs a windowed Blender and Xvfb (apt-get install blender xvfb xauth)"),
-]
+pytestmark = GUI_MARKS
 
 
 @pytest.fixture(scope="module")

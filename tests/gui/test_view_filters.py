@@ -11,19 +11,14 @@ Python cannot load this venv's moderngl wheel.
 
 import json
 import os
-import shutil
 
 import pytest
 
-from tests.gui.window import blender_env, run_in_window
+from tests.gui.window import GUI_MARKS, blender_env, run_in_window
 
 DRIVER = os.path.join(os.path.dirname(os.path.abspath(__file__)), "view_filters.py")
 
-pytestmark = [
-    pytest.mark.gui,
-    pytest.mark.skipif(shutil.which("blender") is None or shutil.which("xvfb-run") is None,
-                       reason="needs a windowed Blender and Xvfb (apt-get install blender xvfb xauth)"),
-]
+pytestmark = GUI_MARKS
 
 
 @pytest.fixture(scope="module")

@@ -31,21 +31,12 @@ import mathutils
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "tools"))
-from blender_scene import drive_in_window  # noqa: E402
+from blender_scene import drive_in_window, view3d  # noqa: E402
 
 ARGS = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
 OUT = os.path.abspath(ARGS[0] if ARGS else "view_filters_out")
 ADDON = "occlusion_culled_viewport"
 results = {}
-
-
-def view3d():
-    for win in bpy.context.window_manager.windows:
-        for area in win.screen.areas:
-            if area.type == "VIEW_3D":
-                region = next(r for r in area.regions if r.type == "WINDOW")
-                return win, area, region
-    raise RuntimeError("no 3D viewport")
 
 
 def look_at(eye, target, up=(0.0, 0.0, 1.0)):

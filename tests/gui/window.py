@@ -5,6 +5,7 @@ this venv's compiled wheels."""
 
 import importlib.util
 import os
+import shutil
 import subprocess
 import sys
 
@@ -12,6 +13,13 @@ import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 ADDON = "occlusion_culled_viewport"
+
+# Every GUI test module's marks: skipped without a windowed Blender and Xvfb.
+GUI_MARKS = [
+    pytest.mark.gui,
+    pytest.mark.skipif(shutil.which("blender") is None or shutil.which("xvfb-run") is None,
+                       reason="needs a windowed Blender and Xvfb (apt-get install blender xvfb xauth)"),
+]
 
 
 def blender_env(work):
