@@ -20,7 +20,7 @@ import numpy as np
 
 from ..core import Visibility, repeatable
 from ..core import analysis as report
-from . import policy
+from . import keyed_camera, policy
 from .cameras import scene_camera
 from .session import SESSION
 from .shading import rule as rule_of
@@ -65,6 +65,39 @@ def source(context, rule: str, step: int) -> dict:
                                file=bpy.path.basename(bpy.data.filepath))
 
 
+# the camera from its keys where a frame change moves nothing else (see .keyed_camera);
+# False: every frame evaluated in full (tests compare the two)
+KEYED = True
+
+
+def evaluate(context, frame: int) -> list:
+    """Evaluate ``frame`` in full (``scene.frame_set``) for the context's view layer, and
+    return what that frame change evaluated (:func:`.keyed_camera.evaluate_frame`)."""
+    moving = keyed_camera.evaluate_frame(context.scene, frame)
+    # this layer's evaluation, written back to the originals the candidates read in
+    # bulk; with several view layers or scenes every frame re-evaluates every
+    # transform first (another layer's evaluation can leave one behind)
+    SESSION.reread_transforms()
+    context.view_layer.update()
+    return moving
+
+
+def keyed_frames(context, frames: list[int], moving: list, lights_count: bool):
+    """The scene camera from its keys over ``frames`` (:class:`.keyed_camera.KeyedCamera`),
+    or None: every frame is evaluated in full.  ``moving``: what the first frame's change
+    evaluated (the scene is at ``frames[0]``).  The keys must give Blender's own camera at
+    the range's first and last frames, and nothing else may move at either; the scene is
+    left evaluated at one of them (with the keys, every frame's scene)."""
+    scene = context.scene
+    keys = keyed_camera.probe(scene, moving, lights_count)
+    if keys is None or len(frames) == 1:
+        return keys
+    if keyed_camera.probe(scene, evaluate(context, frames[-1]), lights_count) is None:
+        evaluate(context, frames[0])          # back where the range starts, frame by frame
+        return None
+    return keys
+
+
 def analysis_steps(context, frames: list[int], path: str, rule: str = "seen",
                    step: int = 1) -> Generator[object, None, Analysis]:
     """Analyze in steps (a generator, see :func:`.worker.drive`): one a frame, and a
@@ -76,37 +109,47 @@ def analysis_steps(context, frames: list[int], path: str, rule: str = "seen",
     previous = scene.frame_current
     out = Analysis(frames, path, [], {}, time.perf_counter(), rule, source(context, rule, step))
     seen = out.seen
-    held = held_names = instances = None
+    held = held_names = instances = extra = keys = None
     every = max(1, len(frames) // 10)         # background mode: about ten progress lines
     try:
         for k, f in enumerate(frames):
-            scene.frame_set(f)
-            # this layer's evaluation, written back to the originals the candidates read in
-            # bulk; with several view layers or scenes every frame re-evaluates every
-            # transform first (another layer's evaluation can leave one behind)
-            SESSION.reread_transforms()
-            context.view_layer.update()
-            camera, display = scene_camera(context)
+            if keys is None:
+                moving = evaluate(context, f)
+                if k == 0:
+                    if KEYED and bpy.app.background:   # in a window the user may edit between frames
+                        keys = keyed_frames(context, frames, moving, rule == "render")
+                    # how the camera was found is part of the answer: chunks found otherwise
+                    # (their cameras may differ in the last bit) are not merged
+                    out.source["settings"]["camera"] = "keys" if keys is not None else "frames"
+            # the camera from its keys where only the camera moves (every frame of the range:
+            # a chunk's answers are the whole run's), else the frame Blender just evaluated
+            camera, display = scene_camera(context, matrix=None if keys is None else keys.matrix_world(f))
             # nothing is hidden; every frame a new engine's first pass (restart): its answer
             # never depends on the frames before it, so chunks of the range merge exactly
             view_rule = rule_of(context, "CAMERA") if rule == "render" else None
             # a fresh pass each frame, by a strategy whose answer does not depend on timing:
-            # the same file and settings give the same report, and chunks merge exactly
+            # the same file and settings give the same report, and chunks merge exactly;
+            # with the keys in background mode nothing in the scene changes between frames
+            # (no frame change, no user): the candidates read once stand
+            still = keys is not None and k > 0
             result, objects = yield from SESSION.compute_steps(context, camera, display, restart=True,
                                                                lights=view_rule.lights if view_rule else None,
-                                                               strategy=repeatable(scene.occ.strategy))
+                                                               strategy=repeatable(scene.occ.strategy),
+                                                               reuse=still)
             if SESSION.held is not held:        # the engine's objects changed: their names, once
                 held = SESSION.held
                 held_names = [o.name for o in objects]
                 instances = policy.instancers(objects)
                 for n in held_names:
                     seen.setdefault(n, 0)
+            if not still or extra is None:      # what Blender draws beside the engine's objects
+                extra = policy.bystanders(context.view_layer, held.uids)
             vis = result.state == Visibility.VISIBLE          # one array compare, no per-object enum
             if view_rule is not None:          # shadow casters are the engine's (given the lights)
                 vis |= policy.drawn_beyond_depth(view_rule, result.state, scene.occ.cull_raytraced)
             policy.widen_instances(objects, instances, vis)
             shown = [held_names[i] for i in np.flatnonzero(vis)]
-            others = [o.name for o in policy.seen_beside(context.view_layer, objects, held.uids, instances, vis)]
+            others = [o.name for o in extra + policy.members_seen(objects, instances, vis)]
             names = list(dict.fromkeys(shown + others))
             out.per_frame.append({"frame": f, "visible": names})
             for n in others:

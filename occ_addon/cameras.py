@@ -89,11 +89,12 @@ def viewport_camera(context) -> tuple[Camera, tuple[int, int]]:
     return region_camera(rv3d), (region.width, region.height)
 
 
-def camera_view(cam) -> np.ndarray:
+def camera_view(cam, matrix: np.ndarray | None = None) -> np.ndarray:
     """``(4, 4)`` view matrix of a camera object as Blender renders it: from the rotation
-    and position of its world matrix, its scale ignored (a mirroring scale keeps its
-    sign: Blender renders a mirrored camera mirrored)."""
-    m = np.array(cam.matrix_world, dtype=np.float64)
+    and position of its world matrix (``matrix``: that matrix at another frame, see
+    :mod:`.keyed_camera`), its scale ignored (a mirroring scale keeps its sign: Blender
+    renders a mirrored camera mirrored)."""
+    m = np.array(cam.matrix_world if matrix is None else matrix, dtype=np.float64)
     axes = m[:3, :3]
     length = np.linalg.norm(axes, axis=0)
     if not np.all(np.isfinite(m)) or np.any(length < 1e-12 * max(1.0, float(np.abs(m[:3, 3]).max()))):
@@ -107,10 +108,11 @@ def camera_view(cam) -> np.ndarray:
     return np.linalg.inv(world)
 
 
-def scene_camera(context, scene=None) -> tuple[Camera, tuple[int, int]]:
+def scene_camera(context, scene=None, matrix: np.ndarray | None = None) -> tuple[Camera, tuple[int, int]]:
     """Camera and render size of the scene camera, as Blender renders it (scale
     ignored; lens, shift, sensor fit, clipping and orthographic from
-    ``calc_matrix_camera``).  Panoramic cameras are refused."""
+    ``calc_matrix_camera``).  Panoramic cameras are refused.  ``matrix``: the camera's
+    world matrix at another frame than the one evaluated (:mod:`.keyed_camera`)."""
     scene = scene or context.scene
     cam = scene.camera
     if cam is None:
@@ -126,7 +128,7 @@ def scene_camera(context, scene=None) -> tuple[Camera, tuple[int, int]]:
     depsgraph = context.evaluated_depsgraph_get()
     proj = np.array(cam.calc_matrix_camera(depsgraph, x=max(w, 1), y=max(h, 1),
                                            scale_x=r.pixel_aspect_x, scale_y=r.pixel_aspect_y))
-    view = camera_view(cam)
+    view = camera_view(cam, matrix)
     if np.linalg.det(view[:3, :3]) < 0:
         # A mirrored camera sees what the camera mirrored back (its x axis turned
         # and its x shift negated) sees, in a mirrored image: the same objects,

@@ -16,7 +16,7 @@ Never hidden, whatever the engine answers:
 - what the view shows beyond depth (:func:`drawn_beyond_depth`, :mod:`.shading`).
 
 Analyze counts the same instances as seen wherever they are drawn, and the members
-of every visible instance as seen (:func:`seen_beside`).
+of every visible instance as seen (:func:`members_seen`).
 """
 
 import numpy as np
@@ -97,10 +97,9 @@ def widen_instances(objects: list, instances: list[int], vis: np.ndarray) -> Non
         vis[i] = wide[c.name_full]
 
 
-def seen_beside(view_layer, objects: list, uids: np.ndarray, instances: list[int], vis: np.ndarray) -> list:
-    """Objects seen beside the engine's visible ones: those Blender draws that the
-    engine does not hold (never culled, so visible), and the members of every
-    visible collection instance (an object is seen where an instance draws it)."""
-    extra = bystanders(view_layer, uids)
-    members = [m for i in instances if vis[i] for m in objects[i].instance_collection.all_objects]
-    return extra + members
+def members_seen(objects: list, instances: list[int], vis: np.ndarray) -> list:
+    """Objects seen beside the engine's visible ones through instances: the members of
+    every visible collection instance (an object is seen where an instance draws it).
+    The others seen beside them are those Blender draws that the engine does not hold
+    (:func:`.extract.bystanders`: never culled, so visible)."""
+    return [m for i in instances if vis[i] for m in objects[i].instance_collection.all_objects]

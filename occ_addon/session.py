@@ -70,6 +70,7 @@ class Session:
         self.layer = None          # (scene, view layer) of the last pass
         self.busy = None           # the label of a modal operator's work in steps (live passes wait)
         self.shown: Shown | None = None  # the view and motion the hidden set holds for
+        self.read: Candidates | None = None   # the last pass's candidates (see engine_steps' reuse)
 
     def reset(self) -> None:
         """Forget everything (a file was loaded, an undo or redo, or the add-on goes away):
@@ -80,6 +81,7 @@ class Session:
         self.bad_geometry = []
         self.last = None
         self.shown = None
+        self.read = None
         self.version += 1
 
     def release(self) -> None:
@@ -124,15 +126,18 @@ class Session:
         return cand
 
     def engine_steps(self, context, resolution: Size, strategy: str, verify: bool = False,
-                     display: Size | None = None) -> Generator[object, None, tuple[Culler, list]]:
+                     display: Size | None = None, reuse: bool = False) -> Generator[object, None, tuple[Culler, list]]:
         """The engine for the current candidates, ``(culler, objects)``: rebuilt when
         objects or geometry changed, otherwise only the moved objects' matrices are
         sent.  A generator (see :func:`.worker.drive`): it yields progress while it
         reads geometry and the build's :class:`.worker.Job` while the engine thread
         builds.  Stopped early (Esc), the session keeps no half
         state: the engine is dropped (closed on its thread once built) and the next
-        pass builds again; nothing in the scene was touched."""
-        cand = self.candidates(context, verify)
+        pass builds again; nothing in the scene was touched.  ``reuse``: the last pass's
+        candidates stand (nothing in the scene can have changed since: an analysis whose
+        frames move the camera alone, in background mode, see :mod:`.keyed_camera`)."""
+        cand = self.read if reuse and self.read is not None else self.candidates(context, verify)
+        self.read = cand
         self.warnings = list(cand.bad)
         if not len(cand):
             raise OccError("nothing to cull: the view layer has no visible mesh objects")
@@ -141,7 +146,7 @@ class Session:
         size = (resolution, display)
         held = self.held
         rebuild = (self.culler is None or held is None or uids != held.candidates or size != held.size
-                   or self.extractor.needs_geometry(cand))
+                   or (not reuse and self.extractor.needs_geometry(cand)))
         if rebuild:
             scene, kept, bad = yield from self.extractor.scene_steps(context, cand)
             self.warnings += bad
@@ -209,14 +214,14 @@ class Session:
 
     def compute_steps(self, context, camera: Camera, display: Size, fresh: bool = True, restart: bool = False,
                       envelope: Envelope | str | None = None, lights: list | None = None,
-                      strategy: str | None = None) -> Generator:
-        """:meth:`compute` in steps (see :meth:`engine_steps`); ``strategy``: this pass's,
-        instead of the scene's setting."""
+                      strategy: str | None = None, reuse: bool = False) -> Generator:
+        """:meth:`compute` in steps (see :meth:`engine_steps`, also for ``reuse``);
+        ``strategy``: this pass's, instead of the scene's setting."""
         options, res, shown = self._sizes(context, display)
         # a fresh pass (a click, analyze, a scene change) also checks what the add-on
         # hides against its data: edits to hidden objects are never reported
         culler, objects = yield from self.engine_steps(context, res, strategy or context.scene.occ.strategy,
-                                                       verify=fresh or restart, display=shown)
+                                                       verify=fresh or restart, display=shown, reuse=reuse)
         culler.set_options(options)
         if envelope == "rest":
             envelope = POLICY.rest(culler.scene_size)

@@ -63,6 +63,9 @@ CHECKS = {
         "analyze_counts_hidden", "never_visible_exact", "analyze_unsaved_path_in_cwd",
         "analyze_background_progress", "never_visible_no_path", "never_visible_excluded_everywhere",
         "analyze_chunks_merge_to_whole",
+        *[f"keyed_camera_composes_{m}" for m in ("xyz", "zxy", "quaternion", "axis_angle")],
+        "keyed_camera_taken", "keyed_camera_refused", "keyed_camera_report_is_frames_report",
+        "keyed_camera_moving_scene_frames",
     ],
 }
 

@@ -9,8 +9,10 @@ import sys
 from contextlib import redirect_stdout
 
 import bpy
+import numpy as np
+from mathutils import Euler
 
-from .common import ROOT, WORK, box, check, drawn, keyframes, new_scene, update
+from .common import ROOT, WORK, addon, box, check, cube_mesh, drawn, keyframes, new_scene, update
 
 
 def report_path_and_progress():
@@ -140,3 +142,184 @@ def undo_after_collect():
           and sorted(o.name for o in never.objects) == ["target"]
           and all("Never Visible" in vl.layer_collection.children for vl in bpy.context.scene.view_layers),
           (dangling_collections(), never and sorted(o.name for o in never.objects)))
+
+
+# --- the camera from its keys (occ_addon/keyed_camera.py) -------------------------------------
+
+def _keyed_cam(scene, mode="XYZ"):
+    """The scene camera keyed on frames 1, 12 and 30 (location and its rotation mode's
+    channels, Bezier), with a static scale and delta transforms."""
+    cam = scene.camera
+    cam.rotation_mode = mode
+    cam.scale = (1.5, 0.8, 1.2)
+    cam.delta_location = (0.2, -0.1, 0.3)
+    cam.delta_scale = (1.0, 1.1, 0.9)
+    if mode == "QUATERNION":
+        cam.delta_rotation_quaternion = (0.98, 0.1, 0.0, 0.17)
+    elif mode != "AXIS_ANGLE":
+        cam.delta_rotation_euler = (0.05, -0.1, 0.2)
+    poses = [(1, (-10.0, -3.0, 1.0), (1.5, 0.1, -1.4)), (12, (-9.0, 2.0, 2.0), (1.2, -0.3, -1.9)),
+             (30, (-11.0, 4.0, 0.5), (1.7, 0.4, -1.2))]
+    for frame, loc, rot in poses:
+        cam.location = loc
+        if mode == "QUATERNION":
+            cam.rotation_quaternion = tuple(2.0 * v for v in Euler(rot).to_quaternion())   # not unit
+            cam.keyframe_insert("rotation_quaternion", frame=frame)
+        elif mode == "AXIS_ANGLE":
+            q = Euler(rot).to_quaternion()
+            cam.rotation_axis_angle = (q.angle, *(3.0 * v for v in q.axis))   # not unit
+            cam.keyframe_insert("rotation_axis_angle", frame=frame)
+        else:
+            cam.rotation_euler = rot
+            cam.keyframe_insert("rotation_euler", frame=frame)
+        cam.keyframe_insert("location", frame=frame)
+    return cam
+
+
+def keyed_camera_composes():
+    """The keys give Blender's own camera matrix at every frame (frames 1..34: keys,
+    interpolation and extrapolation), in every rotation mode, with delta transforms, a
+    rotated and scaled static parent, an F-curve modifier and time remapping."""
+    kc = addon("keyed_camera")
+    for mode in ("XYZ", "ZXY", "QUATERNION", "AXIS_ANGLE"):
+        scene = new_scene()
+        cam = _keyed_cam(scene, mode)
+        if mode == "ZXY":
+            rig = bpy.data.objects.new("rig", None)
+            scene.collection.objects.link(rig)
+            rig.location, rig.rotation_euler, rig.scale = (1.0, 2.0, -0.5), (0.1, 0.2, 0.7), (1.3, 1.3, 1.3)
+            update()
+            cam.parent = rig
+            cam.matrix_parent_inverse = rig.matrix_world.inverted()
+            fc = next(f for f in addon("keyed_camera")._fcurves(cam) if f.data_path == "location")
+            fc.modifiers.new("NOISE").strength = 0.5
+            scene.render.frame_map_old, scene.render.frame_map_new = 100, 70
+        update()
+        keys = kc.probe(scene, kc.evaluate_frame(scene, 1), False)
+        worst = 0.0
+        for f in range(1, 35):
+            scene.frame_set(f)
+            blender = np.array(cam.matrix_world)
+            worst = max(worst, float(np.abs(keys.matrix_world(f) - blender).max()) if keys else np.inf)
+        check(f"keyed_camera_composes_{mode.lower()}", worst <= 1e-5 * 20, (mode, worst))
+
+
+def _probe_after(change, lights_count=False):
+    """probe() on the keyed camera's scene after ``change(scene, cam)``: None or the keys."""
+    kc = addon("keyed_camera")
+    scene = new_scene()
+    cam = _keyed_cam(scene)
+    target = box("target", (3, -1, 0), (4, 1, 1))
+    change(scene, cam, target)
+    update()
+    return kc.probe(scene, kc.evaluate_frame(scene, 1), lights_count)
+
+
+def _driver(scene, cam, target):
+    cam.driver_add("location", 2).driver.expression = "frame / 10"
+
+
+def _parent_keyed(scene, cam, target):
+    rig = bpy.data.objects.new("rig", None)
+    scene.collection.objects.link(rig)
+    cam.parent = rig
+    keyframes(rig, [(1, (0.0, 0.0, 0.0)), (30, (0.0, 0.0, 3.0))])
+
+
+def _light(scene, cam, target):
+    lamp = bpy.data.objects.new("lamp", bpy.data.lights.new("lamp", "POINT"))
+    scene.collection.objects.link(lamp)
+    keyframes(lamp, [(1, (0.0, 0.0, 5.0)), (30, (2.0, 0.0, 5.0))])
+
+
+def _empty(scene, cam, target):
+    e = bpy.data.objects.new("marker_empty", None)
+    scene.collection.objects.link(e)
+    keyframes(e, [(1, (0.0, 0.0, 5.0)), (30, (2.0, 0.0, 5.0))])
+
+
+def _instancer(scene, cam, target):
+    coll = bpy.data.collections.new("kit")
+    coll.objects.link(cube_mesh_object("kit_box"))
+    e = bpy.data.objects.new("kit_instance", None)
+    e.instance_type, e.instance_collection = "COLLECTION", coll
+    scene.collection.objects.link(e)
+    keyframes(e, [(1, (5.0, 0.0, 0.0)), (30, (5.0, 3.0, 0.0))])
+
+
+def cube_mesh_object(name):
+    return bpy.data.objects.new(name, cube_mesh(name))
+
+
+def _frame_handler(scene, cam, target):
+    bpy.app.handlers.frame_change_pre.append(_user_handler)
+
+
+def _user_handler(scene, depsgraph=None):
+    pass
+
+
+REFUSED = {
+    "mesh_keyed": lambda s, c, t: keyframes(t, [(1, (3.5, 0.0, 0.5)), (30, (3.5, 9.0, 0.5))]),
+    "wave_modifier": lambda s, c, t: t.modifiers.new("wave", "WAVE"),
+    "constraint": lambda s, c, t: setattr(c.constraints.new("TRACK_TO"), "target", t),
+    "driver": _driver,
+    "lens_keyed": lambda s, c, t: (setattr(c.data, "lens", 35.0), c.data.keyframe_insert("lens", frame=1),
+                                   setattr(c.data, "lens", 80.0), c.data.keyframe_insert("lens", frame=30)),
+    "parent_keyed": _parent_keyed,
+    "marker_camera": lambda s, c, t: setattr(s.timeline_markers.new("cut", frame=10), "camera", c),
+    "frame_handler": _frame_handler,
+    "instancer_keyed": _instancer,
+}
+
+
+def keyed_camera_refused():
+    """Anything else that moves with time, or camera animation beyond transform keys,
+    and every frame is evaluated in full; what cannot change an answer may move."""
+    taken = {"plain": _probe_after(lambda s, c, t: None) is not None,
+             "light_seen": _probe_after(_light) is not None,
+             "empty_keyed": _probe_after(_empty) is not None}
+    check("keyed_camera_taken", all(taken.values()), taken)
+    refused = {}
+    for name, change in REFUSED.items():
+        try:
+            refused[name] = _probe_after(change) is None
+        finally:
+            if _user_handler in bpy.app.handlers.frame_change_pre:
+                bpy.app.handlers.frame_change_pre.remove(_user_handler)
+    refused["light_render"] = _probe_after(_light, lights_count=True) is None
+    check("keyed_camera_refused", all(refused.values()), refused)
+
+
+def _analyze_frames(name, a, b):
+    report = os.path.join(WORK, "keyed", f"{name}.json")
+    bpy.ops.occ.analyze(filepath=report, frame_start=a, frame_end=b)
+    with open(report) as f:
+        data = json.load(f)
+    return [tuple(fr["visible"]) for fr in data["frames"]], data["source"]["settings"].get("camera")
+
+
+def keyed_camera_analysis():
+    """The report from the keys is the report frame by frame (KEYED off), frame for
+    frame, and says how its camera was found; a scene where a box moves too is analyzed
+    frame by frame, and the box is seen once it comes out from behind the wall."""
+    an = addon("analysis")
+    scene = new_scene()
+    for i, y in enumerate((-8, -4, 4, 8)):
+        box(f"behind_{i}", (3, y - 0.5, 0), (4, y + 0.5, 1))
+    keyframes(scene.camera, [(1, (-10.0, -9.0, 1.0)), (12, (-10.0, 9.0, 1.0))])
+    update()
+    keyed, how = _analyze_frames("keys", 1, 12)
+    an.KEYED = False
+    try:
+        framed, how_off = _analyze_frames("frames", 1, 12)
+    finally:
+        an.KEYED = True
+    check("keyed_camera_report_is_frames_report", keyed == framed and len(set(keyed)) > 1
+          and (how, how_off) == ("keys", "frames"), (how, how_off, keyed, framed))
+    runner = box("runner", (3, -0.5, 0), (4, 0.5, 1))
+    keyframes(runner, [(1, (3.5, 0.0, 0.5)), (12, (3.5, 12.0, 0.5))])
+    update()
+    frames, how = _analyze_frames("moving", 1, 12)
+    check("keyed_camera_moving_scene_frames", how == "frames" and "runner" not in frames[0]
+          and any("runner" in v for v in frames), (how, frames))
