@@ -40,8 +40,9 @@ file load (:meth:`Session.reset`), where Blender may give an unchanged id back
 with other contents.
 
 Each pass asks two questions of different cost: which objects take part and
-where they are (:meth:`Extractor.candidates`: one ``visible_get`` per object,
-one ``foreach_get`` of every world matrix), and what they look like
+where they are (:meth:`Extractor.candidates`: what is drawn in one list, flags and
+world matrices in one ``foreach_get`` each, kinds looked up in bulk and classified
+one by one only where unknown), and what they look like
 (:meth:`Extractor.scene_steps`, ``to_mesh`` per changed object, only when the set of
 objects or some geometry changed; the depsgraph and frame-change handlers mark
 what changed).
@@ -83,6 +84,64 @@ class ObjectInfo:
 
     kind: Kind | None
     parented: bool
+
+
+# Kind as a small integer, for lookups in bulk (InfoTable.codes): -1 unknown, 0 none
+KINDS = (None, Kind.MESH, Kind.INSTANCER, Kind.COLLECTION)
+CODES = {k: i for i, k in enumerate(KINDS)}
+UNKNOWN = -1
+
+
+class InfoTable:
+    """``uid -> ObjectInfo`` (a dict's ``get``, ``[]``, ``pop``) with the kinds mirrored
+    in sorted arrays, so that a pass looks up every candidate's kind in one
+    ``searchsorted`` and classifies one by one only what it has not seen (or what an
+    edit made it forget)."""
+
+    def __init__(self):
+        self.entries: dict[int, ObjectInfo] = {}
+        self.uids = np.zeros(0, dtype=np.int64)        # sorted
+        self.codes = np.zeros(0, dtype=np.int8)        # KINDS index, UNKNOWN where forgotten
+        self.pending: dict[int, int] = {}              # set since the arrays were merged
+
+    def get(self, uid: int) -> "ObjectInfo | None":
+        return self.entries.get(uid)
+
+    def __getitem__(self, uid: int) -> "ObjectInfo":
+        return self.entries[uid]
+
+    def __setitem__(self, uid: int, entry: "ObjectInfo") -> None:
+        self.entries[uid] = entry
+        self.pending[uid] = CODES[entry.kind]
+
+    def pop(self, uid: int, default=None):
+        entry = self.entries.pop(uid, default)
+        self.pending.pop(uid, None)
+        k = int(np.searchsorted(self.uids, uid))
+        if k < len(self.uids) and self.uids[k] == uid:
+            self.codes[k] = UNKNOWN
+        return entry
+
+    def codes_of(self, uids: np.ndarray) -> np.ndarray:
+        """``(n,) int8`` the kind codes of ``uids`` (UNKNOWN: not classified)."""
+        if self.pending:
+            pu = np.fromiter(self.pending.keys(), dtype=np.int64, count=len(self.pending))
+            pc = np.fromiter(self.pending.values(), dtype=np.int8, count=len(self.pending))
+            self.pending = {}
+            at = np.searchsorted(self.uids, pu)
+            hit = at < len(self.uids)
+            hit[hit] = self.uids[at[hit]] == pu[hit]
+            self.codes[at[hit]] = pc[hit]
+            if not hit.all():
+                u, c = np.concatenate([self.uids, pu[~hit]]), np.concatenate([self.codes, pc[~hit]])
+                order = np.argsort(u, kind="stable")
+                self.uids, self.codes = u[order], c[order]
+        out = np.full(len(uids), UNKNOWN, dtype=np.int8)
+        if len(self.uids):
+            at = np.minimum(np.searchsorted(self.uids, uids), len(self.uids) - 1)
+            found = self.uids[at] == uids
+            out[found] = self.codes[at[found]]
+        return out
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -396,8 +455,16 @@ class Candidates:
         # hidden in one view only, what the user shows is what the view layer shows
         base = drawn(view_layer, uids_all, "BASE") if (culled_all & ~stale_all).any() else None
         items = layer.values()                        # one list; indexing the collection is O(i)
-        objects, index, kinds, give_back, memo = [], [], [], [], {}
-        for i in np.flatnonzero(shown | culled_all).tolist():
+        sel = np.flatnonzero(shown | culled_all)
+        codes = info.codes_of(uids_all[sel])
+        # known and not hidden by the add-on (nearly every object, pass after pass): in bulk
+        bulk = (codes >= 0) & ~culled_all[sel]
+        keep = bulk & (codes != CODES[None])
+        if no_instances:
+            keep &= codes != CODES[Kind.COLLECTION]
+        index, kinds = sel[keep].tolist(), [KINDS[c] for c in codes[keep].tolist()]
+        give_back, memo, more = [], {}, []
+        for i in sel[~bulk].tolist():                 # the rest one by one: new, forgotten, hidden
             o, uid, culled, stale = items[i], int(uids_all[i]), bool(culled_all[i]), bool(stale_all[i])
             if stale and verify:                      # edits to hidden objects are not reported
                 extractor.forget(uid)
@@ -419,9 +486,13 @@ class Candidates:
                         or (space is not None and not view_shows(o, space, stale)):
                     give_back.append(uid)
                     continue
-            objects.append(o)
-            index.append(i)
-            kinds.append(k)
+            more.append((i, k))
+        if more:                                      # in view-layer order
+            together = np.array(index + [i for i, _ in more], dtype=np.int64)
+            every = kinds + [k for _, k in more]
+            order = np.argsort(together, kind="stable").tolist()
+            index, kinds = together[order].tolist(), [every[j] for j in order]
+        objects = [items[i] for i in index]
         index = np.array(index, dtype=np.int64)
         self.culled = culled_all[index]
         self.stale = stale_all[index]
@@ -456,7 +527,7 @@ class Extractor:
         self.touched = {}        # object uids whose geometry or transform changed (instanced collections)
         self.marks = 0
         # What an object is, from its settings (edits report it: :meth:`saw` forgets it):
-        self.info: dict[int, ObjectInfo] = {}
+        self.info = InfoTable()
         self.dynamic = {}        # uid -> is_dynamic
         self.shown = {}          # uid -> user_shown (hidden by the add-on); any visibility change clears it
         self.shown_ids = None    # sorted uids of the objects in shown collections (see shown_by_collections)

@@ -202,6 +202,8 @@ def bpy_rows(work, camera, n, n2):
     print_row(rows[-1])
     for k, v in res.get("breakdown_ms", {}).items():
         print(f"    per frame, median: {k}: {v:.0f} ms", flush=True)
+    for k, v in res.get("calls", {}).items():
+        print(f"    calls over {n} frames: {k}: {v}", flush=True)
 
     half = n2 // 2
     chunks = [(1, half), (half + 1, n2)]
@@ -307,11 +309,12 @@ def child_build(args):
 
 def watch_addon():
     """Time, call by call, what ``occ.analyze`` does per frame besides ``frame_set``: the
-    candidates (every object of the view layer read again: a fresh pass verifies), the
-    engine's pass (on the add-on's engine thread) and the objects drawn beside the engine's.
-    -> {step: [seconds per call]}, filled as the analysis runs."""
+    candidates (every object of the view layer read again, where the frames are evaluated
+    one by one; read once where the camera comes from its keys), the engine's pass (on the
+    add-on's engine thread) and the objects drawn beside the engine's (read once with the
+    keys).  -> {step: [seconds per call]}, filled as the analysis runs."""
     calls = {"add-on candidates (Session.candidates)": [], "engine pass (Culler.cull)": [],
-             "objects beside the engine's (policy.seen_beside)": []}
+             "objects beside the engine's (extract.bystanders)": []}
 
     def timed(fn, key):
         def call(*a, **k):
@@ -328,7 +331,7 @@ def watch_addon():
         keys = list(calls)
         session.candidates = timed(session.candidates, keys[0])
         engine.Culler.cull = timed(engine.Culler.cull, keys[1])
-        policy.seen_beside = timed(policy.seen_beside, keys[2])
+        policy.bystanders = timed(policy.bystanders, keys[2])
     except (KeyError, AttributeError) as e:   # the add-on's internals changed: time without
         print(f"breakdown unavailable: {type(e).__name__}: {e}", flush=True)
         return {}
@@ -357,6 +360,7 @@ def child_analyze(args):
     if calls:
         # steady state: every call after the first frame's (which reads geometry and builds)
         out["breakdown_ms"] = {k: 1e3 * float(np.median(v[1:])) for k, v in calls.items() if len(v) > 1}
+        out["calls"] = {k: len(v) for k, v in calls.items()}
         scene, times = bpy.context.scene, []
         for f in range(args.start, min(args.end, args.start + 10) + 1):
             t = time.perf_counter()
