@@ -457,15 +457,27 @@ class Candidates:
         items = layer.values()                        # one list; indexing the collection is O(i)
         sel = np.flatnonzero(shown | culled_all)
         codes = info.codes_of(uids_all[sel])
-        # known and not hidden by the add-on (nearly every object, pass after pass): in bulk
-        bulk = (codes >= 0) & ~culled_all[sel]
-        keep = bulk & (codes != CODES[None])
+        culled_sel, stale_sel = culled_all[sel], stale_all[sel]
+        keep = codes > CODES[None]
         if no_instances:
             keep &= codes != CODES[Kind.COLLECTION]
-        index, kinds = sel[keep].tolist(), [KINDS[c] for c in codes[keep].tolist()]
-        give_back, memo, more = [], {}, []
-        for i in sel[~bulk].tolist():                 # the rest one by one: new, forgotten, hidden
+        # in bulk, pass after pass: what is known and shown, and what the add-on hides in one
+        # view only (evaluated: its edits are reported) where the view draws every geometry
+        # type, the view layer shows it and its geometry is cached and unchanged
+        bulk = (codes != UNKNOWN) & ~culled_sel
+        give_back, memo = [], {}
+        if base is not None and (space is None or not (space.use_local_collections or no_instances)):
+            viewed = culled_sel & ~stale_sel & ((codes == CODES[Kind.MESH]) | (codes == CODES[Kind.INSTANCER]))
+            if viewed.any():
+                at = np.flatnonzero(viewed)
+                fine = base[sel[at]] & extractor.geometry_known(uids_all[sel[at]])
+                bulk[at] = True
+                keep[at] = fine
+                give_back = uids_all[sel[at[~fine]]].tolist()
+        for j in np.flatnonzero(~bulk).tolist():      # the rest one by one: new, forgotten, stale
+            i = int(sel[j])
             o, uid, culled, stale = items[i], int(uids_all[i]), bool(culled_all[i]), bool(stale_all[i])
+            keep[j] = False
             if stale and verify:                      # edits to hidden objects are not reported
                 extractor.forget(uid)
             entry = info.get(uid)
@@ -486,12 +498,9 @@ class Candidates:
                         or (space is not None and not view_shows(o, space, stale)):
                     give_back.append(uid)
                     continue
-            more.append((i, k))
-        if more:                                      # in view-layer order
-            together = np.array(index + [i for i, _ in more], dtype=np.int64)
-            every = kinds + [k for _, k in more]
-            order = np.argsort(together, kind="stable").tolist()
-            index, kinds = together[order].tolist(), [every[j] for j in order]
+            keep[j], codes[j] = True, CODES[k]
+        index = sel[keep].tolist()
+        kinds = [KINDS[c] for c in codes[keep].tolist()]
         objects = [items[i] for i in index]
         index = np.array(index, dtype=np.int64)
         self.culled = culled_all[index]
@@ -603,6 +612,14 @@ class Extractor:
         if k is Kind.COLLECTION:
             return not self._instance_stale(obj)
         return ident(obj) not in self.dirty
+
+    def geometry_known(self, uids: np.ndarray) -> np.ndarray:
+        """``(n,) bool``: :meth:`knows` in bulk for objects that instance no collection:
+        their geometry is cached and no change was marked since."""
+        out = np.isin(uids, np.fromiter(self.cache.keys(), dtype=np.int64, count=len(self.cache)))
+        if self.dirty:
+            out &= ~np.isin(uids, np.fromiter(self.dirty.keys(), dtype=np.int64, count=len(self.dirty)))
+        return out
 
     def needs_geometry(self, cand: "Candidates") -> bool:
         """Whether :meth:`scene_steps` must read geometry again for these candidates.
