@@ -50,7 +50,7 @@ what changed).
 
 import time
 import zlib
-from collections.abc import Generator, Iterable
+from collections.abc import Callable, Generator, Iterable
 from dataclasses import dataclass
 from enum import Enum
 
@@ -92,27 +92,35 @@ CODES = {k: i for i, k in enumerate(KINDS)}
 UNKNOWN = -1
 
 
-class InfoTable:
-    """``uid -> ObjectInfo`` (a dict's ``get``, ``[]``, ``pop``) with the kinds mirrored
-    in sorted arrays, so that a pass looks up every candidate's kind in one
-    ``searchsorted`` and classifies one by one only what it has not seen (or what an
-    edit made it forget)."""
+class BulkMap:
+    """``uid -> value`` (a dict's ``get``, ``[]``, ``pop``, ``clear``) with each value's
+    small-integer code (``code(value)``) mirrored in sorted arrays, so that a pass looks
+    up every object in one ``searchsorted`` and asks one by one only what it has not
+    seen (or what an edit made it forget): what an object is (:class:`ObjectInfo`) and
+    whether it is dynamic (:func:`is_dynamic`)."""
 
-    def __init__(self):
-        self.entries: dict[int, ObjectInfo] = {}
+    def __init__(self, code: Callable[[object], int]):
+        self.code = code
+        self.entries: dict[int, object] = {}
         self.uids = np.zeros(0, dtype=np.int64)        # sorted
-        self.codes = np.zeros(0, dtype=np.int8)        # KINDS index, UNKNOWN where forgotten
+        self.codes = np.zeros(0, dtype=np.int8)        # code(value), UNKNOWN where forgotten
         self.pending: dict[int, int] = {}              # set since the arrays were merged
 
-    def get(self, uid: int) -> "ObjectInfo | None":
+    def __len__(self):
+        return len(self.entries)
+
+    def clear(self) -> None:
+        self.__init__(self.code)
+
+    def get(self, uid: int):
         return self.entries.get(uid)
 
-    def __getitem__(self, uid: int) -> "ObjectInfo":
+    def __getitem__(self, uid: int):
         return self.entries[uid]
 
-    def __setitem__(self, uid: int, entry: "ObjectInfo") -> None:
-        self.entries[uid] = entry
-        self.pending[uid] = CODES[entry.kind]
+    def __setitem__(self, uid: int, value) -> None:
+        self.entries[uid] = value
+        self.pending[uid] = self.code(value)
 
     def pop(self, uid: int, default=None):
         entry = self.entries.pop(uid, default)
@@ -123,7 +131,7 @@ class InfoTable:
         return entry
 
     def codes_of(self, uids: np.ndarray) -> np.ndarray:
-        """``(n,) int8`` the kind codes of ``uids`` (UNKNOWN: not classified)."""
+        """``(n,) int8`` the codes of ``uids``' values (UNKNOWN: none)."""
         if self.pending:
             pu = np.fromiter(self.pending.keys(), dtype=np.int64, count=len(self.pending))
             pc = np.fromiter(self.pending.values(), dtype=np.int8, count=len(self.pending))
@@ -429,8 +437,9 @@ def drawn(view_layer, uids_all: np.ndarray, space=None) -> np.ndarray:
 class Candidates:
     """The objects that take part in a pass, in view-layer order.
 
-    objects: bpy objects; uids: ``(n,) int64`` session ids; kinds: see :func:`kind`;
-    layer_index: ``(n,) int64`` position in ``view_layer.objects``;
+    objects: bpy objects; uids: ``(n,) int64`` session ids; kinds: see :func:`kind`
+    (codes: ``(n,) int8``, the same as indices into :data:`KINDS`); layer_index:
+    ``(n,) int64`` position in ``view_layer.objects``;
     culled: ``(n,) bool`` hidden by the add-on now; stale: of them, those hidden
     everywhere (not evaluated: their geometry is the cached one); matrices: ``(n, 4, 4)``
     world matrices.  give_back: ``(m,) int64`` session ids of objects the add-on
@@ -499,8 +508,8 @@ class Candidates:
                     give_back.append(uid)
                     continue
             keep[j], codes[j] = True, CODES[k]
-        index = sel[keep].tolist()
-        kinds = [KINDS[c] for c in codes[keep].tolist()]
+        index, codes = sel[keep].tolist(), codes[keep]
+        kinds = [KINDS[c] for c in codes.tolist()]
         objects = [items[i] for i in index]
         index = np.array(index, dtype=np.int64)
         self.culled = culled_all[index]
@@ -517,6 +526,7 @@ class Candidates:
         keep = np.flatnonzero(finite)
         self.objects = [objects[k] for k in keep]
         self.kinds = [kinds[k] for k in keep]
+        self.codes = codes[keep]                      # the kinds as BulkMap codes (KINDS)
         self.layer_index, self.culled, self.matrices = index[keep], self.culled[keep], m[keep]
         self.stale = self.stale[keep]
         self.uids = uids_all[self.layer_index]
@@ -536,8 +546,8 @@ class Extractor:
         self.touched = {}        # object uids whose geometry or transform changed (instanced collections)
         self.marks = 0
         # What an object is, from its settings (edits report it: :meth:`saw` forgets it):
-        self.info = InfoTable()
-        self.dynamic = {}        # uid -> is_dynamic
+        self.info = BulkMap(lambda entry: CODES[entry.kind])
+        self.dynamic = BulkMap(int)   # uid -> is_dynamic
         self.shown = {}          # uid -> user_shown (hidden by the add-on); any visibility change clears it
         self.shown_ids = None    # sorted uids of the objects in shown collections (see shown_by_collections)
         self.fps = {}            # uid -> fingerprint of the data its cached geometry was read from
@@ -587,6 +597,15 @@ class Extractor:
             hit = self.dynamic[uid] = is_dynamic(obj)
         return hit
 
+    def dynamic_of(self, objects: list, uids: np.ndarray, at: np.ndarray) -> np.ndarray:
+        """``(len(at),) bool``: :meth:`is_dynamic` of ``objects[at]`` (session ids
+        ``uids[at]``), looked up in bulk, asked one by one where not known."""
+        out = self.dynamic.codes_of(uids[at]).astype(np.int64)
+        for j in np.flatnonzero(out == UNKNOWN).tolist():
+            k = int(at[j])
+            out[j] = self.is_dynamic(objects[k], int(uids[k]))
+        return out.astype(bool)
+
     def mark(self, geometry: Iterable[int] = (), transform: Iterable[int] = ()) -> None:
         """Record depsgraph updates: uids whose geometry changed, and uids that moved
         or changed otherwise (what instances them may be stale)."""
@@ -628,9 +647,10 @@ class Extractor:
         if not self.dirty.keys().isdisjoint(cand.uids.tolist()):
             return True
         memo = {}                                     # collection -> its members, once a pass
-        for o, k, c in zip(cand.objects, cand.kinds, cand.stale, strict=True):
-            if not c and ((k is Kind.COLLECTION and self._instance_stale(o, memo))
-                          or (k is Kind.INSTANCER and self._instancer_stale(o))):
+        for i in np.flatnonzero((cand.codes != CODES[Kind.MESH]) & ~cand.stale).tolist():
+            o, k = cand.objects[i], cand.kinds[i]
+            if (k is Kind.COLLECTION and self._instance_stale(o, memo)) \
+                    or (k is Kind.INSTANCER and self._instancer_stale(o)):
                 return True
         return False
 

@@ -74,8 +74,8 @@ def never_hidden(context, objects: list, uids: np.ndarray, collection: np.ndarra
         if is_instancer(o) and ident(o.instance_collection) not in colls:
             flagged.append(visibility.uids(o.instance_collection.all_objects))
     out[np.isin(uids, np.concatenate(flagged))] = True
-    for k in np.flatnonzero(culled & ~out):            # O(hidden), cached: what Blender has no bulk form of
-        out[k] = extractor.is_dynamic(objects[k], int(uids[k]))
+    at = np.flatnonzero(culled & ~out)                 # cached, in bulk: what Blender has no bulk form of
+    out[at] = extractor.dynamic_of(objects, uids, at)
     return out
 
 

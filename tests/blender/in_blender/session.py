@@ -310,3 +310,30 @@ def click_restarts():
           and session.last.stats.fresh == 1, (first.fresh, kept, session.last.stats, err[-300:]))
     check("click_restarts_same_answer", hidden and again == hidden, (hidden, again))
     promise("click_restarts_truth")
+
+
+def bulk_map_is_its_dict():
+    """extract.BulkMap (what each object is, whether it is dynamic: looked up in bulk)
+    answers as the dict it mirrors through a seeded run of sets, re-sets, pops and
+    clears, and unknown uids read UNKNOWN."""
+    import random
+    extract = addon("extract")
+    rng = random.Random(7)
+    table, truth, bad = extract.BulkMap(int), {}, []
+    for step in range(3000):
+        uid = rng.randrange(400)
+        op = rng.random()
+        if op < 0.5:
+            table[uid] = truth[uid] = rng.randrange(4)
+        elif op < 0.8:
+            if table.pop(uid, None) != truth.pop(uid, None):
+                bad.append(("pop", step, uid))
+        elif op < 0.801:
+            table.clear()
+            truth.clear()
+        if step % 37 == 0:
+            probe = np.array(rng.sample(range(500), 60), dtype=np.int64)
+            want = np.array([truth.get(int(u), extract.UNKNOWN) for u in probe])
+            if not np.array_equal(table.codes_of(probe), want) or len(table) != len(truth):
+                bad.append(("codes", step))
+    check("bulk_map_is_its_dict", not bad, bad[:5])
