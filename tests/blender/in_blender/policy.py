@@ -409,10 +409,14 @@ def lit_renders():
     """What the add-on hides under scene lights changes no pixel of Blender's own render
     (EEVEE, one sample; Workbench with shadows), beyond the renderer's run-to-run noise
     measured first; and the check can fail: hiding the slab alone changes pixels."""
-    for engine in ("BLENDER_EEVEE", "BLENDER_WORKBENCH"):
+    try:
+        bpy.context.scene.render.engine = eevee = "BLENDER_EEVEE"
+    except TypeError:                                   # Blender 4.2-4.4's name for it
+        eevee = "BLENDER_EEVEE_NEXT"
+    for engine in (eevee, "BLENDER_WORKBENCH"):
         scene = _lit_scene()
         scene.render.engine = engine
-        if engine == "BLENDER_EEVEE":
+        if engine == eevee:
             scene.eevee.taa_render_samples = 1
         tag = engine.split("_")[1].lower()
         a = _render(os.path.join(WORK, f"lit_{tag}_a.png"))
