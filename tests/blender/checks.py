@@ -41,6 +41,7 @@ CHECKS = {
         "instance_source_deleted_seen", "instance_source_deleted_truth",
         "instance_member_deleted_seen", "instance_member_deleted_truth",
         "click_restarts_fresh", "click_restarts_same_answer", "click_restarts_truth", "bulk_map_is_its_dict",
+        "large_mesh_triangles_in_place",
     ],
     "visibility": ["user_hide_kept_by_restore", "user_hide_kept_by_pass"],
     "localview": [

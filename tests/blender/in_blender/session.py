@@ -337,3 +337,26 @@ def bulk_map_is_its_dict():
             if not np.array_equal(table.codes_of(probe), want) or len(table) != len(truth):
                 bad.append(("codes", step))
     check("bulk_map_is_its_dict", not bad, bad[:5])
+
+
+def large_mesh_triangles_in_place():
+    """A large mesh's triangles read from Blender's own array (extract._triangles_in_place)
+    are ``loop_triangles.foreach_get("vertices")``'s, triangle for triangle, on a mesh of
+    quads, triangles and n-gons (its tessellation), and the in-place read is what is taken."""
+    extract = addon("extract")
+    new_scene()
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=300, y_subdivisions=300, size=20)
+    mesh = bpy.context.object.data
+    bpy.ops.mesh.primitive_circle_add(vertices=64, fill_type="NGON", location=(30, 0, 0))
+    bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=3, location=(-30, 0, 0))
+    bpy.ops.object.select_all(action="SELECT")
+    bpy.context.view_layer.objects.active = bpy.data.objects["Grid"]
+    bpy.ops.object.join()
+    mesh.calc_loop_triangles()
+    n = len(mesh.loop_triangles)
+    want = np.empty((n, 3), dtype=np.int32)
+    mesh.loop_triangles.foreach_get("vertices", want.reshape(-1))
+    got = extract._triangles_in_place(mesh, n)
+    v, f = extract._read_mesh(mesh)
+    check("large_mesh_triangles_in_place", n >= extract.RAW_TRIANGLES and got is not None
+          and np.array_equal(got, want) and np.array_equal(f, want), (n, got is None))
