@@ -258,7 +258,10 @@ def _triangles_in_place(mesh, n: int) -> np.ndarray | None:
     to_vertex = _corner_vertices(mesh)
     if int(corners.min()) < 0 or int(corners.max()) >= len(to_vertex):
         return None
-    f = to_vertex[corners]
+    f = np.empty((n, 3), dtype=np.int32)
+    for a in range(0, n, 1 << 20):                    # in blocks: no index array of the whole
+        np.take(to_vertex, corners[a:a + (1 << 20)], out=f[a:a + (1 << 20)])
+    del to_vertex
     if any(tuple(tris[i].vertices) != tuple(f[i].tolist()) for i in picks):
         return None
     return f
