@@ -48,6 +48,7 @@ objects or some geometry changed; the depsgraph and frame-change handlers mark
 what changed).
 """
 
+import ctypes
 import time
 import zlib
 from collections.abc import Callable, Generator, Iterable
@@ -242,8 +243,6 @@ def _triangles_in_place(mesh, n: int) -> np.ndarray | None:
     vertex array (one bulk read): 0.8 s.  Trusted only where the items are evenly spaced
     and a spread of samples (first, last, seeded) reads the Python API's own ``loops``
     and ``vertices``; anything else: None."""
-    import ctypes
-
     tris = mesh.loop_triangles
     base = tris[0].as_pointer()
     stride = tris[1].as_pointer() - base

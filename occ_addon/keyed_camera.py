@@ -142,7 +142,7 @@ def probe(scene, moving: list, lights_count: bool) -> KeyedCamera | None:
     frame now current; ``lights_count``: whether lights change the answer (shadows)."""
     cam = scene.camera
     if cam is None or cam.type != "CAMERA" or len(bpy.app.handlers.frame_change_pre) \
-            or any(not getattr(h, "__module__", "").startswith(__package__)
+            or any(not (getattr(h, "__module__", None) or "").startswith(__package__)
                    for h in bpy.app.handlers.frame_change_post):    # another script reacts to frames
         return None
     if any(m.camera is not None for m in scene.timeline_markers):   # cameras switched by markers

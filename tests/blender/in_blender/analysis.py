@@ -251,6 +251,22 @@ def cube_mesh_object(name):
     return bpy.data.objects.new(name, cube_mesh(name))
 
 
+def _empty_moves_mesh(scene, cam, target):
+    """An empty that instances nothing may move, but not one a mesh follows (its child,
+    its hook)."""
+    e = bpy.data.objects.new("carrier", None)
+    scene.collection.objects.link(e)
+    target.parent = e
+    keyframes(e, [(1, (0.0, 0.0, 0.0)), (30, (0.0, 5.0, 0.0))])
+
+
+def _empty_hooks_mesh(scene, cam, target):
+    e = bpy.data.objects.new("hook", None)
+    scene.collection.objects.link(e)
+    target.modifiers.new("hook", "HOOK").object = e
+    keyframes(e, [(1, (3.0, 0.0, 0.0)), (30, (3.0, 5.0, 0.0))])
+
+
 def _frame_handler(scene, cam, target):
     bpy.app.handlers.frame_change_pre.append(_user_handler)
 
@@ -270,6 +286,8 @@ REFUSED = {
     "marker_camera": lambda s, c, t: setattr(s.timeline_markers.new("cut", frame=10), "camera", c),
     "frame_handler": _frame_handler,
     "instancer_keyed": _instancer,
+    "empty_parent_of_mesh": _empty_moves_mesh,
+    "empty_hooks_mesh": _empty_hooks_mesh,
 }
 
 
