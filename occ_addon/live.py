@@ -1,8 +1,8 @@
 """Live culling: a timer re-culls, debounced, after every change that can change
 what is visible: the view moved (polled: navigation fires no depsgraph update),
 or anything else changed (the change bus of :mod:`.handlers`: edits, frames,
-"never cull" and the exclusion collection; :func:`changed` is subscribed to it
-when the add-on registers).  GUI only.
+"never cull"; :func:`changed` is subscribed to it when the add-on registers), or a
+setting that changes what may be hidden (polled, :func:`..props.settings_key`).  GUI only.
 
 While the view moves: every hidden set holds for an envelope around the view it
 was made from (:mod:`..core.envelope`; a pass at rest takes a small one).  Before
@@ -30,6 +30,7 @@ from ..core.camera import camera_cut
 from ..core.motion import view_change
 from . import visibility
 from .cameras import camera_for, find_viewport, region_camera, scene_camera, view_state
+from .props import settings_key
 from .session import POLICY, SESSION
 
 POLL_S = 0.1          # timer period
@@ -37,7 +38,8 @@ DEBOUNCE_S = 0.15     # the view (or the scene) must rest this long before a pas
 REST_LOOK_S = 0.05    # a view unchanged for this long between two looks has stopped moving
 
 # passed: (camera, display) of the last pass at rest, for telling a cut (:func:`_is_cut`)
-_state = {"last_view": None, "changed_at": None, "dirty_at": None, "passed": None}
+# settings: props.settings_key at the last tick (polled: the settings have no update callbacks)
+_state = {"last_view": None, "changed_at": None, "dirty_at": None, "passed": None, "settings": None}
 # the view's motion, measured between successive looks (redraws and ticks)
 _motion = {"view": None, "t": None, "step": (0.0, 0.0), "speeds": [0.0], "turns": [0.0], "leaving": False,
            "region": None, "view_state": None}
@@ -166,6 +168,11 @@ def _tick():
         return POLL_S
     if SESSION.busy:                                  # a modal cull or analysis holds the session
         return POLL_S
+    settings = settings_key(scene.occ)
+    if settings != _state["settings"]:                # what may be hidden changed: a fresh pass
+        if _state["settings"] is not None:
+            changed()
+        _state["settings"] = settings
     key = np.concatenate([camera.view.ravel(), camera.projection.ravel(), display])
     now = time.perf_counter()
     observe(camera)
@@ -216,7 +223,8 @@ def start(context):
     from . import overlay
     overlay.install()
     context.scene.occ.live = True
-    _state.update(last_view=None, changed_at=time.perf_counter(), dirty_at=None, passed=None)
+    _state.update(last_view=None, changed_at=time.perf_counter(), dirty_at=None, passed=None,
+                  settings=settings_key(context.scene.occ))
     _ensure_timer()
 
 

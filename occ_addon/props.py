@@ -24,6 +24,10 @@ def _changed(_self, _context):
 
 
 class OccSettings(bpy.types.PropertyGroup):
+    # No update callbacks here: bpy 4.2 (the PyPI module) segfaults at interpreter exit
+    # once a PropertyGroup with one was registered, even after unregistering it (a farm
+    # task would fail after its work).  Live mode polls the settings that change what may
+    # be hidden instead (:func:`settings_key`, :mod:`.live`).
     source: EnumProperty(
         name="Source", default="VIEWPORT",
         items=[("VIEWPORT", "Viewport", "Cull for the active 3D viewport's view"),
@@ -40,12 +44,11 @@ class OccSettings(bpy.types.PropertyGroup):
         description="Longest side of the query buffer; larger displays are scaled down to it")
     exclude_collection: PointerProperty(
         name="Exclude", type=bpy.types.Collection,
-        description="Objects of this collection are never hidden (they still hide others)",
-        update=_changed)
-    exclude_children: BoolProperty(name="Include Child Collections", default=True, update=_changed)
+        description="Objects of this collection are never hidden (they still hide others)")
+    exclude_children: BoolProperty(name="Include Child Collections", default=True)
     live: BoolProperty(name="Live", default=False, description="Re-cull when the view changes")
     hide_in: EnumProperty(
-        name="Hide In", default="AUTO", update=_changed,
+        name="Hide In", default="AUTO",
         items=[("AUTO", "Auto", "In the culled 3D view only, in a window; everywhere in background mode "
                                 "(scripts and viewport renders see hide_viewport)"),
                ("VIEW", "This View", "Only in the culled 3D view (its local view): other views, windows "
@@ -54,7 +57,7 @@ class OccSettings(bpy.types.PropertyGroup):
                                             "viewport render; Blender rebuilds its dependency graph "
                                             "after each change (slower at scale)")])
     cull_raytraced: BoolProperty(
-        name="Cull Under Ray Tracing", default=False, update=_changed,
+        name="Cull Under Ray Tracing", default=False,
         description="Hide occluded objects even where Blender traces rays (Cycles, EEVEE ray tracing): "
                     "their reflections and the light they give may then vanish")
     show_overlay: BoolProperty(name="Overlay", default=True,
@@ -69,6 +72,14 @@ class OccSettings(bpy.types.PropertyGroup):
 
 
 CLASSES = (OccSettings,)
+
+
+def settings_key(settings) -> tuple:
+    """What of ``scene.occ`` changes what a pass may hide (the exclusion collection and
+    its children, where it hides, ray tracing): live mode re-culls when it changes."""
+    coll = settings.exclude_collection
+    return (coll.name_full if coll is not None else None, settings.exclude_children, settings.hide_in,
+            settings.cull_raytraced)
 
 
 def register():

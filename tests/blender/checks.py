@@ -55,7 +55,8 @@ CHECKS = {
     "handlers": ["save_keeps_culled", "saved_file_opens_shown_without_addon", "old_file_restored_on_enable",
                  "old_file_restored_on_load"],
     "live": [
-        "live_occluder_moved_reculls", "live_moved_truth", "live_never_cull_reculls", "live_survives_undo",
+        "live_occluder_moved_reculls", "live_moved_truth", "live_never_cull_reculls", "live_settings_reculls",
+        "live_survives_undo",
         "live_reload_flag_matches_timer",
         "camera_moves_guarded_no_visible_hidden", "camera_moves_unguarded_would_hide_visible",
         "live_cut_is_the_engines_camera_cut",

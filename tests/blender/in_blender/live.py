@@ -52,6 +52,18 @@ def live_follows_changes():
     check("live_never_cull_reculls", hid and drawn("target"), (hid, drawn("target")))
     bpy.data.objects["target"].occ_never_cull = False
     ticks(live)
+    # the settings have no update callbacks (bpy 4.2's exit crash): live mode polls them
+    keep = bpy.data.collections.new("Keep")
+    bpy.context.scene.collection.children.link(keep)
+    keep.objects.link(bpy.data.objects["target"])
+    update()
+    ticks(live)
+    hid = hidden_by_addon("target")
+    bpy.context.scene.occ.exclude_collection = keep        # no depsgraph update, no callback
+    ticks(live)
+    check("live_settings_reculls", hid and drawn("target"), (hid, drawn("target")))
+    bpy.context.scene.occ.exclude_collection = None
+    ticks(live)
     bpy.ops.ed.undo_push(message="a")
     bpy.data.objects["wall"].location.y = 20.0
     bpy.ops.ed.undo_push(message="b")
