@@ -6,7 +6,7 @@ VENV := .venv
 VPY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-v2
 
-.PHONY: venv demo test test-numpy2 lint extension clean
+.PHONY: venv demo test test-numpy2 test-bpy42 lint extension clean
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -38,6 +38,17 @@ $(VENV2)/.installed-v2: pyproject.toml
 
 test-numpy2: $(VENV2)/.installed-v2
 	$(VENV2)/bin/python -m pytest -q
+
+# Blender 4.2 LTS (bpy 4.2 from PyPI, Python 3.11), the oldest line the manifest accepts:
+# the tests inside Blender again (tests/blender), in their own venv.
+VENV42 := .venv-bpy42
+$(VENV42)/.installed-42: pyproject.toml
+	$(PY) -m venv $(VENV42)
+	$(VENV42)/bin/python -m pip install -q -e '.[dev]' 'numpy>=1.26,<2' 'bpy==4.2.0'
+	touch $@
+
+test-bpy42: $(VENV42)/.installed-42
+	$(VENV42)/bin/python -m pytest -q tests/blender
 
 lint: $(STAMP)
 	$(VPY) -m ruff check core occ_addon tests sample_scenes
