@@ -87,7 +87,7 @@ class ObjectInfo:
     parented: bool
 
 
-# Kind as a small integer, for lookups in bulk (InfoTable.codes): -1 unknown, 0 none
+# Kind as a small integer, for lookups in bulk (BulkMap codes): UNKNOWN -1, 0 none
 KINDS = (None, Kind.MESH, Kind.INSTANCER, Kind.COLLECTION)
 CODES = {k: i for i, k in enumerate(KINDS)}
 UNKNOWN = -1
