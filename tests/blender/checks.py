@@ -49,6 +49,7 @@ CHECKS = {
         "view_entering_moves_nothing", "view_truth", "view_restore_leaves_view_unmoved",
         "view_selection_untouched", "view_everywhere_is_monitor",
         "view_new_object_drawn", "view_included_collection_drawn", "view_new_truth",
+        "view_other_scene_shared_drawn",
         "view_user_local_culls", "view_user_local_restored", "view_user_leaves_local_record_ends",
         "view_undo_keeps_visible_drawn", "view_save_keeps_culled", "view_saved_file_opens_drawn",
     ],

@@ -99,6 +99,27 @@ def new_objects_drawn():
     update()
     check("view_included_collection_drawn", _drawn_in("in_later", space), "")
     promise("view_new_truth")
+    # the window shows another scene whose view layer has the same name and that links
+    # objects of this one (a linked copy): they are drawn there, the culled one too (the
+    # add-on's layer key is the layer's name; Blender's bits of such objects read set there)
+    bpy.ops.occ.restore()
+    win, _, space, _ = _view()
+    first = win.scene
+    other = bpy.data.scenes.new("Other")
+    for name in ("front", "wall", "target"):
+        other.collection.objects.link(bpy.data.objects[name])
+    update()
+    cull()                                          # the bits are set in the first scene's layer only
+    win.scene = other
+    update()
+    addon("localview").on_window_change()          # the message bus's call, as a window's event loop makes it
+    same_name = other.view_layers[0].name == first.view_layers[0].name
+    check("view_other_scene_shared_drawn", same_name and space.local_view is not None
+          and all(_drawn_in(n, space) for n in ("front", "wall", "target")),
+          (same_name, {n: _drawn_in(n, space) for n in ("front", "wall", "target")}))
+    win.scene = first
+    update()
+    addon("localview").on_window_change()
     bpy.ops.occ.restore()
 
 
