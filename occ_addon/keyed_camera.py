@@ -24,6 +24,8 @@ import bpy
 import numpy as np
 from mathutils import Euler, Matrix, Quaternion
 
+from .extract import is_dynamic
+
 # transform channels the keys may animate (anything else keyed on the camera: frames)
 CHANNELS = {"location": 3, "rotation_euler": 3, "rotation_quaternion": 4, "rotation_axis_angle": 4,
             "scale": 3, "delta_location": 3, "delta_rotation_euler": 3, "delta_rotation_quaternion": 4,
@@ -72,20 +74,6 @@ def _fcurves(idblock):
         bag = action_get_channelbag_for_slot(action, slot)
         return [] if bag is None else list(bag.fcurves)
     return list(action.fcurves)
-
-
-def _static_chain(obj, moving: set) -> bool:
-    """Whether the parents of ``obj`` are static: none evaluated by a frame change, none
-    keyed, constrained or parented but to an object's origin."""
-    seen = 0
-    while obj.parent is not None and seen < 64:
-        if obj.parent_type != "OBJECT":
-            return False
-        obj = obj.parent
-        if obj in moving or obj.animation_data is not None or len(obj.constraints):
-            return False
-        seen += 1
-    return obj.parent is None
 
 
 class KeyedCamera:
@@ -165,7 +153,9 @@ def probe(scene, moving: list, lights_count: bool) -> KeyedCamera | None:
         if isinstance(idb, bpy.types.Light) and not lights_count:
             continue
         return None                          # anything else moves with time: frames
-    if len(cam.constraints) or not _static_chain(cam, moved) or cam.data.animation_data is not None:
+    # parents: to an object's origin, none moving with time nor able to (extract.is_dynamic)
+    if len(cam.constraints) or cam.data.animation_data is not None or (cam.parent is not None and (
+            cam.parent_type != "OBJECT" or is_dynamic(cam.parent) or not ancestors.isdisjoint(moved))):
         return None
     curves = _fcurves(cam)
     if curves is None:
