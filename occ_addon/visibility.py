@@ -259,12 +259,14 @@ def restore():
 def after_undo():
     """Undo and redo bring the record and the bits back with the data, not the views:
     an own local view holds every object but those its record hides; a record whose
-    view is gone or out of local view is dropped."""
+    view is gone, out of local view or given back since (a Restore, then an undo to
+    data of before it) is dropped, its objects' bits set again in every view in local
+    view (the user's own among them: the data brought back their cleared bits)."""
     _reconcile_view()
     record = flags(VIEW_RECORD)
     localview.resync(uids()[record] if _view["pointer"] is not None else uids()[:0])
     if _view["pointer"] is None and record.any():
-        bpy.data.objects.foreach_set(VIEW_RECORD, np.zeros(len(record), dtype=bool))
+        _release_view(record)
 
 
 def after_load():
@@ -288,6 +290,7 @@ def lift():
     _lifted["view"] = (found[0], found[1]) if found is not None and flags(VIEW_RECORD).any() else None
     if record.any():
         restore()
+    localview.leave_all()      # hiding nothing, it is not saved either (unknown to whoever opens the file)
 
 
 def reapply():

@@ -751,6 +751,8 @@ def check_state(w, after_restore=False):
                                 f"{o.visible_get(view_layer=vl, viewport=space)}, the user's flags say {want} "
                                 f"(local view {space.local_view is not None}, record {addon_hidden(o)}, "
                                 f"monitor {o.hide_viewport}, layer {vl.name})")
+    if any("drawn in the window's 3D view" in p for p in problems):
+        problems.append("d: state: " + local_view_state())
     if addon_enabled():
         ex = scene.occ.exclude_collection
         if (ex.name if ex else None) != model["exclude"] or scene.occ.exclude_children != model["exclude_children"]:
@@ -834,6 +836,22 @@ def link_like(src, obj):
     colls = list(src.users_collection) or [bpy.context.scene.collection]
     for c in colls:
         c.objects.link(obj)
+
+
+def local_view_state():
+    """The add-on's local-view bookkeeping against the window's, for a failure's report."""
+    import bpy
+    space, win = window_view(), bpy.context.window
+    out = [f"window layer {win.view_layer.name if win else None}, context layer {bpy.context.view_layer.name}",
+           f"space {space.as_pointer() if space else None} local view {space.local_view is not None if space else None}"]
+    lv = sys.modules.get(ADDON_MODULE + ".occ_addon.localview")
+    vis = sys.modules.get(ADDON_MODULE + ".occ_addon.visibility")
+    if lv is not None:
+        out.append("own " + repr({k: (v["layer"], len(v["uids"])) for k, v in lv._own.items()}))
+    if vis is not None:
+        out.append(f"view record pointer {vis._view['pointer']}")
+    out.append(f"live {live_on()}")
+    return "; ".join(out)
 
 
 def switch_view_layer(target):

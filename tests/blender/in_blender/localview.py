@@ -147,6 +147,18 @@ def undo_and_files():
     t = bpy.data.objects["target"]
     check("view_saved_file_opens_drawn", space.local_view is None and not t.occ_view_culled
           and _drawn_in("target", space), (space.local_view, t.occ_view_culled))
+    # The add-on's local view hiding nothing (the wall moved away) is not saved either: a
+    # file opened with it would hold a local view the add-on does not know, which an undo
+    # to bits of before would then empty.
+    cull()
+    bpy.data.objects["wall"].location.x += 40.0
+    cull()
+    in_local = space.local_view is not None and addon("localview").is_own(space)
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    _, _, space, _ = _view()
+    check("view_saved_file_without_hiding_opens_plain", in_local and space.local_view is None,
+          (in_local, space.local_view))
 
 
 def users_local_view():
@@ -169,6 +181,19 @@ def users_local_view():
     bpy.ops.occ.restore()
     check("view_user_local_restored", space.local_view is not None and _drawn_in("target", space)
           and not _drawn_in("front", space), (space.local_view, _drawn_in("target", space)))
+    # an undo to data of while it was culled (its bit clear, its record set) after the
+    # Restore: the record has no view any more, and the user's local view draws it again
+    cull()
+    bpy.ops.ed.undo_push(message="culled")
+    bpy.ops.occ.restore()
+    bpy.data.objects["front"].location.z += 0.1
+    bpy.ops.ed.undo_push(message="edit")
+    bpy.ops.ed.undo()
+    update()
+    check("view_user_local_undo_to_culled_draws", space.local_view is not None and _drawn_in("target", space)
+          and not bpy.data.objects["target"].occ_view_culled,
+          (space.local_view, _drawn_in("target", space), bpy.data.objects["target"].occ_view_culled))
+    bpy.ops.occ.restore()
     cull()
     with bpy.context.temp_override(window=win, area=area, region=next(r for r in area.regions
                                                                       if r.type == "WINDOW")):
