@@ -185,15 +185,25 @@ def positions(mesh) -> np.ndarray:
     return v
 
 
+# Blender 4.0+ shares a mesh's arrays between copies until one is written: a ``to_mesh``
+# copy costs next to nothing, and the one array a read un-shares (the corners' vertices:
+# the Python API reads it as if to write it) goes with ``to_mesh_clear`` instead of staying
+# beside the evaluated mesh (10 M-vertex grid, ``tools/blender_scale.py --only grid
+# --steps``: first cull's peak 1,405 MB above the scene read from a copy, 1,672 MB read in
+# place).  Before 4.0 a copy copies every vertex, edge and corner (~600 MB at 10 M
+# vertices): a plain mesh is read where it is.
+SHARED_ARRAYS = bpy.app.version >= (4, 0, 0)
+
+
 def mesh_arrays(obj_eval, direct: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Local vertices ``(v, 3) float32`` and triangles ``(f, 3) int32`` of an evaluated
     object, as Blender holds them (no wider copy: the engine takes both dtypes).
 
-    direct: read the evaluated mesh itself rather than a ``to_mesh`` copy of it
-    (a copy of every vertex, edge and corner: ~600 MB at 10 M vertices); only
+    direct: read the evaluated mesh itself rather than a ``to_mesh`` copy of it; only
     for a mesh object without modifiers outside edit mode, whose evaluated data is
     a plain mesh (edit mode and GPU subdivision give wrappers that only
-    ``to_mesh`` turns into what Blender draws)."""
+    ``to_mesh`` turns into what Blender draws), and only where the copy would copy
+    (see :data:`SHARED_ARRAYS`)."""
     if direct:
         return _read_mesh(obj_eval.data)
     mesh = obj_eval.to_mesh()
@@ -823,7 +833,7 @@ class Extractor:
         if hit is not None and hit.key == key and uid not in self.dirty:
             return hit
         if key not in read:
-            direct = obj.type == "MESH" and not obj.modifiers and obj.mode != "EDIT"
+            direct = not SHARED_ARRAYS and obj.type == "MESH" and not obj.modifiers and obj.mode != "EDIT"
             v, f = mesh_arrays(obj.evaluated_get(depsgraph), direct)
             read[key] = (_finite_or_none(v), f)
         v, f = read[key]
