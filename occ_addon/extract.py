@@ -186,13 +186,16 @@ def positions(mesh) -> np.ndarray:
 
 
 # Blender 4.0+ shares a mesh's arrays between copies until one is written: a ``to_mesh``
-# copy costs next to nothing, and the one array a read un-shares (the corners' vertices:
-# the Python API reads it as if to write it) goes with ``to_mesh_clear`` instead of staying
-# beside the evaluated mesh (10 M-vertex grid, ``tools/blender_scale.py --only grid
-# --steps``: first cull's peak 1,405 MB above the scene read from a copy, 1,672 MB read in
-# place).  Before 4.0 a copy copies every vertex, edge and corner (~600 MB at 10 M
-# vertices): a plain mesh is read where it is.
+# copy costs next to nothing but its making (about 20 us), and the arrays a read un-shares
+# (positions, the corners' vertices: the Python API reads them as if to write them) go with
+# ``to_mesh_clear`` instead of staying beside the evaluated mesh (10 M-vertex grid,
+# ``tools/blender_scale.py --only grid --steps``: first cull's peak 1,405 MB above the
+# scene read from a copy, 1,672 MB read in place).  So a plain mesh of fewer than
+# ``COPY_VERTICES`` vertices is read in place (a 50,000-object scene would pay a second for
+# the copies), a larger one from a copy.  Before 4.0 a copy copies every vertex, edge and
+# corner (~600 MB at 10 M vertices): a plain mesh is read in place.
 SHARED_ARRAYS = bpy.app.version >= (4, 0, 0)
+COPY_VERTICES = 4096
 
 
 def mesh_arrays(obj_eval, direct: bool = False) -> tuple[np.ndarray, np.ndarray]:
@@ -833,8 +836,10 @@ class Extractor:
         if hit is not None and hit.key == key and uid not in self.dirty:
             return hit
         if key not in read:
-            direct = not SHARED_ARRAYS and obj.type == "MESH" and not obj.modifiers and obj.mode != "EDIT"
-            v, f = mesh_arrays(obj.evaluated_get(depsgraph), direct)
+            ev = obj.evaluated_get(depsgraph)
+            direct = obj.type == "MESH" and not obj.modifiers and obj.mode != "EDIT" \
+                and (not SHARED_ARRAYS or len(ev.data.vertices) < COPY_VERTICES)
+            v, f = mesh_arrays(ev, direct)
             read[key] = (_finite_or_none(v), f)
         v, f = read[key]
         hit = self.cache[uid] = Geometry(key, v, f)
