@@ -32,8 +32,16 @@ uint16 order, so no int64 order of a node's length is made); a heavy mesh hands
 in float32 corners as :class:`ItemBoxes` and nothing of the size of its
 triangles is copied: at 20 M triangles the build peaks at 1.46 x the corners'
 own size (the corners, the int32 item order, the scratch row, a split's labels
-and block orders).  pHBVO decides ``PLAN_DEPTH`` levels at once
-above ``PLAN_ITEMS`` items, so large nodes move their items once per three levels.
+and block orders).
+
+Speed: above ``PLAN_ITEMS`` items (and two leaves' worth) pHBVO decides up to
+``PLAN_DEPTH`` levels at once (:func:`_plan`): every level's splits of all of a
+node's parts on one spread sample together (:func:`_sah_planes`), the items walked
+down those levels together (:func:`_classify`) and moved once, by label.  A 20 M
+triangle mesh moves its items about twice instead of once a level, and the Python
+work a node costs is spent once a plan: the 10 M-vertex grid's chunking took 16.7 s
+before, 8.9 s after, one after the other here (``tools/blender_scale.py engine --vertices
+10000000``; the same peak, 655 MB above the scene).
 """
 
 import time
@@ -54,9 +62,9 @@ SAH_SAMPLE = 1024      # items the SAH cost curves of one split are evaluated on
 PULL_UP = 0.5            # an item longer than half its node's longest side stays there
 FORCE_SPLIT = 4          # above FORCE_SPLIT * leaf_size items a node is split even if SAH says no
 TRAVERSAL_COST = 1.0     # SAH cost of visiting a node, in units of one item
-PLAN_ITEMS = 128 * SAH_SAMPLE  # pHBVO nodes above this many items decide PLAN_DEPTH levels at once
-PLAN_DEPTH = 3           # from one sample of PLAN_SAMPLE items, and move the items once for them
-PLAN_SAMPLE = 8 * SAH_SAMPLE
+PLAN_ITEMS = 4 * SAH_SAMPLE  # pHBVO nodes above this many items (and two leaves' worth) decide up to
+PLAN_DEPTH = 7           # PLAN_DEPTH levels at once (255 parts at most: a byte a label) from one
+PLAN_PART_SAMPLE = 64    # sample, PLAN_PART_SAMPLE items for each part, and move their items once
 
 
 @dataclass(eq=False)
@@ -155,56 +163,172 @@ def _split_sah(lo, hi, box, leaf_size):
     return right
 
 
-def _sah_plan(slo, shi, n, depth):
-    """SAH splits ``PLAN_DEPTH`` levels deep decided on one sample: a nested
-    ``(axis, position, left plan, right plan)``, None for a part left whole."""
-    if depth == 0 or slo.shape[1] < 2 * SAH_BINS:
-        return None
-    plane = _sah_plane(slo, shi, n)
-    if plane is None:
-        return None
-    right = 0.5 * (slo[plane[0]] + shi[plane[0]]) >= plane[1]
-    k = int(np.count_nonzero(right))
-    if k in (0, len(right)):
-        return None
-    left = ~right
-    return (*plane, _sah_plan(slo[:, left], shi[:, left], n * (len(right) - k) / len(right), depth - 1),
-            _sah_plan(slo[:, right], shi[:, right], n * k / len(right), depth - 1))
+@dataclass(eq=False)
+class _Plan:
+    """pHBVO splits of several levels decided on one sample (:func:`_plan`).
+
+    Plan nodes breadth first, node 0 the root, ``(P,)`` arrays: ``axis`` and ``twice``
+    (twice the plane's position: items whose ``lo + hi`` on that axis reach it go
+    right), ``child`` ``(P, 2)`` (a part left whole: itself twice, ``twice`` +inf),
+    ``limit`` the longest side above which an item stays at the node (pulled up; +inf:
+    none); ``label`` the part of the items that stop at a node (an inner node's own
+    items), ``first``/``parts`` the node's parts.  Parts are numbered depth first, an
+    inner node's own part before its left and right parts', so every node's items
+    are one range once partitioned by label."""
+
+    axis: np.ndarray
+    twice: np.ndarray
+    child: np.ndarray
+    limit: np.ndarray
+    label: np.ndarray
+    first: np.ndarray
+    parts: np.ndarray
+    depth: int
+
+    @property
+    def nparts(self):
+        return int(self.parts[0])
 
 
-def _leaves(plan):
-    return 1 if plan is None else _leaves(plan[2]) + _leaves(plan[3])
+def _plan(lo, hi, leaf_size, pull_up):
+    """The plan of a node's items (corners ``(3, n)``) down to parts of about
+    ``leaf_size`` items, ``PLAN_DEPTH`` levels at most, every level's splits decided
+    at once on a spread sample (:func:`_sah_planes`); None when the root is not split.
+    Sample items longer than a node's pull-up limit stay there, as the items will."""
+    n = lo.shape[1]
+    depth = max(1, min(PLAN_DEPTH, int(np.ceil(np.log2(n / leaf_size)))))
+    slo, shi = _sample(lo, hi, min(n, PLAN_PART_SAMPLE << depth))
+    per = n / slo.shape[1]                       # items a sample item stands for
+    c, size = slo + shi, (shi - slo).max(axis=0)
+    axis, twice, child, limit = [0], [np.inf], [[0, 0]], [np.inf]
+    node = np.zeros(1, dtype=np.int64)           # the plan node of each segment of the sample
+    length = np.array([slo.shape[1]])
+    rows = np.arange(slo.shape[1])               # the segments' sample items, segment by segment
+    for _ in range(depth):
+        sid = np.repeat(np.arange(len(node)), length)
+        if pull_up:                              # the sample's big items stay where the items' will
+            keep = size[rows] <= np.asarray(limit)[node][sid]
+            rows, sid = rows[keep], sid[keep]
+            length = np.bincount(sid, minlength=len(node))
+        ok = (length >= 2 * SAH_BINS) & (length * per > leaf_size)
+        if not ok.any():
+            break
+        rows, sid = rows[ok[sid]], (np.cumsum(ok) - 1)[sid[ok[sid]]]
+        node, length = node[ok], length[ok]
+        # each segment's plane from SAH_SAMPLE of its sample items at most, every k-th
+        step = -(-length // SAH_SAMPLE)
+        count = -(-length // step)
+        first = np.cumsum(count) - count
+        pick = rows[np.repeat(np.cumsum(length) - length, count)
+                    + (np.arange(int(count.sum())) - np.repeat(first, count)) * np.repeat(step, count)]
+        found, ax, pos = _sah_planes(slo[:, pick], shi[:, pick], c[:, pick], first, count)
+        if not found.any():
+            break
+        right = c[ax[sid], rows] >= pos[sid]
+        go = found[sid]
+        rows, sid, right = rows[go], sid[go], right[go]
+        order = np.argsort(2 * sid + right, kind="stable")
+        rows, key = rows[order], (2 * sid + right)[order]
+        split = np.flatnonzero(found)
+        kids = len(axis) + 2 * np.arange(len(split))
+        for i, p in enumerate(node[split].tolist()):
+            axis[p], twice[p], child[p] = int(ax[split[i]]), float(pos[split[i]]), [int(kids[i]), int(kids[i]) + 1]
+        for _ in range(2 * len(split)):
+            axis.append(0)
+            twice.append(np.inf)
+            child.append([len(child), len(child)])
+            limit.append(np.inf)
+        # the new segments: each split's left, then right part (their keys, in order)
+        node = np.stack([kids, kids + 1], axis=1).ravel()
+        length = np.bincount(np.searchsorted((2 * split[:, None] + [0, 1]).ravel(), key), minlength=len(node))
+        if pull_up:                              # a part's limit: half the longest side of its sample's box
+            full = np.flatnonzero(length)
+            at = (np.cumsum(length) - length)[full]
+            side = (np.maximum.reduceat(shi[:, rows], at, axis=1)
+                    - np.minimum.reduceat(slo[:, rows], at, axis=1)).max(axis=0)
+            for p, v in zip(node[full].tolist(), (PULL_UP * side).tolist(), strict=True):
+                limit[p] = v
+    if child[0][0] == 0:
+        return None
+    P = len(axis)
+    label, first, parts = np.zeros(P, np.uint8), np.zeros(P, np.int64), np.zeros(P, np.int64)
+
+    def number(p, at):
+        first[p] = label[p] = at
+        if child[p][0] == p:
+            parts[p] = 1
+            return at + 1
+        at = number(child[p][1], number(child[p][0], at + 1))
+        parts[p] = at - first[p]
+        return at
+
+    number(0, 0)
+    return _Plan(np.array(axis), np.array(twice), np.array(child, dtype=np.int64), np.array(limit),
+                 label, first, parts, depth)
+
+
+def _sah_planes(slo, shi, c, start, length):
+    """The cheapest binned SAH plane of every segment of a sample at once (the items
+    of segment i are columns ``start[i]:start[i] + length[i]``, in order, >= 2 each):
+    ``(found, axis, twice the position)``, each ``(p,)``; ties go to the lowest axis,
+    then the lowest plane, as :func:`_sah_plane`.  ``c``: ``slo + shi``."""
+    p, b_ = len(start), SAH_BINS
+    sid = np.repeat(np.arange(p), length)
+    cmin, cmax = np.minimum.reduceat(c, start, axis=1), np.maximum.reduceat(c, start, axis=1)
+    ext = cmax - cmin
+    scale = np.where(ext > 0.0, b_ / np.where(ext > 0.0, ext, 1.0), 0.0)
+    best = np.full(p, np.inf)
+    axis, split = np.zeros(p, dtype=np.int64), np.zeros(p, dtype=np.int64)
+    for a in range(3):
+        bins = np.minimum(((c[a] - cmin[a][sid]) * scale[a][sid]).astype(np.int64), b_ - 1)
+        key = sid * b_ + bins
+        count = np.bincount(key, minlength=p * b_).reshape(p, b_)
+        bmin = np.full((3, p * b_), np.inf)
+        bmax = np.full((3, p * b_), -np.inf)
+        for d in range(3):                                          # each bin's union (numpy >= 1.25: fast)
+            np.minimum.at(bmin[d], key, slo[d])
+            np.maximum.at(bmax[d], key, shi[d])
+        bmin, bmax = bmin.reshape(3, p, b_).transpose(2, 1, 0), bmax.reshape(3, p, b_).transpose(2, 1, 0)
+        la, lc, ra, rc = sweep(bmin, bmax, count.T)                 # (b_ - 1, p) each
+        cost = np.where((lc > 0) & (rc > 0) & (ext[a] > 0.0), la * lc + ra * rc, np.inf)
+        s = np.argmin(cost, axis=0)
+        low = cost[s, np.arange(p)]
+        better = low < best
+        best[better], axis[better], split[better] = low[better], a, s[better]
+    found = np.isfinite(best)
+    at = np.arange(p)
+    return found, axis, cmin[axis, at] + (split + 1) / b_ * ext[axis, at]
 
 
 def _classify(lo, hi, plan):
-    """Part of each item in a plan's parts (numbered depth first): ``(m,) uint8``,
-    found in blocks of ``PARTITION_BLOCK`` items (temporaries of a few MB)."""
-    labels = np.zeros(lo.shape[1], dtype=np.uint8)
-    for b in range(0, len(labels), PARTITION_BLOCK):
-        _classify_block(lo[:, b:b + PARTITION_BLOCK], hi[:, b:b + PARTITION_BLOCK], plan,
-                        labels[b:b + PARTITION_BLOCK], 0)
+    """Part of each item in a plan (corners ``(3, m)``): ``(m,) uint8``, the plan's
+    levels walked for all items at once, in blocks of ``PARTITION_BLOCK`` items."""
+    labels = np.empty(lo.shape[1], dtype=np.uint8)
+    # tables by twice the node (the step to a child adds the side): no multiply a level
+    twice = np.repeat(plan.twice.astype(lo.dtype), 2)
+    step = 2 * plan.child.ravel()
+    limit = np.repeat(plan.limit, 2)
+    label = np.repeat(plan.label, 2)
+    least = plan.limit.min()
+    for b in range(0, len(labels), CLASSIFY_BLOCK):
+        lb, hb = lo[:, b:b + CLASSIFY_BLOCK], hi[:, b:b + CLASSIFY_BLOCK]
+        m = lb.shape[1]
+        c = (lb + hb).ravel()                                      # twice the centres, axis-major
+        offset = np.repeat(plan.axis * m, 2)
+        at = np.arange(m)
+        size = None
+        if np.isfinite(least):
+            size = hb[0] - lb[0]
+            for a in (1, 2):
+                np.maximum(size, hb[a] - lb[a], out=size)
+            if size.max() <= least:                                # none of them is pulled up anywhere
+                size = None
+        d = np.zeros(m, dtype=np.intp)
+        for _ in range(plan.depth):
+            nxt = step[d + (c[offset[d] + at] >= twice[d])]
+            d = nxt if size is None else np.where(size > limit[d], d, nxt)
+        labels[b:b + m] = label[d]
     return labels
-
-
-def _classify_block(lo, hi, plan, labels, first):
-    if plan is not None:
-        axis, position, left, right = plan
-        go = labels == first                     # the items of this part of the plan so far
-        go &= _centre(lo, hi, axis) >= position  # one axis's centres at a time
-        np.add(labels, _leaves(left), out=labels, where=go)
-        del go
-        _classify_block(lo, hi, left, labels, first)
-        _classify_block(lo, hi, right, labels, first + _leaves(left))
-
-
-def _placed(plan, bounds, first=0):
-    """A plan with its split positions in the item order: ``(middle, left, right)``,
-    None for a part; ``bounds`` are the parts' item ranges' edges."""
-    if plan is None:
-        return None
-    nl = _leaves(plan[2])
-    return (int(bounds[first + nl]), _placed(plan[2], bounds, first),
-            _placed(plan[3], bounds, first + nl))
 
 
 def _split_median(lo, hi, box, leaf_size):
@@ -290,6 +414,7 @@ def build_tree(boxes, builder="pHBVO", leaf_size=64, max_children=2, pull_up=Tru
 
 
 PARTITION_BLOCK = 1 << 16  # items per block of a labelled partition: a block's own order fits uint16
+CLASSIFY_BLOCK = 1 << 14   # items walked down a plan together (their temporaries stay in cache)
 COMPRESS_ITEMS = 1 << 16   # up to here a two-way partition compresses (faster on few items than by blocks)
 
 
@@ -340,16 +465,17 @@ class _Partitioner:
         # copied to that label's next free places.
         local, counts = _block_orders(label_of, e - s, k)
         total = counts.sum(axis=0)
-        to = (np.cumsum(counts, axis=0) - counts + (np.cumsum(total) - total)).tolist()
-        at = (np.cumsum(counts, axis=1) - counts).tolist()
-        runs = counts.tolist()
+        to = np.cumsum(counts, axis=0) - counts + (np.cumsum(total) - total)
+        at = np.cumsum(counts, axis=1) - counts
+        # each block's runs, (to, from, end) of its labels that occur (once for every row)
+        moves = [list(zip(to[i][c > 0].tolist(), at[i][c > 0].tolist(), (at[i] + c)[c > 0].tolist(), strict=True))
+                 for i, c in enumerate(counts)]
         for r in self.rows:
             seg, tmp = r[s:e], self._tmp(r, e - s)
             for i, b in enumerate(range(0, e - s, PARTITION_BLOCK)):
                 block = seg[b:b + PARTITION_BLOCK][local[b:b + PARTITION_BLOCK]]
-                for d, a, c in zip(to[i], at[i], runs[i], strict=True):
-                    if c:
-                        tmp[d:d + c] = block[a:a + c]
+                for d, a, z in moves[i]:
+                    tmp[d:d + z - a] = block[a:z]
             seg[...] = tmp
         return total if callable(labels) or labels.dtype != bool else np.pad(total, (0, 2 - len(total)))
 
@@ -390,23 +516,14 @@ def _build(items, split, leaf_size, max_children, pull_up):
     own, kids, box = [], [], []
     stack = [(0, k, -1, None)]
     while stack:                                   # one iteration per node
-        s, e, parent, plan = stack.pop()
-        if plan is not None and plan[0] in (s, e):   # a planned split the items did not follow
-            stack.append((s, e, parent, plan[1] if plan[0] == e else plan[2]))
-            continue
+        s, e, parent, nb = stack.pop()
         node = len(own)
-        nb = _box(lo[:, s:e], hi[:, s:e])
+        nb = _box(lo[:, s:e], hi[:, s:e]) if nb is None else nb
         own.append(None)
         kids.append([])
         box.append(nb)
         if parent >= 0:
             kids[parent].append(node)
-        if plan is not None:                       # inside a plan: its items are in place already
-            if e - s <= leaf_size:
-                own[node] = (s, e - s)
-            else:
-                stack += [(plan[0], e, node, plan[2]), (s, plan[0], node, plan[1])]
-            continue
         rest, r = nb, s
         if pull_up and e - s > leaf_size:
             big = _longer_than(lo[:, s:e], hi[:, s:e], PULL_UP * (nb[MAX] - nb[MIN]).max())
@@ -417,17 +534,16 @@ def _build(items, split, leaf_size, max_children, pull_up):
                 r = s + nbig
                 rest = _box(lo[:, r:e], hi[:, r:e])
             del big                                # a byte an item: gone before the split's temporaries
-        if split is _split_sah and e - r > PLAN_ITEMS:
-            # Several levels from one sample, the items moved once for all of them
-            # (inner nodes of a plan pull up nothing: their parts do).
-            whole = _sah_plan(*_sample(lo[:, r:e], hi[:, r:e], PLAN_SAMPLE), e - r, PLAN_DEPTH)
-            if whole is not None:
-                counts = partition(r, e, lambda a, b, lo=lo[:, r:e], hi=hi[:, r:e], plan=whole:
-                                   _classify(lo[:, a:b], hi[:, a:b], plan), _leaves(whole))
-                bounds = r + np.concatenate([[0], np.cumsum(np.pad(counts, (0, _leaves(whole) - len(counts))))])
-                placed = _placed(whole, bounds)
-                if placed[0] not in (r, e):
-                    stack += [(placed[0], e, node, placed[2]), (r, placed[0], node, placed[1])]
+        if split is _split_sah and e - r > max(PLAN_ITEMS, 2 * leaf_size):
+            # Several levels from one sample, the items moved once for all of them.
+            plan = _plan(lo[:, r:e], hi[:, r:e], leaf_size, pull_up)
+            if plan is not None:
+                counts = partition(r, e, lambda a, b, lo=lo[:, r:e], hi=hi[:, r:e], plan=plan:
+                                   _classify(lo[:, a:b], hi[:, a:b], plan), plan.nparts)
+                todo = _planned(plan, np.pad(counts, (0, plan.nparts - len(counts))), r, lo, hi, node,
+                                own, kids, box)
+                if todo is not None:
+                    stack += todo
                     continue
         labels = None
         if e - r > leaf_size:
@@ -443,6 +559,64 @@ def _build(items, split, leaf_size, max_children, pull_up):
         _collapse(kids, own, box, max_children)
     del partition                                  # its scratch rows go before the tree is flattened
     return _flatten(own, kids, box, perm)
+
+
+def _planned(plan, counts, r, lo, hi, node, own, kids, box):
+    """The nodes of a plan whose items lie at ``r`` on, partitioned by part (``counts``),
+    below tree node ``node`` (the plan's root): plan nodes that own items or have two
+    parts with items become tree nodes, their boxes from their parts'; returns the
+    ranges left to build, ``(s, e, parent, box)`` on the stack, or None where the root's
+    items all fell on one side (the node is then split as any other)."""
+    bounds = r + np.concatenate([[0], np.cumsum(counts)])
+    full = np.flatnonzero(counts)
+    part_lo, part_hi = np.full((len(counts), 3), np.inf), np.full((len(counts), 3), -np.inf)
+    at = bounds[full] - r
+    part_lo[full] = np.minimum.reduceat(lo[:, r:bounds[-1]], at, axis=1).T
+    part_hi[full] = np.maximum.reduceat(hi[:, r:bounds[-1]], at, axis=1).T
+
+    # every plan node's box at once: the union of its parts (one reduceat over [first, end) pairs,
+    # a row of +inf / -inf after the parts so that an end may be the last part's)
+    pairs = np.stack([plan.first, plan.first + plan.parts], axis=1).ravel()
+    node_box = np.stack([np.minimum.reduceat(np.vstack([part_lo, np.full(3, np.inf)]), pairs)[::2],
+                         np.maximum.reduceat(np.vstack([part_hi, np.full(3, -np.inf)]), pairs)[::2]], axis=1)
+
+    def extent(p):
+        return int(bounds[plan.first[p]]), int(bounds[plan.first[p] + plan.parts[p]])
+
+    def box_of(p):
+        return node_box[p]
+
+    left, right = plan.child[0]
+    if extent(left)[0] == extent(left)[1] or extent(right)[0] == extent(right)[1]:
+        return None
+    todo = []
+
+    def emit(p, parent):
+        s, e = extent(p)
+        if s == e:
+            return
+        if plan.child[p, 0] == p:                  # a part: built as any node
+            todo.append((s, e, parent, box_of(p)))
+            return
+        mine = int(counts[plan.label[p]])
+        sides = [c for c in plan.child[p] if extent(c)[0] < extent(c)[1]]
+        if not mine and len(sides) == 1:           # a split the items did not follow
+            emit(sides[0], parent)
+            return
+        if len(sides) < 2:                         # its items all pulled up, or one side: split anew
+            todo.append((s, e, parent, box_of(p)))
+            return
+        n = len(own)
+        own.append((s, mine) if mine else None)
+        kids.append([])
+        box.append(box_of(p))
+        kids[parent].append(n)
+        for c in plan.child[p]:
+            emit(c, n)
+
+    for c in plan.child[0]:
+        emit(c, node)
+    return todo[::-1]                              # the stack pops the leftmost first
 
 
 def _collapse(kids, own, box, max_children):

@@ -121,7 +121,6 @@ def test_planned_levels_keep_the_invariants(seed, monkeypatch):
     from tests.scenes import random_boxes
 
     monkeypatch.setattr(sd, "PLAN_ITEMS", 150)
-    monkeypatch.setattr(sd, "PLAN_SAMPLE", 1024)
     plans = []
     classify = sd._classify
     monkeypatch.setattr(sd, "_classify", lambda *a: plans.append(a[2]) or classify(*a))
@@ -145,30 +144,35 @@ def test_planned_levels_keep_the_invariants(seed, monkeypatch):
     assert np.all(contains(tree.bounds[tree.parent[kids]], tree.bounds[kids]))
 
 
-def test_plan_parts_follow_their_planes():
+@pytest.mark.parametrize("pull_up", [False, True])
+def test_plan_parts_follow_their_planes(pull_up):
     """Each item's part in a plan is the one its centre's side of every plane on its
-    path names, and the placed split positions fall between the parts."""
+    path names (an item longer than a node's limit stays at that node, in its own
+    part), and every plan node's parts are one run of labels: partitioned by label,
+    each node's items are one range."""
     import core.subdivision as sd
 
     rng = np.random.default_rng(5)
-    lo = rng.uniform(-50, 50, (3, 5000))
-    hi = lo + rng.exponential(1.0, (3, 5000))
-    plan = sd._sah_plan(lo, hi, 5000, 3)
-    assert sd._leaves(plan) == 8                                       # three full levels here
+    lo = rng.uniform(-50, 50, (3, 20000)).astype(np.float32)
+    hi = lo + rng.exponential(1.0, (3, 20000)).astype(np.float32)
+    hi[:, :40] += 60.0                                                 # a few long items to pull up
+    plan = sd._plan(lo, hi, 256, pull_up)
+    assert plan.depth == 7 and plan.nparts > 100                       # seven levels at once here
+    assert np.isfinite(plan.limit).any() == pull_up
     labels = sd._classify(lo, hi, plan)
-    centre = 0.5 * (lo + hi)
-    for i in range(0, 5000, 7):                                        # the plan walked item by item
-        p, first = plan, 0
-        while p is not None:
-            axis, position, left, right = p
-            if centre[axis, i] >= position:
-                p, first = right, first + sd._leaves(left)
-            else:
-                p = left
-        assert labels[i] == first
-    counts = np.bincount(labels, minlength=8)
-    bounds = np.concatenate([[0], np.cumsum(counts)])
-    placed = sd._placed(plan, bounds)
-    assert placed[0] == bounds[4]                                      # root: parts 0-3 | 4-7
-    assert placed[1][0] == bounds[2] and placed[2][0] == bounds[6]
-    assert placed[1][1][0] == bounds[1] and placed[2][2][0] == bounds[7]
+    twice = lo.astype(np.float64) + hi
+    size = (hi - lo).max(axis=0)
+    for i in range(0, 20000, 7):                                       # the plan walked item by item
+        p = 0
+        while plan.child[p, 0] != p and not size[i] > plan.limit[p]:
+            p = plan.child[p, int(twice[plan.axis[p], i] >= plan.twice[p])]
+        assert labels[i] == plan.label[p], i
+    if pull_up:
+        inner = plan.child[:, 0] != np.arange(len(plan.axis))
+        assert np.isin(labels[:40], plan.label[inner]).any()           # pulled up at some inner node
+    for p in range(len(plan.axis)):                                    # depth first: a node's parts are a run
+        kids = plan.child[p]
+        if kids[0] != p:
+            assert plan.first[kids[0]] == plan.first[p] + 1
+            assert plan.first[kids[1]] == plan.first[kids[0]] + plan.parts[kids[0]]
+            assert plan.parts[p] == 1 + plan.parts[kids[0]] + plan.parts[kids[1]]
