@@ -90,18 +90,15 @@ def _split_segments(box, start, length):
         t = (centre - lo[seg]) / extent[seg] * b_
     bins = np.minimum(np.where(ok[seg], t, 0.0).astype(np.int64), b_ - 1)      # (r, 3)
     # bins outermost, so the prefix and suffix scans below run over contiguous blocks
-    key = (bins * p + seg[:, None]) * 3 + np.arange(3)
-    key = key.ravel()
-    count = np.bincount(key, minlength=b_ * p * 3).reshape(b_, p, 3)
-    bmin = np.full((b_ * p * 3, 3), np.inf)
-    bmax = np.full((b_ * p * 3, 3), -np.inf)
-    order = np.argsort(key, kind="stable")                      # per-bin unions by sort and reduceat
-    ks = key[order]
-    run = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1]])
-    item = order // 3
-    bmin[ks[run]] = np.minimum.reduceat(np.take(b[:, MIN], item, axis=0), run, axis=0)
-    bmax[ks[run]] = np.maximum.reduceat(np.take(b[:, MAX], item, axis=0), run, axis=0)
-    bmin, bmax = bmin.reshape(b_, p, 3, 3), bmax.reshape(b_, p, 3, 3)
+    key = (bins * p + seg[:, None]) * 3 + np.arange(3)        # (r, 3): the bin of a row on each axis
+    count = np.bincount(key.ravel(), minlength=b_ * p * 3).reshape(b_, p, 3)
+    bmin = np.full((3, b_ * p * 3), np.inf)
+    bmax = np.full((3, b_ * p * 3), -np.inf)
+    for axis in range(3):                                       # per-bin unions (numpy >= 1.25: fast)
+        for d in range(3):
+            np.minimum.at(bmin[d], key[:, axis], b[:, MIN, d])
+            np.maximum.at(bmax[d], key[:, axis], b[:, MAX, d])
+    bmin, bmax = bmin.T.reshape(b_, p, 3, 3), bmax.T.reshape(b_, p, 3, 3)
     # both sides of every split, per (segment, axis)
     la, lcount, ra, rcount = sweep(bmin, bmax, count)
     cost = np.where((lcount > 0) & (rcount > 0) & ok, la * lcount + ra * rcount, np.inf)
