@@ -65,6 +65,7 @@ TRAVERSAL_COST = 1.0     # SAH cost of visiting a node, in units of one item
 PLAN_ITEMS = 4 * SAH_SAMPLE  # pHBVO nodes above this many items (and two leaves' worth) decide up to
 PLAN_DEPTH = 7           # PLAN_DEPTH levels at once (255 parts at most: a byte a label) from one
 PLAN_PART_SAMPLE = 64    # sample, PLAN_PART_SAMPLE items for each part, and move their items once
+WAVE_SAMPLE = 1 << 13    # nodes waiting for plans are planned together up to this many sample items
 
 
 @dataclass(eq=False)
@@ -185,26 +186,39 @@ class _Plan:
     parts: np.ndarray
     depth: int
 
-    @property
-    def nparts(self):
-        return int(self.parts[0])
+    def split(self, root):
+        """Whether plan root ``root`` is split (else its items are left whole)."""
+        return bool(self.child[root, 0] != root)
 
 
-def _plan(lo, hi, leaf_size, pull_up):
-    """The plan of a node's items (corners ``(3, n)``) down to parts of about
-    ``leaf_size`` items, ``PLAN_DEPTH`` levels at most, every level's splits decided
-    at once on a spread sample (:func:`_sah_planes`); None when the root is not split.
-    Sample items longer than a node's pull-up limit stay there, as the items will."""
-    n = lo.shape[1]
-    depth = max(1, min(PLAN_DEPTH, int(np.ceil(np.log2(n / leaf_size)))))
-    slo, shi = _sample(lo, hi, min(n, PLAN_PART_SAMPLE << depth))
-    per = n / slo.shape[1]                       # items a sample item stands for
+def _plan_sample(n, leaf_size):
+    """Sample items of a plan of ``n`` items: ``PLAN_PART_SAMPLE`` for each part it may make."""
+    return min(n, PLAN_PART_SAMPLE << max(1, min(PLAN_DEPTH, int(np.ceil(np.log2(n / leaf_size))))))
+
+
+def _plans(ranges, leaf_size, pull_up):
+    """The plans of several nodes' items (``ranges``: corners ``(3, n)`` each) down to
+    parts of about ``leaf_size`` items, ``PLAN_DEPTH`` levels at most, made together:
+    every level's splits of all of them decided at once on spread samples
+    (:func:`_sah_planes`).  Plan node ``i`` is the root of ``ranges[i]`` (left whole
+    where its sample could not be split).  Sample items longer than a node's pull-up
+    limit stay there, as the items will."""
+    samples, per = [], []
+    for lo, hi in ranges:
+        samples.append(_sample(lo, hi, _plan_sample(lo.shape[1], leaf_size)))
+        per.append(lo.shape[1] / samples[-1][0].shape[1])    # items a sample item stands for
+    slo = np.concatenate([a for a, _ in samples], axis=1)
+    shi = np.concatenate([b for _, b in samples], axis=1)
     c, size = slo + shi, (shi - slo).max(axis=0)
-    axis, twice, child, limit = [0], [np.inf], [[0, 0]], [np.inf]
-    node = np.zeros(1, dtype=np.int64)           # the plan node of each segment of the sample
-    length = np.array([slo.shape[1]])
+    roots = len(ranges)
+    axis, twice, limit = [0] * roots, [np.inf] * roots, [np.inf] * roots
+    child = [[i, i] for i in range(roots)]
+    node = np.arange(roots)                      # the plan node of each segment of the samples
+    per = np.array(per)                          # and the items a sample item of it stands for
+    length = np.array([a.shape[1] for a, _ in samples])
     rows = np.arange(slo.shape[1])               # the segments' sample items, segment by segment
-    for _ in range(depth):
+    levels = 0
+    for _ in range(PLAN_DEPTH):
         sid = np.repeat(np.arange(len(node)), length)
         if pull_up:                              # the sample's big items stay where the items' will
             keep = size[rows] <= np.asarray(limit)[node][sid]
@@ -214,7 +228,7 @@ def _plan(lo, hi, leaf_size, pull_up):
         if not ok.any():
             break
         rows, sid = rows[ok[sid]], (np.cumsum(ok) - 1)[sid[ok[sid]]]
-        node, length = node[ok], length[ok]
+        node, length, per = node[ok], length[ok], per[ok]
         # each segment's plane from SAH_SAMPLE of its sample items at most, every k-th
         step = -(-length // SAH_SAMPLE)
         count = -(-length // step)
@@ -224,6 +238,7 @@ def _plan(lo, hi, leaf_size, pull_up):
         found, ax, pos = _sah_planes(slo[:, pick], shi[:, pick], c[:, pick], first, count)
         if not found.any():
             break
+        levels += 1
         right = c[ax[sid], rows] >= pos[sid]
         go = found[sid]
         rows, sid, right = rows[go], sid[go], right[go]
@@ -239,7 +254,7 @@ def _plan(lo, hi, leaf_size, pull_up):
             child.append([len(child), len(child)])
             limit.append(np.inf)
         # the new segments: each split's left, then right part (their keys, in order)
-        node = np.stack([kids, kids + 1], axis=1).ravel()
+        node, per = np.stack([kids, kids + 1], axis=1).ravel(), np.repeat(per[split], 2)
         length = np.bincount(np.searchsorted((2 * split[:, None] + [0, 1]).ravel(), key), minlength=len(node))
         if pull_up:                              # a part's limit: half the longest side of its sample's box
             full = np.flatnonzero(length)
@@ -248,12 +263,10 @@ def _plan(lo, hi, leaf_size, pull_up):
                     - np.minimum.reduceat(slo[:, rows], at, axis=1)).max(axis=0)
             for p, v in zip(node[full].tolist(), (PULL_UP * side).tolist(), strict=True):
                 limit[p] = v
-    if child[0][0] == 0:
-        return None
     P = len(axis)
     label, first, parts = np.zeros(P, np.uint8), np.zeros(P, np.int64), np.zeros(P, np.int64)
 
-    def number(p, at):
+    def number(p, at):                           # depth first from each root: a byte a label
         first[p] = label[p] = at
         if child[p][0] == p:
             parts[p] = 1
@@ -262,9 +275,10 @@ def _plan(lo, hi, leaf_size, pull_up):
         parts[p] = at - first[p]
         return at
 
-    number(0, 0)
+    for i in range(roots):
+        number(i, 0)
     return _Plan(np.array(axis), np.array(twice), np.array(child, dtype=np.int64), np.array(limit),
-                 label, first, parts, depth)
+                 label, first, parts, max(levels, 1))
 
 
 def _sah_planes(slo, shi, c, start, length):
@@ -300,9 +314,9 @@ def _sah_planes(slo, shi, c, start, length):
     return found, axis, cmin[axis, at] + (split + 1) / b_ * ext[axis, at]
 
 
-def _classify(lo, hi, plan):
-    """Part of each item in a plan (corners ``(3, m)``): ``(m,) uint8``, the plan's
-    levels walked for all items at once, in blocks of ``PARTITION_BLOCK`` items."""
+def _classify(lo, hi, plan, root=0):
+    """Part of each item (corners ``(3, m)``) in the plan below ``root``: ``(m,) uint8``,
+    the plan's levels walked for all items at once, ``CLASSIFY_BLOCK`` items at a time."""
     labels = np.empty(lo.shape[1], dtype=np.uint8)
     # tables by twice the node (the step to a child adds the side): no multiply a level
     twice = np.repeat(plan.twice.astype(lo.dtype), 2)
@@ -323,7 +337,7 @@ def _classify(lo, hi, plan):
                 np.maximum(size, hb[a] - lb[a], out=size)
             if size.max() <= least:                                # none of them is pulled up anywhere
                 size = None
-        d = np.zeros(m, dtype=np.intp)
+        d = np.full(m, 2 * root, dtype=np.intp)
         for _ in range(plan.depth):
             nxt = step[d + (c[offset[d] + at] >= twice[d])]
             d = nxt if size is None else np.where(size > limit[d], d, nxt)
@@ -513,7 +527,7 @@ def _build(items, split, leaf_size, max_children, pull_up):
     k = lo.shape[1]
     perm = np.arange(k, dtype=np.int32 if k < 2**31 else np.int64)    # 4 bytes a move where they suffice
     partition = _Partitioner([*lo, *hi, perm])
-    own, kids, box = [], [], []
+    own, kids, box, wave = [], [], [], []
     stack = [(0, k, -1, None)]
     while stack:                                   # one iteration per node
         s, e, parent, nb = stack.pop()
@@ -535,35 +549,79 @@ def _build(items, split, leaf_size, max_children, pull_up):
                 rest = _box(lo[:, r:e], hi[:, r:e])
             del big                                # a byte an item: gone before the split's temporaries
         if split is _split_sah and e - r > max(PLAN_ITEMS, 2 * leaf_size):
-            # Several levels from one sample, the items moved once for all of them.
-            plan = _plan(lo[:, r:e], hi[:, r:e], leaf_size, pull_up)
-            if plan is not None:
-                counts = partition(r, e, lambda a, b, lo=lo[:, r:e], hi=hi[:, r:e], plan=plan:
-                                   _classify(lo[:, a:b], hi[:, a:b], plan), plan.nparts)
-                todo = _planned(plan, np.pad(counts, (0, plan.nparts - len(counts))), r, lo, hi, node,
-                                own, kids, box)
-                if todo is not None:
-                    stack += todo
-                    continue
+            wave.append((node, r, e, rest))        # planned with the others of its wave
+            if not stack:
+                stack += _wave(wave, lo, hi, partition, split, leaf_size, pull_up, own, kids, box)
+                wave = []
+            continue
         labels = None
         if e - r > leaf_size:
             labels = split(lo[:, r:e], hi[:, r:e], rest, leaf_size)
         if labels is None:
             own[node] = (s, e - s)
-            continue
-        counts = partition(r, e, labels)
-        starts = r + np.cumsum(counts) - counts
-        for part in np.flatnonzero(counts)[::-1]:
-            stack.append((int(starts[part]), int(starts[part] + counts[part]), node, None))
+        else:
+            stack += _split_into(partition, r, e, labels, node)
+        if not stack and wave:
+            stack += _wave(wave, lo, hi, partition, split, leaf_size, pull_up, own, kids, box)
+            wave = []
     if max_children > 2:
         _collapse(kids, own, box, max_children)
     del partition                                  # its scratch rows go before the tree is flattened
     return _flatten(own, kids, box, perm)
 
 
-def _planned(plan, counts, r, lo, hi, node, own, kids, box):
-    """The nodes of a plan whose items lie at ``r`` on, partitioned by part (``counts``),
-    below tree node ``node`` (the plan's root): plan nodes that own items or have two
+def _split_into(partition, r, e, labels, node):
+    """Partition ``[r, e)`` by a split's labels: its parts, as ranges to build below ``node``."""
+    counts = partition(r, e, labels)
+    starts = r + np.cumsum(counts) - counts
+    return [(int(starts[p]), int(starts[p] + counts[p]), node, None) for p in np.flatnonzero(counts)[::-1]]
+
+
+def _wave(wave, lo, hi, partition, split, leaf_size, pull_up, own, kids, box):
+    """Plan the nodes of a wave, ``(node, r, e, box)`` whose items ``[r, e)`` are to be
+    split, all together (:func:`_plans`), and move each one's items once; returns the
+    ranges left to build (a node whose plan was not followed is split as any other)."""
+    todo = []
+    for group in _groups(wave, leaf_size):
+        plan = _plans([(lo[:, r:e], hi[:, r:e]) for _, r, e, _ in group], leaf_size, pull_up)
+        todo += _follow(plan, group, lo, hi, partition, split, leaf_size, own, kids, box)
+    return todo
+
+
+def _groups(wave, leaf_size):
+    """The wave in groups whose samples together stay under ``WAVE_SAMPLE`` items."""
+    group, rows = [], 0
+    for w in wave:
+        m = _plan_sample(w[2] - w[1], leaf_size)
+        if group and rows + m > WAVE_SAMPLE:
+            yield group
+            group, rows = [], 0
+        group.append(w)
+        rows += m
+    if group:
+        yield group
+
+
+def _follow(plan, group, lo, hi, partition, split, leaf_size, own, kids, box):
+    """Move each group node's items once by its plan and make the plan's nodes; returns
+    the ranges left to build."""
+    todo = []
+    for i, (node, r, e, rest) in enumerate(group):
+        if plan.split(i):
+            n = int(plan.parts[i])
+            counts = partition(r, e, lambda a, b, lo=lo[:, r:e], hi=hi[:, r:e], i=i:
+                               _classify(lo[:, a:b], hi[:, a:b], plan, i), n)
+            done = _planned(plan, i, np.pad(counts, (0, n - len(counts))), r, lo, hi, node, own, kids, box)
+            if done is not None:
+                todo += done
+                continue
+        todo += _split_into(partition, r, e, split(lo[:, r:e], hi[:, r:e], rest, leaf_size), node)
+    return todo
+
+
+def _planned(plan, root, counts, r, lo, hi, node, own, kids, box):
+    """The nodes of the plan below ``root`` whose items lie at ``r`` on, partitioned by
+    part (``counts``), below tree node ``node``: plan nodes that own items or have two
     parts with items become tree nodes, their boxes from their parts'; returns the
     ranges left to build, ``(s, e, parent, box)`` on the stack, or None where the root's
     items all fell on one side (the node is then split as any other)."""
@@ -574,19 +632,25 @@ def _planned(plan, counts, r, lo, hi, node, own, kids, box):
     part_lo[full] = np.minimum.reduceat(lo[:, r:bounds[-1]], at, axis=1).T
     part_hi[full] = np.maximum.reduceat(hi[:, r:bounds[-1]], at, axis=1).T
 
-    # every plan node's box at once: the union of its parts (one reduceat over [first, end) pairs,
+    sub, i = [root], 0                            # the plan's nodes below the root
+    while i < len(sub):
+        if plan.split(sub[i]):
+            sub += plan.child[sub[i]].tolist()
+        i += 1
+    # every one's box at once: the union of its parts (one reduceat over [first, end) pairs,
     # a row of +inf / -inf after the parts so that an end may be the last part's)
-    pairs = np.stack([plan.first, plan.first + plan.parts], axis=1).ravel()
+    pairs = np.stack([plan.first[sub], plan.first[sub] + plan.parts[sub]], axis=1).ravel()
     node_box = np.stack([np.minimum.reduceat(np.vstack([part_lo, np.full(3, np.inf)]), pairs)[::2],
                          np.maximum.reduceat(np.vstack([part_hi, np.full(3, -np.inf)]), pairs)[::2]], axis=1)
+    row = {p: j for j, p in enumerate(sub)}
 
     def extent(p):
         return int(bounds[plan.first[p]]), int(bounds[plan.first[p] + plan.parts[p]])
 
     def box_of(p):
-        return node_box[p]
+        return node_box[row[p]]
 
-    left, right = plan.child[0]
+    left, right = plan.child[root]
     if extent(left)[0] == extent(left)[1] or extent(right)[0] == extent(right)[1]:
         return None
     todo = []
@@ -614,7 +678,7 @@ def _planned(plan, counts, r, lo, hi, node, own, kids, box):
         for c in plan.child[p]:
             emit(c, n)
 
-    for c in plan.child[0]:
+    for c in plan.child[root]:
         emit(c, node)
     return todo[::-1]                              # the stack pops the leftmost first
 

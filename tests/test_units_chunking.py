@@ -156,8 +156,8 @@ def test_plan_parts_follow_their_planes(pull_up):
     lo = rng.uniform(-50, 50, (3, 20000)).astype(np.float32)
     hi = lo + rng.exponential(1.0, (3, 20000)).astype(np.float32)
     hi[:, :40] += 60.0                                                 # a few long items to pull up
-    plan = sd._plan(lo, hi, 256, pull_up)
-    assert plan.depth == 7 and plan.nparts > 100                       # seven levels at once here
+    plan = sd._plans([(lo, hi)], 256, pull_up)
+    assert plan.depth == 7 and plan.parts[0] > 100                     # seven levels at once here
     assert np.isfinite(plan.limit).any() == pull_up
     labels = sd._classify(lo, hi, plan)
     twice = lo.astype(np.float64) + hi

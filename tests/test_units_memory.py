@@ -124,15 +124,17 @@ def test_chunking_is_the_one_of_the_whole_array_implementation(seed, builder, mo
 
 
 def test_chunking_peak_is_a_bounded_multiple_of_the_triangle_boxes(monkeypatch):
-    """Peak traced memory of chunking one float32 mesh (318,402 triangles, blocks made
+    """Peak traced memory of chunking one float32 mesh (1,276,802 triangles, blocks made
     small as at 20 M triangles, pHBVO's planned levels on): at most 1.65 x the float32
     triangle boxes (24 bytes a triangle).  The boxes, the int32 item order, one scratch
     row, a partition's labels and uint16 block orders make ~1.46 (measured 1.46 at
-    20 M triangles, 1.59 here with the tree's fixed costs); the whole-array argsort
-    partitions and float32 vertex copies that this replaced made 2.25."""
+    20 M triangles, 1.57 here with the tree's fixed costs and a plan's sample, about
+    300 bytes a sample item: at 318,402 triangles those weigh 0.25 more); the
+    whole-array argsort partitions and float32 vertex copies that this replaced made
+    2.25, the plans of a whole wave of nodes together 2.1."""
     monkeypatch.setattr(units, "BLOCK", 1 << 14)
     monkeypatch.setattr(sd, "PARTITION_BLOCK", 1 << 14)
-    v, f = grid_mesh(400)
+    v, f = grid_mesh(800)
     scene = Scene.from_arrays(["g"], [(v, f)], [0], [np.eye(4)])
     assert len(f) > sd.PLAN_ITEMS                                # the planned path runs
     tracemalloc.start()

@@ -842,8 +842,9 @@ def local_view_state():
     """The add-on's local-view bookkeeping against the window's, for a failure's report."""
     import bpy
     space, win = window_view(), bpy.context.window
+    local = space.local_view is not None if space else None
     out = [f"window layer {win.view_layer.name if win else None}, context layer {bpy.context.view_layer.name}",
-           f"space {space.as_pointer() if space else None} local view {space.local_view is not None if space else None}"]
+           f"space {space.as_pointer() if space else None} local view {local}"]
     lv = sys.modules.get(ADDON_MODULE + ".occ_addon.localview")
     vis = sys.modules.get(ADDON_MODULE + ".occ_addon.visibility")
     if lv is not None:
