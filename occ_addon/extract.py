@@ -304,8 +304,9 @@ def is_instancer(obj) -> bool:
 
 def may_instance(obj):
     """Whether ``obj`` can bring instances (vertex / face instancing, particles, geometry nodes)."""
+    mods = obj.modifiers
     return obj.instance_type in {"VERTS", "FACES"} or len(obj.particle_systems) > 0 \
-        or any(m.type == "NODES" for m in obj.modifiers)
+        or (len(mods) > 0 and any(m.type == "NODES" for m in mods))
 
 
 def kind(obj) -> Kind | None:
@@ -858,7 +859,8 @@ def _mesh_fingerprint(mesh, memo):
 
 
 def _modifiers_fingerprint(obj):
-    return tuple((m.type, m.show_viewport) for m in obj.modifiers)
+    mods = obj.modifiers            # most objects have none: no generator made (50,000 a pass)
+    return tuple([(m.type, m.show_viewport) for m in mods]) if len(mods) else ()
 
 
 def fingerprint(obj, k: Kind, memo: dict) -> tuple | None:
