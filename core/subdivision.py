@@ -35,9 +35,11 @@ own size (the corners, the int32 item order, the scratch row, a split's labels
 and block orders).
 
 Speed: above ``PLAN_ITEMS`` items (and two leaves' worth) pHBVO decides up to
-``PLAN_DEPTH`` levels at once (:func:`_plan`): every level's splits of all of a
-node's parts on one spread sample together (:func:`_sah_planes`), the items walked
-down those levels together (:func:`_classify`) and moved once, by label.  A 20 M
+``PLAN_DEPTH`` levels at once (:func:`_plans`): the nodes waiting for a plan are
+planned together (a wave, in groups of ``WAVE_SAMPLE`` sample items), every level's
+splits of all their parts on spread samples in one call (:func:`_sah_planes`); each
+node's items then walk down its plan's levels together (:func:`_classify`) and move
+once, by label.  A 20 M
 triangle mesh moves its items about twice instead of once a level, and the Python
 work a node costs is spent once a plan: the 10 M-vertex grid's chunking took 16.7 s
 before, 8.9 s after, one after the other here (``tools/blender_scale.py engine --vertices
