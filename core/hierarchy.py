@@ -28,7 +28,7 @@ import numpy as np
 
 from .bounds import MAX, MIN, check_boxes, segment_union
 from .errors import OccError
-from .sah import sweep
+from .sah import bin_unions, sweep
 from .tree import FlatTree
 
 SAH_BINS = 16
@@ -94,10 +94,8 @@ def _split_segments(box, start, length):
     count = np.bincount(key.ravel(), minlength=b_ * p * 3).reshape(b_, p, 3)
     bmin = np.full((3, b_ * p * 3), np.inf)
     bmax = np.full((3, b_ * p * 3), -np.inf)
-    for axis in range(3):                                       # per-bin unions (numpy >= 1.25: fast)
-        for d in range(3):
-            np.minimum.at(bmin[d], key[:, axis], b[:, MIN, d])
-            np.maximum.at(bmax[d], key[:, axis], b[:, MAX, d])
+    for axis in range(3):                                       # per-bin unions
+        bin_unions(key[:, axis], b[:, MIN].T, b[:, MAX].T, bmin, bmax)
     bmin, bmax = bmin.T.reshape(b_, p, 3, 3), bmax.T.reshape(b_, p, 3, 3)
     # both sides of every split, per (segment, axis)
     la, lcount, ra, rcount = sweep(bmin, bmax, count)

@@ -53,7 +53,7 @@ import numpy as np
 
 from .bounds import MAX, MIN, check_boxes, surface_area
 from .errors import OccError
-from .sah import corner_area, sweep
+from .sah import bin_unions, corner_area, sweep
 from .tree import FlatTree
 
 BUILDERS = ("pHBVO", "DBVS", "octree", "balanced")
@@ -301,9 +301,7 @@ def _sah_planes(slo, shi, c, start, length):
         count = np.bincount(key, minlength=p * b_).reshape(p, b_)
         bmin = np.full((3, p * b_), np.inf)
         bmax = np.full((3, p * b_), -np.inf)
-        for d in range(3):                                          # each bin's union (numpy >= 1.25: fast)
-            np.minimum.at(bmin[d], key, slo[d])
-            np.maximum.at(bmax[d], key, shi[d])
+        bin_unions(key, slo, shi, bmin, bmax)
         bmin, bmax = bmin.reshape(3, p, b_).transpose(2, 1, 0), bmax.reshape(3, p, b_).transpose(2, 1, 0)
         la, lc, ra, rc = sweep(bmin, bmax, count.T)                 # (b_ - 1, p) each
         cost = np.where((lc > 0) & (rc > 0) & (ext[a] > 0.0), la * lc + ra * rc, np.inf)

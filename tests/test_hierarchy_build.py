@@ -164,3 +164,38 @@ def test_split_segments_matchessah_split():
             assert np.array_equal(rows[at:at + lengths[i]], np.arange(starts[i], starts[i] + lengths[i]))
             assert np.array_equal(left[at:at + lengths[i]], sah_split(box[rows[at:at + lengths[i]]]))
             at += lengths[i]
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_bin_unions_by_sort_equal_ufunc_at(seed, monkeypatch):
+    """The SAH bins' box unions: numpy 1.25+'s fast ``ufunc.at`` and the sort and
+    ``reduceat`` used before it give the same unions, and so the same trees (the
+    object hierarchy and a planned mesh subdivision)."""
+    import core.sah as sah
+    import core.subdivision as sd
+
+    rng = np.random.default_rng(seed)
+    m, bins = 5000, 300
+    key = rng.integers(0, bins - 7, m)                         # some bins stay empty
+    lo = rng.uniform(-10, 10, (3, m))
+    hi = lo + rng.exponential(1.0, (3, m))
+    out = []
+    for fast in (True, False):
+        monkeypatch.setattr(sah, "FAST_AT", fast)
+        bmin, bmax = np.full((3, bins), np.inf), np.full((3, bins), -np.inf)
+        sah.bin_unions(key, lo, hi, bmin, bmax)
+        sah.bin_unions(key[:100], lo[:, :100] + 1, hi[:, :100] - 1, bmin, bmax)   # a second union, inside the first
+        out.append((bmin, bmax))
+    assert np.array_equal(out[0][0], out[1][0]) and np.array_equal(out[0][1], out[1][1])
+    assert np.isinf(out[0][0][:, bins - 7:]).all()
+    boxes = np.stack([lo.T, hi.T], axis=1)
+    units = [[i] for i in range(m)]
+    trees = []
+    for fast in (True, False):
+        monkeypatch.setattr(sah, "FAST_AT", fast)
+        h = build_hierarchy(boxes, units, np.array([-1, *[0] * m]), np.array([-1, *range(m)]), max_children=4)
+        t = sd.build_tree(np.concatenate([boxes] * 4), "pHBVO", leaf_size=64, max_children=4)
+        trees.append((h, t))
+    (h1, t1), (h2, t2) = trees
+    assert np.array_equal(h1.bounds, h2.bounds) and np.array_equal(h1.leaf_unit, h2.leaf_unit)
+    assert np.array_equal(t1.order, t2.order) and np.array_equal(t1.bounds, t2.bounds)
