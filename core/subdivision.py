@@ -53,7 +53,7 @@ import numpy as np
 
 from .bounds import MAX, MIN, check_boxes, surface_area
 from .errors import OccError
-from .sah import bin_unions, corner_area, sweep
+from .sah import bin_unions, sweep
 from .tree import FlatTree
 
 BUILDERS = ("pHBVO", "DBVS", "octree", "balanced")
@@ -108,40 +108,6 @@ def _centre(lo, hi, axis):
     return c
 
 
-def _sah_plane(slo, shi, n):
-    """The cheapest binned SAH plane ``(axis, position)`` over three axes for sample
-    corners ``slo, shi`` ``(3, m) float64`` standing for ``n`` items; None when no
-    plane separates the sample's centres."""
-    c = 0.5 * (slo + shi)                                          # (3, m) centres of the sample
-    m = c.shape[1]
-    cmin, cmax = c.min(axis=1), c.max(axis=1)
-    ext = cmax - cmin
-    if not (ext > 0.0).any():
-        return None
-    scale = np.where(ext > 0.0, SAH_BINS / np.where(ext > 0.0, ext, 1.0), 0.0)
-    bins = np.minimum(((c - cmin[:, None]) * scale[:, None]).astype(np.int64), SAH_BINS - 1)
-    key = (bins + SAH_BINS * np.arange(3)[:, None]).ravel()        # (axis, bin) of each sample item, per axis
-    count = np.bincount(key, minlength=3 * SAH_BINS)
-    order = np.argsort(key.astype(np.uint8), kind="stable")       # radix sort: 3 * SAH_BINS <= 256
-    item = order % m
-    present = np.flatnonzero(count)
-    start = (np.cumsum(count) - count)[present]
-    bmin = np.full((3 * SAH_BINS, 3), np.inf)
-    bmax = np.full((3 * SAH_BINS, 3), -np.inf)
-    bmin[present] = np.minimum.reduceat(slo[:, item], start, axis=1).T
-    bmax[present] = np.maximum.reduceat(shi[:, item], start, axis=1).T
-    bmin, bmax = bmin.reshape(3, SAH_BINS, 3), bmax.reshape(3, SAH_BINS, 3)
-    count = count.reshape(3, SAH_BINS)
-    la, lc, ra, rc = (a.T for a in sweep(bmin.transpose(1, 0, 2), bmax.transpose(1, 0, 2), count.T))
-    whole = max(corner_area(slo.min(axis=1), shi.max(axis=1)), 1e-300)
-    cost = np.where((lc > 0) & (rc > 0) & (ext > 0.0)[:, None],
-                    TRAVERSAL_COST + (la * lc + ra * rc) / whole * (n / m), np.inf)
-    axis, s = np.unravel_index(int(np.argmin(cost)), cost.shape)
-    if not np.isfinite(cost[axis, s]):
-        return None
-    return int(axis), cmin[axis] + (s + 1) / SAH_BINS * ext[axis]
-
-
 def _sample(lo, hi, size):
     """Every ``m / size``-th item's corners as float64 ``(3, <= size)``: a spread
     sample at no gather cost."""
@@ -157,10 +123,11 @@ def _split_sah(lo, hi, box, leaf_size):
     ``SAH_SAMPLE`` items of the node's (:func:`_sample`), then every item is
     partitioned by the chosen plane.
     """
-    plane = _sah_plane(*_sample(lo, hi, SAH_SAMPLE), lo.shape[1])
-    if plane is None:
+    slo, shi = _sample(lo, hi, SAH_SAMPLE)
+    found, axis, twice = _sah_planes(slo, shi, slo + shi, np.zeros(1, dtype=np.int64), np.array([slo.shape[1]]))
+    if not found[0]:
         return _split_median(lo, hi, box, leaf_size)
-    right = _centre(lo, hi, plane[0]) >= plane[1]
+    right = lo[axis[0]] + hi[axis[0]] >= twice[0]
     if right.all() or not right.any():           # the sample missed the rest's spread
         return _split_median(lo, hi, box, leaf_size)
     return right
@@ -168,7 +135,7 @@ def _split_sah(lo, hi, box, leaf_size):
 
 @dataclass(eq=False)
 class _Plan:
-    """pHBVO splits of several levels decided on one sample (:func:`_plan`).
+    """pHBVO splits of several levels decided on spread samples (:func:`_plans`).
 
     Plan nodes breadth first, node 0 the root, ``(P,)`` arrays: ``axis`` and ``twice``
     (twice the plane's position: items whose ``lo + hi`` on that axis reach it go
@@ -287,7 +254,8 @@ def _sah_planes(slo, shi, c, start, length):
     """The cheapest binned SAH plane of every segment of a sample at once (the items
     of segment i are columns ``start[i]:start[i] + length[i]``, in order, >= 2 each):
     ``(found, axis, twice the position)``, each ``(p,)``; ties go to the lowest axis,
-    then the lowest plane, as :func:`_sah_plane`.  ``c``: ``slo + shi``."""
+    then the lowest plane.  ``c``: ``slo + shi``.  A single node's split
+    (:func:`_split_sah`) is one segment."""
     p, b_ = len(start), SAH_BINS
     sid = np.repeat(np.arange(p), length)
     cmin, cmax = np.minimum.reduceat(c, start, axis=1), np.maximum.reduceat(c, start, axis=1)
@@ -529,7 +497,11 @@ def _build(items, split, leaf_size, max_children, pull_up):
     partition = _Partitioner([*lo, *hi, perm])
     own, kids, box, wave = [], [], [], []
     stack = [(0, k, -1, None)]
-    while stack:                                   # one iteration per node
+    while stack or wave:                           # one iteration per node, or per wave of plans
+        if not stack:
+            stack += _wave(wave, lo, hi, partition, split, leaf_size, pull_up, own, kids, box)
+            wave = []
+            continue
         s, e, parent, nb = stack.pop()
         node = len(own)
         nb = _box(lo[:, s:e], hi[:, s:e]) if nb is None else nb
@@ -550,9 +522,6 @@ def _build(items, split, leaf_size, max_children, pull_up):
             del big                                # a byte an item: gone before the split's temporaries
         if split is _split_sah and e - r > max(PLAN_ITEMS, 2 * leaf_size):
             wave.append((node, r, e, rest))        # planned with the others of its wave
-            if not stack:
-                stack += _wave(wave, lo, hi, partition, split, leaf_size, pull_up, own, kids, box)
-                wave = []
             continue
         labels = None
         if e - r > leaf_size:
@@ -561,9 +530,6 @@ def _build(items, split, leaf_size, max_children, pull_up):
             own[node] = (s, e - s)
         else:
             stack += _split_into(partition, r, e, labels, node)
-        if not stack and wave:
-            stack += _wave(wave, lo, hi, partition, split, leaf_size, pull_up, own, kids, box)
-            wave = []
     if max_children > 2:
         _collapse(kids, own, box, max_children)
     del partition                                  # its scratch rows go before the tree is flattened
