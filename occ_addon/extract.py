@@ -481,7 +481,7 @@ def drawn(view_layer, uids_all: np.ndarray, space=None) -> np.ndarray:
             ids = shown_by_collections(view_layer)
             return np.fromiter((user_shown(o, view_layer, ids) and not o.hide_viewport
                                 for o in view_layer.objects), dtype=bool, count=len(uids_all))
-        ids = np.fromiter((ident(o) for o in shown), dtype=np.int64, count=len(shown))
+        ids = visibility.idents(shown)
         return np.isin(uids_all, ids)
     if space is not None:
         found = next(((w, a) for w in context.window_manager.windows for a in w.screen.areas
@@ -498,7 +498,7 @@ def drawn(view_layer, uids_all: np.ndarray, space=None) -> np.ndarray:
         region = next((r for r in area.regions if r.type == "WINDOW"), None)
         with context.temp_override(window=win, area=area, region=region):
             shown = bpy.context.visible_objects
-    ids = np.fromiter((ident(o) for o in shown), dtype=np.int64, count=len(shown))
+    ids = visibility.idents(shown)
     return np.isin(uids_all, ids)
 
 
@@ -521,9 +521,9 @@ class Candidates:
         context's 3D view, if any)."""
         self.view_layer = view_layer
         layer = view_layer.objects
-        stale_all = visibility.flags("occ_culled", layer)      # hidden everywhere: not evaluated
-        culled_all = stale_all | visibility.flags(visibility.VIEW_RECORD, layer)
         uids_all = visibility.uids(layer)
+        stale_all = visibility.layer_flags("occ_culled", uids_all, layer)     # hidden everywhere: not evaluated
+        culled_all = stale_all | visibility.layer_flags(visibility.VIEW_RECORD, uids_all, layer)
         info = extractor.info
         no_instances = filters_geometry(space)
         # drawn now, or hidden by the add-on: only those can take part (what else the user

@@ -242,44 +242,46 @@ class Session:
         for: live mode checks every redraw against it).  ``show_only``: a pass
         during motion: it shows what it finds visible and hides nothing new (what
         stays hidden is hidden in this pass too, so it holds for its envelope)."""
-        settings = context.scene.occ
-        t = time.perf_counter()
-        visibility.reconcile()                 # what the user showed is the user's
-        t_update = time.perf_counter()
-        context.view_layer.update()            # edits still pending reach the handler now, not below
-        blender_s = time.perf_counter() - t_update
-        view_rule = shading.rule(context)
-        result, objects = self.compute(context, camera, display, fresh, progress, restart, envelope,
-                                       view_rule.lights)
-        state, held = result.state, self.held
-        culled = state != Visibility.VISIBLE
-        protected = policy.never_hidden(context, objects, held.uids, held.collection, culled, self.extractor)
-        protected |= policy.drawn_beyond_depth(view_rule, state, settings.cull_raytraced)
-        settings.last_rule = view_rule.why
-        hide = np.isin(visibility.uids(), held.uids[culled & ~protected])
-        before = visibility.COUNT["changed"]
-        self.applying = True
-        try:
-            if show_only:
-                visibility.release(~hide)
-            else:
-                visibility.apply(hide, hide_view(context))
-            # Showing an object again makes the depsgraph report it, and every
-            # object sharing its mesh, as changed geometry.  Nothing else can have
-            # changed since the update above, so evaluate now and let the handler
-            # ignore it all: hiding never costs an engine rebuild on the next pass.
+        # the records are read once a pass (see visibility.one_pass)
+        with visibility.one_pass():
+            settings = context.scene.occ
+            t = time.perf_counter()
+            visibility.reconcile()                 # what the user showed is the user's
             t_update = time.perf_counter()
-            context.view_layer.update()
-            blender_s += time.perf_counter() - t_update
-        finally:
-            self.applying = False
-        changed = visibility.COUNT["changed"] - before
-        self.last = LastPass(state, protected, self.culler.scene.bounds, result.occupancy, result.stats,
-                             1e3 * (time.perf_counter() - t), 1e3 * blender_s, changed)
-        self.last.publish(settings, self.culler.scene.triangle_counts)
-        self.shown = shown_by(result, camera)
-        self.version += 1
-        return result, objects
+            context.view_layer.update()            # edits still pending reach the handler now, not below
+            blender_s = time.perf_counter() - t_update
+            view_rule = shading.rule(context)
+            result, objects = self.compute(context, camera, display, fresh, progress, restart, envelope,
+                                           view_rule.lights)
+            state, held = result.state, self.held
+            culled = state != Visibility.VISIBLE
+            protected = policy.never_hidden(context, objects, held.uids, held.collection, culled, self.extractor)
+            protected |= policy.drawn_beyond_depth(view_rule, state, settings.cull_raytraced)
+            settings.last_rule = view_rule.why
+            hide = np.isin(visibility.uids(), held.uids[culled & ~protected])
+            before = visibility.COUNT["changed"]
+            self.applying = True
+            try:
+                if show_only:
+                    visibility.release(~hide)
+                else:
+                    visibility.apply(hide, hide_view(context))
+                # Showing an object again makes the depsgraph report it, and every
+                # object sharing its mesh, as changed geometry.  Nothing else can have
+                # changed since the update above, so evaluate now and let the handler
+                # ignore it all: hiding never costs an engine rebuild on the next pass.
+                t_update = time.perf_counter()
+                context.view_layer.update()
+                blender_s += time.perf_counter() - t_update
+            finally:
+                self.applying = False
+            changed = visibility.COUNT["changed"] - before
+            self.last = LastPass(state, protected, self.culler.scene.bounds, result.occupancy, result.stats,
+                                 1e3 * (time.perf_counter() - t), 1e3 * blender_s, changed)
+            self.last.publish(settings, self.culler.scene.triangle_counts)
+            self.shown = shown_by(result, camera)
+            self.version += 1
+            return result, objects
 
 
 def _replaced(culler, scene, strategy):

@@ -499,6 +499,8 @@ def child_main(args):
             peak_before = memory()[1]
             for k in range(args.turns):
                 cam.rotation_euler.z += turn * (1 if k % 2 == 0 else -1)   # to and fro: objects come and go
+                # the move is evaluated before the pass, as the user's own move is before a click
+                bpy.context.view_layer.update()
                 p = Phase([], f"turn{k}", base, prof if k == 0 else None)
                 with p:
                     bpy.ops.occ.cull()

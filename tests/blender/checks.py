@@ -43,7 +43,7 @@ CHECKS = {
         "click_restarts_fresh", "click_restarts_same_answer", "click_restarts_truth", "bulk_map_is_its_dict",
         "large_mesh_triangles_in_place",
     ],
-    "visibility": ["user_hide_kept_by_restore", "user_hide_kept_by_pass"],
+    "visibility": ["user_hide_kept_by_restore", "user_hide_kept_by_pass", "records_read_once_a_pass"],
     "localview": [
         "view_hides_in_its_view", "view_other_view_draws_everything", "view_visible_still_drawn",
         "view_entering_moves_nothing", "view_truth", "view_restore_leaves_view_unmoved",

@@ -3,7 +3,7 @@
 
 import bpy
 
-from .common import box, check, cull, hidden_by_addon, new_scene, update
+from .common import addon, box, check, cull, hidden_by_addon, new_scene, update
 
 
 def user_hide_wins():
@@ -25,3 +25,55 @@ def user_hide_wins():
     bpy.ops.occ.restore()
     check("user_hide_kept_by_pass", bpy.data.objects["target"].hide_viewport
           and not bpy.data.objects["target"].occ_culled, "")
+
+
+def records_read_once_a_pass():
+    """Within one pass (visibility.one_pass) the records read from the memo are what a
+    fresh bulk read of Blender's data gives, through a seeded run of the module's
+    writes (item by item and in bulk), over all objects and over a view layer holding
+    some of them; outside a pass a write not of the module's (a script) is seen."""
+    import random
+
+    import numpy as np
+    vis = addon("visibility")
+    new_scene()
+    layer_coll = bpy.data.collections.new("part")
+    bpy.context.scene.collection.children.link(layer_coll)
+    for i in range(40):
+        box(f"b{i}", (i, 0, 0), (i + 0.5, 1, 1), coll=layer_coll if i % 3 else None)
+    bpy.context.view_layer.layer_collection.children["part"].exclude = True   # the layer holds some
+    update()
+    layer = bpy.context.view_layer.objects
+
+    def fresh(prop, coll=None):
+        coll = bpy.data.objects if coll is None else coll
+        out = np.zeros(len(coll), dtype=bool)
+        coll.foreach_get(prop, out)
+        return out
+
+    rng = random.Random(11)
+    bad = []
+    with vis.one_pass():
+        for step in range(60):
+            prop = rng.choice(vis.RECORDS)
+            n = len(bpy.data.objects)
+            new = np.array([rng.random() < 0.5 for _ in range(n)])
+            if rng.random() < 0.5:                    # few changed: item by item
+                new = vis.flags(prop)
+                new[rng.randrange(n)] ^= True
+            vis._set_record(prop, vis.flags(prop), new)
+            for p in vis.RECORDS:
+                if not np.array_equal(vis.flags(p), fresh(p)):
+                    bad.append(("flags", step, p))
+                lf = vis.layer_flags(p, vis.uids(layer), layer)
+                if not np.array_equal(lf, fresh(p, layer)):
+                    bad.append(("layer", step, p))
+    ob = bpy.data.objects["b5"]
+    before = bool(vis.flags("occ_culled")[list(bpy.data.objects).index(ob)])
+    ob.occ_culled = not before                        # a script's write, outside any pass
+    seen = bool(vis.flags("occ_culled")[list(bpy.data.objects).index(ob)])
+    if seen == before:
+        bad.append("script write not seen outside a pass")
+    vis._store("occ_culled", np.zeros(len(bpy.data.objects), dtype=bool))
+    vis._store(vis.VIEW_RECORD, np.zeros(len(bpy.data.objects), dtype=bool))
+    check("records_read_once_a_pass", not bad, bad[:5])
