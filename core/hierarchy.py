@@ -116,13 +116,36 @@ class _Builder:
     def __init__(self, unit_bounds, max_children):
         self.unit_bounds = unit_bounds
         self.max_children = max_children
-        self.boxes, self.kids, self.units = [], [], []
+        self._box = np.zeros((max(16, len(unit_bounds)), 2, 3))   # node boxes, grown by doubling
+        self.n = 0
+        self.kids, self.units = [], []
+
+    @property
+    def boxes(self):
+        """``(n, 2, 3)`` the boxes of the nodes so far (a view)."""
+        return self._box[:self.n]
+
+    def _add(self, boxes, kids, units):
+        """Append nodes: ``(k, 2, 3)`` boxes, their children, their units; returns the first id."""
+        first, need = self.n, self.n + len(boxes)
+        if need > len(self._box):
+            grown = np.zeros((max(need, 2 * len(self._box)), 2, 3))
+            grown[:first] = self._box[:first]
+            self._box = grown
+        self._box[first:need] = boxes
+        self.n = need
+        self.kids.extend(kids)
+        self.units.extend(units)
+        return first
 
     def leaf(self, unit):
-        self.boxes.append(self.unit_bounds[unit])
-        self.kids.append(())
-        self.units.append(int(unit))
-        return len(self.boxes) - 1
+        return self._add(self.unit_bounds[unit][None], [()], [int(unit)])
+
+    def leaves(self, units):
+        """Leaves of ``units`` (``(k,) int``) at once; returns their node ids ``(k,) int64``."""
+        units = np.asarray(units, dtype=np.int64)
+        first = self._add(self.unit_bounds[units], [()] * len(units), units.tolist())
+        return np.arange(first, first + len(units))
 
     def group(self, items):
         """A node over ``items`` (node ids); None when empty; the item itself when single."""
@@ -137,11 +160,9 @@ class _Builder:
                 wide.append((len(out), items))
                 out.append(None)
             elif len(items) > 1:
-                box = np.array([self.boxes[i] for i in items])
-                self.boxes.append(np.stack([box[:, MIN].min(axis=0), box[:, MAX].max(axis=0)]))
-                self.kids.append(tuple(items))
-                self.units.append(-1)
-                out.append(len(self.boxes) - 1)
+                box = self._box[items]
+                union = np.stack([box[:, MIN].min(axis=0), box[:, MAX].max(axis=0)])
+                out.append(self._add(union[None], [tuple(items)], [-1]))
             else:
                 out.append(items[0] if items else None)
         if wide:
@@ -161,11 +182,10 @@ class _Builder:
         glen = np.array([len(items) for items in lists], dtype=np.int64)
         gstart = np.cumsum(glen) - glen
         perm = np.fromiter(chain.from_iterable(lists), np.int64, int(glen.sum()))
-        box = np.array([self.boxes[i] for i in perm], dtype=np.float64).reshape(-1, 2, 3)
-        gnode = len(self.boxes) + np.arange(len(lists))
-        self.boxes.extend(segment_union(box, gstart, glen))
-        self.kids.extend([()] * len(lists))                    # set below, as every group's
-        self.units.extend([-1] * len(lists))
+        box = self._box[perm]
+        # kids set below, as every group's
+        gnode = self._add(segment_union(box, gstart, glen), [()] * len(lists), [-1] * len(lists)) \
+            + np.arange(len(lists))
         roots = gnode.tolist()
         while len(gstart):
             g = len(gstart)
@@ -199,16 +219,12 @@ class _Builder:
             multi = np.flatnonzero(pl > 1)
             ubox = segment_union(box, ps[multi], pl[multi])
             child = perm[ps].copy()                            # a part of one item is the item
-            child[multi] = len(self.boxes) + np.arange(len(multi))
+            child[multi] = self.n + np.arange(len(multi))
             few = pl[multi] <= m                               # nodes over their items; the rest: next level
             rows = np.repeat(ps[multi] - np.cumsum(pl[multi]) + pl[multi], pl[multi]) + np.arange(pl[multi].sum())
-            items = np.split(perm[rows], np.cumsum(pl[multi])[:-1])
-            self.boxes.extend(ubox)
-            self.kids.extend(tuple(it.tolist()) if f else () for it, f in zip(items, few.tolist(), strict=True))
-            self.units.extend([-1] * len(multi))
-            kids = np.split(child, np.cumsum(np.bincount(pg, minlength=g))[:-1])
-            for node, k in zip(gnode.tolist(), kids, strict=True):
-                self.kids[node] = tuple(k.tolist())
+            self._add(ubox, _slices(perm[rows].tolist(), pl[multi], few), [-1] * len(multi))
+            for node, k in zip(gnode.tolist(), _slices(child.tolist(), np.bincount(pg, minlength=g)), strict=True):
+                self.kids[node] = k
             deeper = pl > m
             gstart, glen, gnode = ps[deeper], pl[deeper], child[deeper]
         return roots
@@ -233,13 +249,23 @@ class _Builder:
             front, n, d = kids[sub], n + total, d + 1
         order = np.concatenate(order)
         return Hierarchy(
-            bounds=np.array(self.boxes, dtype=np.float64).reshape(-1, 2, 3)[order],
+            bounds=self.boxes[order],
             first_child=np.concatenate(first),
             child_count=count[order],
             leaf_unit=np.array(self.units, dtype=np.int64)[order],
             parent=np.concatenate(parent),
             depth=np.concatenate(depth),
         )
+
+
+def _slices(flat, lengths, keep=None):
+    """Consecutive runs of ``lengths`` of the list ``flat`` as tuples (``keep``: ``(k,)
+    bool``, the runs not kept are empty tuples), without an array per run."""
+    ends = np.cumsum(lengths).tolist()
+    starts = [0, *ends[:-1]]
+    if keep is None:
+        return [tuple(flat[a:b]) for a, b in zip(starts, ends, strict=True)]
+    return [tuple(flat[a:b]) if k else () for a, b, k in zip(starts, ends, keep.tolist(), strict=True)]
 
 
 def _depth(parent):
@@ -321,7 +347,15 @@ def build_hierarchy(unit_bounds, object_units, tree_parent, tree_object, max_chi
     else:
         tree_parent = np.asarray(tree_parent, dtype=np.int64)
         tree_object = np.asarray(tree_object, dtype=np.int64)
-        own = [[object_node(o)] if o >= 0 else [] for o in tree_object.tolist()]
+        # objects of one unit and no subtree (most of a large scene): their leaves at once
+        single = np.array([len(u) == 1 and (unit_trees is None or unit_trees[i] is None)
+                           for i, u in enumerate(object_units)], dtype=bool)
+        leaf_of = np.full(n, -1, dtype=np.int64)
+        at = np.flatnonzero(single)
+        if len(at):
+            leaf_of[at] = b.leaves([object_units[i][0] for i in at.tolist()])
+        own = [[] if o < 0 else [int(leaf_of[o])] if single[o] else [object_node(o)]
+               for o in tree_object.tolist()]
         roots = [r for r in _fold(b, tree_parent, own) if r is not None]
         carried = np.zeros(n, dtype=bool)
         carried[tree_object[tree_object >= 0]] = True

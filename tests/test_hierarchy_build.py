@@ -33,10 +33,7 @@ class _Recursive(_Builder):
                 parts += [arr[left], arr[~left]]
             items = [self.group(p.tolist()) for p in parts]
         box = np.array([self.boxes[i] for i in items])
-        self.boxes.append(np.stack([box[:, MIN].min(axis=0), box[:, MAX].max(axis=0)]))
-        self.kids.append(tuple(items))
-        self.units.append(-1)
-        return len(self.boxes) - 1
+        return self._add(np.stack([box[:, MIN].min(axis=0), box[:, MAX].max(axis=0)])[None], [tuple(items)], [-1])
 
     def flatten(self, root):
         order, first, count, parent, depth = [root], [], [], [-1], [0]
