@@ -123,6 +123,11 @@ class BulkMap:
         self.entries[uid] = value
         self.pending[uid] = self.code(value)
 
+    def update(self, uids: list, values: list) -> None:
+        """``self[u] = v`` for each pair, at once."""
+        self.entries.update(zip(uids, values, strict=True))
+        self.pending.update(zip(uids, map(self.code, values), strict=True))
+
     def pop(self, uid: int, default=None):
         entry = self.entries.pop(uid, default)
         self.pending.pop(uid, None)
@@ -551,9 +556,18 @@ class Candidates:
                 bulk[at] = True
                 keep[at] = fine
                 give_back = uids_all[sel[at[~fine]]].tolist()
-        for j in np.flatnonzero(~bulk).tolist():      # the rest one by one: new, forgotten, stale
+        rest = np.flatnonzero(~bulk)
+        new = rest[~culled_sel[rest]]
+        if len(new):                                  # not known yet (a first pass): what each is, in one sweep
+            found = [items[i] for i in sel[new].tolist()]
+            entries = [ObjectInfo(kind(o), o.parent is not None) for o in found]
+            info.update(uids_all[sel[new]].tolist(), entries)
+            c = np.array([CODES[e.kind] for e in entries], dtype=codes.dtype)
+            codes[new] = c
+            keep[new] = (c > CODES[None]) & ~(no_instances & (c == CODES[Kind.COLLECTION]))
+        for j in rest[culled_sel[rest]].tolist():     # the rest one by one: hidden by the add-on
             i = int(sel[j])
-            o, uid, culled, stale = items[i], int(uids_all[i]), bool(culled_all[i]), bool(stale_all[i])
+            o, uid, stale = items[i], int(uids_all[i]), bool(stale_all[i])
             keep[j] = False
             if stale and verify:                      # edits to hidden objects are not reported
                 extractor.forget(uid)
@@ -561,20 +575,16 @@ class Candidates:
             if entry is None:
                 entry = info[uid] = ObjectInfo(kind(o), o.parent is not None)
             k = entry.kind
-            if k is None or (no_instances and k is Kind.COLLECTION):
-                if culled:
-                    give_back.append(uid)
+            # it takes no part, the user hid it too, or it may have changed unseen: give it
+            # back (hidden in one view only, it is evaluated and its edits are reported)
+            if k is None or (no_instances and k is Kind.COLLECTION) \
+                    or not (base[i] if not stale else extractor.user_shown(o, uid, view_layer)) \
+                    or not extractor.knows(o, k) \
+                    or (stale and (extractor.is_dynamic(o, uid)
+                                   or (verify and not extractor.unchanged(o, uid, k, memo)))) \
+                    or (space is not None and not view_shows(o, space, stale)):
+                give_back.append(uid)
                 continue
-            if culled:
-                # the user hid it too, or it may have changed unseen: give it back
-                # (hidden in one view only, it is evaluated and its edits are reported)
-                if not (base[i] if not stale else extractor.user_shown(o, uid, view_layer)) \
-                        or not extractor.knows(o, k) \
-                        or (stale and (extractor.is_dynamic(o, uid)
-                                       or (verify and not extractor.unchanged(o, uid, k, memo)))) \
-                        or (space is not None and not view_shows(o, space, stale)):
-                    give_back.append(uid)
-                    continue
             keep[j], codes[j] = True, CODES[k]
         index, codes = sel[keep].tolist(), codes[keep]
         kinds = [KINDS[c] for c in codes.tolist()]
@@ -618,13 +628,28 @@ class Extractor:
         self.dynamic = BulkMap(int)   # uid -> is_dynamic
         self.shown = {}          # uid -> user_shown (hidden by the add-on); any visibility change clears it
         self.shown_ids = None    # sorted uids of the objects in shown collections (see shown_by_collections)
-        self.fps = {}            # uid -> fingerprint of the data its cached geometry was read from
+        self.fps = {}            # uid -> fingerprint of the data its cached geometry was read from (seal)
         self.sources = {}        # instancer uid -> its instanced_sources when its instances were read
 
     def forget(self, uid: int) -> None:
         """Forget what object ``uid`` is (it will be classified again)."""
         self.info.pop(uid, None)
         self.dynamic.pop(uid, None)
+
+    def seal(self, objects: list, uids: np.ndarray) -> None:
+        """Before ``objects`` (session ids ``uids``) are hidden everywhere (from then on
+        not evaluated, their edits not reported): fingerprint the data their cached
+        geometry was read from (:meth:`unchanged` compares against it), where not done
+        since that read.  Until then the object was shown, so every edit of it was
+        reported: one with a change marked since its read gets no fingerprint, and is
+        given back by the next check (conservative)."""
+        memo = {}
+        for obj, uid in zip(objects, uids.tolist(), strict=True):
+            if uid in self.fps or uid in self.dirty or uid not in self.cache:
+                continue
+            entry = self.info.get(uid)
+            if entry is not None and entry.kind is not None:
+                self.fps[uid] = fingerprint(obj, entry.kind, memo)
 
     def unchanged(self, obj, uid: int, k: Kind, memo: dict) -> bool:
         """Whether the data of ``obj`` (hidden by the add-on, so not evaluated, and its
@@ -760,11 +785,13 @@ class Extractor:
         mesh_index, read = {}, {}
         n = len(cand.objects)
         due = time.perf_counter() + STEP_S
+        stale, cand_uids = cand.stale.tolist(), cand.uids.tolist()
         for i, obj in enumerate(cand.objects):         # once per object, bulk inside
             if time.perf_counter() >= due:
                 yield Progress("reading geometry", i / n)
                 due = time.perf_counter() + STEP_S
-            entry = self._geometry(obj, cand.kinds[i], cand.stale[i], depsgraph, read)
+            uid = cand_uids[i]
+            entry = self._geometry(obj, uid, cand.kinds[i], stale[i], depsgraph, read)
             if entry is None:
                 continue
             key, v, f = entry.key, entry.vertices, entry.faces
@@ -776,7 +803,7 @@ class Extractor:
             if key not in mesh_index:
                 mesh_index[key] = len(meshes)
                 meshes.append((v, f))
-            uids.append(ident(obj))
+            uids.append(uid)
             mesh_of.append(mesh_index[key])
             kept.append(i)
         self.forget_changes(seen)
@@ -785,7 +812,7 @@ class Extractor:
                            + (f" (left out for NaN or infinite values: {', '.join(bad)})" if bad else ""))
         kept = np.array(kept, dtype=np.int64)
         objects = [cand.objects[i] for i in kept]
-        tree_parent, tree_object = _tree(context.scene, objects)
+        tree_parent, tree_object = _tree(context.scene, objects, uids)
         scene = Scene.from_arrays([o.name for o in objects], meshes, np.array(mesh_of),
                                   cand.matrices[kept], tree_parent, tree_object)
         return scene, kept, bad
@@ -824,11 +851,10 @@ class Extractor:
         # sources unknown (geometry nodes: anything touched may be one) or one of them touched
         return sources is None or not self.touched.keys().isdisjoint(sources)
 
-    def _geometry(self, obj, k, culled, depsgraph, read):
-        """The object's :class:`Geometry` from the cache when still valid, else from the depsgraph
-        (a shared mesh once per pass: ``read``); None when unknown.  Its vertices are
-        None for geometry with NaN or infinite vertices."""
-        uid = ident(obj)
+    def _geometry(self, obj, uid, k, culled, depsgraph, read):
+        """The object's (session id ``uid``) :class:`Geometry` from the cache when still
+        valid, else from the depsgraph (a shared mesh once per pass: ``read``); None when
+        unknown.  Its vertices are None for geometry with NaN or infinite vertices."""
         hit = self.cache.get(uid)
         if k is not Kind.MESH or culled:                     # instancers: read above; hidden: not evaluated
             return hit
@@ -844,7 +870,7 @@ class Extractor:
             read[key] = (_finite_or_none(v), f)
         v, f = read[key]
         hit = self.cache[uid] = Geometry(key, v, f)
-        self.fps[uid] = fingerprint(obj, k, read)
+        self.fps.pop(uid, None)                    # fingerprinted when hidden everywhere (seal)
         return hit
 
 
@@ -929,30 +955,28 @@ def _instanced_geometry(depsgraph, instancers):
     return out
 
 
-def _tree(scene, objects):
-    """Scene tree over collections (groups) and objects (parents kept)."""
-    index = {ident(o): i for i, o in enumerate(objects)}
+def _tree(scene, objects, uids):
+    """Scene tree over collections (groups) and objects (session ids ``uids``; parents kept)."""
+    index = dict(zip(uids, range(len(uids)), strict=True))
     parent, carried, node_of = [], [], {}
 
-    def add(obj_index, parent_node):
-        parent.append(parent_node)
-        carried.append(obj_index)
-        return len(parent) - 1
-
     def walk(coll, parent_node):                      # collections: a handful, recursion ok
-        node = add(-1, parent_node)
-        for obj in coll.objects:
-            uid = ident(obj)
+        node = len(parent)
+        parent.append(parent_node)
+        carried.append(-1)
+        for uid in visibility.uids(coll.objects).tolist():
             if uid in index and uid not in node_of:
-                node_of[uid] = add(index[uid], node)
+                node_of[uid] = len(parent)
+                parent.append(node)
+                carried.append(index[uid])
         for child in coll.children:
             walk(child, node)
 
     walk(scene.collection, -1)
     parent = np.array(parent, dtype=np.int64)
     carried = np.array(carried, dtype=np.int64)
-    for obj in objects:                               # object parenting refines the tree
+    for obj, uid in zip(objects, uids, strict=True):  # object parenting refines the tree
         p = obj.parent
-        if p is not None and ident(p) in node_of and ident(obj) in node_of:
-            parent[node_of[ident(obj)]] = node_of[ident(p)]
+        if p is not None and uid in node_of and ident(p) in node_of:
+            parent[node_of[uid]] = node_of[ident(p)]
     return parent, carried

@@ -265,7 +265,11 @@ class Session:
                 if show_only:
                     visibility.release(~hide)
                 else:
-                    visibility.apply(hide, hide_view(context))
+                    view = hide_view(context)
+                    if view is None:                   # hidden everywhere: not evaluated from now on
+                        sealed = np.flatnonzero(culled & ~protected)
+                        self.extractor.seal([objects[i] for i in sealed.tolist()], held.uids[sealed])
+                    visibility.apply(hide, view)
                 # Showing an object again makes the depsgraph report it, and every
                 # object sharing its mesh, as changed geometry.  Nothing else can have
                 # changed since the update above, so evaluate now and let the handler

@@ -160,17 +160,23 @@ class Step:
 
 def step_addon(table, base):
     """The first cull's steps as rows: the add-on's extraction (candidates, scene
-    arrays) and the engine's build (chunking, hierarchy, GL upload) and pass.
+    arrays), the engine's build (chunking, hierarchy, GL upload) and pass, the
+    never-hide policy and the hiding (its local-view entry apart).
     Returns a function that puts the add-on's own functions back."""
     import importlib
-    extract, engine, gl = (importlib.import_module(f"bl_ext.user_default.{EXT_ID}.{m}")   # core.gl: lazily
-                           for m in ("occ_addon.extract", "core.engine", "core.gl"))       # imported otherwise
+    extract, engine, gl, policy, visibility, localview = (
+        importlib.import_module(f"bl_ext.user_default.{EXT_ID}.{m}")       # core.gl: lazily imported otherwise
+        for m in ("occ_addon.extract", "core.engine", "core.gl", "occ_addon.policy", "occ_addon.visibility",
+                  "occ_addon.localview"))
     steps = [(extract.Extractor, "candidates", "extract: candidates"),
              (extract.Extractor, "scene_steps", "extract: scene arrays"),
              (engine, "make_units", "engine: make_units (chunking)"),
              (engine, "build_hierarchy", "engine: build_hierarchy"),
              (gl, "GLRenderer", "engine: GLRenderer (upload)"),
-             (engine.Culler, "cull", "engine: pass")]
+             (engine.Culler, "cull", "engine: pass"),
+             (policy, "never_hidden", "policy: never hidden"),
+             (localview, "enter", "hide: entering the own local view"),
+             (visibility, "apply", "hide: apply (entry included; the update after it not)")]
     originals = [(owner, attr, getattr(owner, attr)) for owner, attr, _ in steps]
     for owner, attr, name in steps:
         step = Step(table, name, base)

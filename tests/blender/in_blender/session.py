@@ -69,6 +69,13 @@ def hidden_edits():
         update()
         cull()
         hid = hidden_by_addon("target")
+        if what == "move":
+            # unedited, a click's check of what the add-on hides finds it as read: it stays
+            # hidden, not shown and hidden again (its data was fingerprinted when hidden)
+            cull()
+            last = addon("session").SESSION.last
+            check("hidden_unedited_stays_hidden", hid and hidden_by_addon("target") and last.changed == 0,
+                  (hid, hidden_by_addon("target"), last.changed))
         me = bpy.data.objects["target"].data
         co = np.zeros(len(me.vertices) * 3, np.float32)
         me.vertices.foreach_get("co", co)
