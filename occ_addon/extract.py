@@ -348,11 +348,16 @@ def _animated(idblock):
     return ad is not None and (ad.action is not None or len(ad.drivers) > 0 or len(ad.nla_tracks) > 0)
 
 
-def is_dynamic(obj) -> bool:
+def _data_animated(data) -> bool:
+    return _animated(data) or _animated(getattr(data, "shape_keys", None))
+
+
+def is_dynamic(obj, memo: dict | None = None) -> bool:
     """Whether ``obj``'s evaluated state can change without an edit (animation,
     drivers, constraints, physics, particles, instancing, geometry nodes,
     modifiers that read other objects, bone or vertex parents, a dynamic parent):
-    such an object is never hidden, since Blender stops evaluating what is hidden."""
+    such an object is never hidden, since Blender stops evaluating what is hidden.
+    ``memo``: whether each object data is animated (shared meshes are asked once)."""
     seen = 0
     while obj is not None and seen < 64:      # parent chains: a few levels
         if _animated(obj) or len(obj.constraints) or obj.rigid_body is not None \
@@ -360,8 +365,15 @@ def is_dynamic(obj) -> bool:
                 or obj.instance_type in {"VERTS", "FACES"}:
             return True
         data = obj.data
-        if data is not None and (_animated(data) or _animated(getattr(data, "shape_keys", None))):
-            return True
+        if data is not None:
+            if memo is None:
+                animated = _data_animated(data)
+            else:
+                animated = memo.get(data)
+                if animated is None:
+                    animated = memo[data] = _data_animated(data)
+            if animated:
+                return True
         for m in obj.modifiers:
             if m.type not in STATIC_MODIFIERS or _object_pointers(m):
                 return True
@@ -684,19 +696,20 @@ class Extractor:
             hit = self.shown[uid] = bool(user_shown(obj, view_layer, self.shown_ids))
         return hit
 
-    def is_dynamic(self, obj, uid: int) -> bool:
+    def is_dynamic(self, obj, uid: int, memo: dict | None = None) -> bool:
         hit = self.dynamic.get(uid)
         if hit is None:
-            hit = self.dynamic[uid] = is_dynamic(obj)
+            hit = self.dynamic[uid] = is_dynamic(obj, memo)
         return hit
 
     def dynamic_of(self, objects: list, uids: np.ndarray, at: np.ndarray) -> np.ndarray:
         """``(len(at),) bool``: :meth:`is_dynamic` of ``objects[at]`` (session ids
         ``uids[at]``), looked up in bulk, asked one by one where not known."""
         out = self.dynamic.codes_of(uids[at]).astype(np.int64)
+        memo = {}                                     # object data -> animated, once a call
         for j in np.flatnonzero(out == UNKNOWN).tolist():
             k = int(at[j])
-            out[j] = self.is_dynamic(objects[k], int(uids[k]))
+            out[j] = self.is_dynamic(objects[k], int(uids[k]), memo)
         return out.astype(bool)
 
     def mark(self, geometry: Iterable[int] = (), transform: Iterable[int] = ()) -> None:
