@@ -22,7 +22,7 @@ from ..core.envelope import Envelope
 from ..core.motion import LivePolicy
 from ..core.settings import preset, query_resolution
 from ..core.units import ChunkCache
-from . import localview, policy, shading, visibility
+from . import policy, shading, visibility
 from .cameras import hide_view
 from .extract import Candidates, Extractor, Kind
 from .passes import LastPass, Shown, shown_by
@@ -71,8 +71,6 @@ class Session:
         self.busy = None           # the label of a modal operator's work in steps (live passes wait)
         self.shown: Shown | None = None  # the view and motion the hidden set holds for
         self.read: Candidates | None = None   # the last pass's candidates (see engine_steps' reuse)
-        self.enter_while: tuple | None = None  # (window, area) to put in its own local view meanwhile
-        self.entered: tuple | None = None      # ... and put there by this pass (see _meanwhile)
 
     def reset(self) -> None:
         """Forget everything (a file was loaded, an undo or redo, or the add-on goes away):
@@ -162,12 +160,10 @@ class Session:
                 job = self.worker.submit(Culler, scene, resolution, strategy=strategy,
                                          chunk_triangles=CHUNK_TRIANGLES, chunk_cache=self.chunks,
                                          display=display)
-            self._meanwhile()
             try:
                 yield job
             except GeneratorExit:                     # stopped: close what the build makes
                 self.worker.submit(_close_built, job)
-                self._unenter()
                 raise
             self.culler = job.result()
             self.held = Held(uids, size, kept, cand.uids[kept],
@@ -200,14 +196,7 @@ class Session:
         steps, hiding nothing: a modal operator runs it, then :meth:`cull` (which then
         finds the engine built, or rebuilds what changed in between)."""
         _, res, shown = self._sizes(context, display)
-        self.enter_while, self.entered = hide_view(context), None
-        try:
-            yield from self.engine_steps(context, res, context.scene.occ.strategy, verify=fresh, display=shown)
-        except Exception:
-            self._unenter()
-            raise
-        finally:
-            self.enter_while = None
+        yield from self.engine_steps(context, res, context.scene.occ.strategy, verify=fresh, display=shown)
 
     def compute(self, context, camera: Camera, display: Size, fresh: bool = True,
                 progress: Callable | None = None, restart: bool = False,
@@ -241,30 +230,7 @@ class Session:
             culler.forget(everything=True)
         elif fresh:
             culler.forget()
-        job = self.worker.submit(culler.cull, camera, envelope=envelope, lights=lights)
-        self._meanwhile()
-        return job.result(), objects
-
-    def _meanwhile(self) -> None:
-        """While the engine thread builds or culls: put the view this pass hides in in the
-        add-on's own local view (holding every object: nothing drawn changes), if it must
-        be.  Entering takes Blender's evaluation of a selection (about a base update:
-        0.5-0.9 s at 50,000 objects, where no drawn object is selected), and Blender lets
-        Python threads run while it evaluates: this way the engine's work covers it."""
-        view, self.enter_while = self.enter_while, None
-        if view is None or view[1].spaces.active.local_view is not None:
-            return
-        localview.enter(*view)
-        if localview.is_own(view[1].spaces.active):
-            self.entered = view
-
-    def _unenter(self) -> None:
-        """A pass stopped or failed: the own local view it entered (hiding nothing yet)
-        ends, so nothing is left of it."""
-        view, self.entered = self.entered, None
-        space = view[1].spaces.active if view is not None else None
-        if space is not None and localview.is_own(space) and visibility.hiding_view() != space.as_pointer():
-            localview.leave(*view)
+        return self.worker.run(culler.cull, camera, envelope=envelope, lights=lights), objects
 
     def cull(self, context, camera: Camera, display: Size, fresh: bool = False, progress: Callable | None = None,
              restart: bool = False, envelope: Envelope | str | None = None,
@@ -285,15 +251,8 @@ class Session:
             context.view_layer.update()            # edits still pending reach the handler now, not below
             blender_s = time.perf_counter() - t_update
             view_rule = shading.rule(context)
-            self.enter_while, self.entered = (None if show_only else hide_view(context)), None
-            try:
-                result, objects = self.compute(context, camera, display, fresh, progress, restart, envelope,
-                                               view_rule.lights)
-            except Exception:
-                self._unenter()
-                raise
-            finally:
-                self.enter_while = None
+            result, objects = self.compute(context, camera, display, fresh, progress, restart, envelope,
+                                           view_rule.lights)
             state, held = result.state, self.held
             culled = state != Visibility.VISIBLE
             protected = policy.never_hidden(context, objects, held.uids, held.collection, culled, self.extractor)

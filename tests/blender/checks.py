@@ -55,8 +55,6 @@ CHECKS = {
         "view_user_leaves_local_record_ends",
         "view_undo_keeps_visible_drawn", "view_save_keeps_culled", "view_saved_file_opens_drawn",
         "view_saved_file_without_hiding_opens_plain",
-        "view_entered_while_building", "view_stopped_build_leaves_no_local_view",
-        "view_cull_after_stopped_build_hides", "view_cull_after_stopped_build_truth",
     ],
     "handlers": ["save_keeps_culled", "saved_file_opens_shown_without_addon", "old_file_restored_on_enable",
                  "old_file_restored_on_load"],

@@ -202,29 +202,3 @@ def users_local_view():
     flags = np.zeros(len(bpy.data.objects), dtype=bool)
     bpy.data.objects.foreach_get("occ_view_culled", flags)
     check("view_user_leaves_local_record_ends", not flags.any() and _drawn_in("target", space), flags.sum())
-
-
-def stopped_build_leaves_no_local_view():
-    """The own local view is entered while the engine builds (Blender evaluates the
-    selection it takes while the engine works); a first Cull stopped there (Esc)
-    leaves the view as it was: no local view, every object drawn."""
-    _scene()
-    win, area, space, other = _view()
-    SESSION, worker = addon("session").SESSION, addon("worker")
-    SESSION.reset()                                  # a first pass: the engine builds
-    steps = SESSION.prepare_steps(bpy.context, (320, 180))
-    entered = False
-    for item in steps:
-        if isinstance(item, worker.Job):             # the build runs on the engine thread
-            entered = space.local_view is not None
-            break
-    steps.close()                                    # Esc
-    update()
-    check("view_entered_while_building", entered, "")
-    check("view_stopped_build_leaves_no_local_view",
-          space.local_view is None and all(_drawn_in(n, space) for n in ("target", "front", "wall")),
-          space.local_view)
-    cull()
-    check("view_cull_after_stopped_build_hides", bpy.data.objects["target"].occ_view_culled
-          and not _drawn_in("target", space) and space.local_view is not None, "")
-    promise("view_cull_after_stopped_build_truth")
