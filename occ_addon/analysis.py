@@ -24,7 +24,7 @@ from . import keyed_camera, policy
 from .cameras import scene_camera
 from .session import SESSION
 from .shading import rule as rule_of
-from .worker import Progress
+from .worker import Progress, quiet
 
 
 @dataclass
@@ -200,6 +200,7 @@ def push_undo(message: str) -> None:
     Headless without an undo history (the common script) nothing is pushed: nothing
     can be undone there, and a first push would copy the whole file into memory."""
     if not bpy.app.background or bpy.ops.ed.undo_history.poll():
+        quiet()                                      # no engine thread runs while an operator does
         bpy.ops.ed.undo_push(message=message)
 
 

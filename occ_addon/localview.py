@@ -29,6 +29,8 @@ saved with it (:func:`.visibility.lift`).
 import bpy
 import numpy as np
 
+from .worker import quiet
+
 # the add-on's own local views: SpaceView3D pointer -> the session ids of the objects
 # of its window's view layer that hold the bit (sorted), and that layer's name
 _own: dict[int, dict] = {}
@@ -66,6 +68,7 @@ def _toggle(win, area) -> None:
     makes before and after every call up to Blender 5.1 (two full base updates at scale:
     the one the pass makes after hiding covers them); 5.2's operators are called as they
     are (its ``bpy.ops`` has no Python-side call left to go around)."""
+    quiet()                                          # no engine thread runs while the operator does
     with bpy.context.temp_override(window=win, area=area, region=_region(area)):
         op, kw = bpy.ops.view3d.localview, {"frame_selected": False}
         try:

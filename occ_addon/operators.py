@@ -11,7 +11,7 @@ from . import live, localview, overlay, visibility
 from .analysis import analysis_steps, link_collection, push_undo, report_path, write_report
 from .cameras import camera_for
 from .session import SESSION
-from .worker import Job, Progress, drive
+from .worker import Job, Progress, drive, quiet
 
 # "//" paths are blend-relative; Blender 4.5+ wants string properties to say they accept them
 BLEND_RELATIVE = {"PATH_SUPPORTS_BLEND_RELATIVE"} if bpy.app.version >= (4, 5, 0) else set()
@@ -186,6 +186,7 @@ class OCC_OT_local_view(bpy.types.Operator):
     def invoke(self, context, event):
         visibility.restore()             # live mode, if on, culls again inside the new local view
         SESSION.shown = None
+        quiet()                          # no engine thread runs while an operator does
         return bpy.ops.view3d.localview("INVOKE_DEFAULT")
 
 

@@ -19,6 +19,7 @@ frees resources is dropped: the process frees them.
 import queue
 import sys
 import threading
+import weakref
 from typing import NamedTuple
 
 
@@ -85,6 +86,8 @@ class EngineThread:
     def __init__(self):
         self._thread = None
         self._jobs = None
+        self._last = None            # the last job handed over (jobs run in order)
+        _THREADS.add(self)
 
     def _loop(self, jobs):
         while True:
@@ -113,7 +116,14 @@ class EngineThread:
             self._thread.start()
         out = Job()
         self._jobs.put((fn, args, kwargs, out))
+        self._last = out
         return out
+
+    def wait_idle(self):
+        """Wait until every job handed over so far has run."""
+        last = self._last
+        if last is not None and self.alive():
+            last.wait()
 
     def run(self, fn, *args, **kwargs):
         return self.submit(fn, *args, **kwargs).result()
@@ -123,3 +133,17 @@ class EngineThread:
             self._jobs.put(None)
             self._thread.join(timeout=10)
         self._thread = self._jobs = None
+
+
+_THREADS = weakref.WeakSet()
+
+
+def quiet():
+    """Wait until no engine thread runs: the add-on calls a Blender operator only then.
+    Inside an operator Blender may let other Python threads run (while it evaluates)
+    and then read a Python context override without holding the GIL: with an engine
+    thread running Python at that moment, Blender crashed (bpy 5.0.1: a save, whose
+    handler ends the own local view through ``view3d.localview``, while a modal first
+    Cull built the engine; the core dump in ``BPY_context_member_get``)."""
+    for thread in list(_THREADS):
+        thread.wait_idle()

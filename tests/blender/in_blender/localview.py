@@ -202,3 +202,18 @@ def users_local_view():
     flags = np.zeros(len(bpy.data.objects), dtype=bool)
     bpy.data.objects.foreach_get("occ_view_culled", flags)
     check("view_user_leaves_local_record_ends", not flags.any() and _drawn_in("target", space), flags.sum())
+
+
+def toggle_waits_for_engine():
+    """Blender's local-view operator runs only with the engine thread idle: Blender may
+    read a Python context override without the GIL inside an operator, and crashed when
+    the engine thread ran Python then (a save while a modal Cull built the engine)."""
+    import time
+    _scene()
+    win, area, space, other = _view()
+    SESSION = addon("session").SESSION
+    cull()                                           # the own local view, and the engine thread
+    job = SESSION.worker.submit(time.sleep, 0.5)     # the engine thread busy for half a second
+    bpy.ops.occ.restore()                            # ends the own local view: view3d.localview
+    check("view_operator_waits_for_engine", job.done() and space.local_view is None,
+          (job.done(), space.local_view))
