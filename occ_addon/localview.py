@@ -97,20 +97,30 @@ def _set_all(layer, space, state=True, only=None):
         items[i].local_view_set(space, state)
 
 
+def pick(win, area):
+    """Blender enters local view with the selection: where the view draws no selected
+    object, select one it draws (for the entry only) and return it; None where one is
+    selected already, or nothing is drawn.  The caller deselects it after the entry."""
+    space, layer = area.spaces.active, win.view_layer
+    if any(o.visible_get(view_layer=layer, viewport=space) for o in layer.objects.selected):
+        return None
+    picked = next((o for o in layer.objects if o.visible_get(view_layer=layer, viewport=space)), None)
+    if picked is not None:
+        picked.select_set(True, view_layer=layer)
+    return picked
+
+
 def enter(win, area) -> None:
     """Put ``area``'s 3D view in the add-on's own local view holding every object of
-    the window's view layer, the view unmoved and the selection unchanged."""
+    the window's view layer, the view unmoved and the selection unchanged (an object
+    selected for it by :func:`pick` beforehand is the caller's to deselect)."""
     space = area.spaces.active
     if space.local_view is not None:
         return
     layer = win.view_layer
-    picked = None
-    if not any(o.visible_get(view_layer=layer, viewport=space) for o in layer.objects.selected):
-        # Blender enters local view with the selection: one visible object, for the call only
-        picked = next((o for o in layer.objects if o.visible_get(view_layer=layer, viewport=space)), None)
-        if picked is None:
-            return                                   # nothing drawn: nothing to hide either
-        picked.select_set(True, view_layer=layer)
+    picked = pick(win, area)
+    if picked is None and not any(o.visible_get(view_layer=layer, viewport=space) for o in layer.objects.selected):
+        return                                       # nothing drawn: nothing to hide either
     try:
         _toggle(win, area)
     finally:

@@ -22,7 +22,7 @@ from ..core.envelope import Envelope
 from ..core.motion import LivePolicy
 from ..core.settings import preset, query_resolution
 from ..core.units import ChunkCache
-from . import policy, shading, visibility
+from . import localview, policy, shading, visibility
 from .cameras import hide_view
 from .extract import Candidates, Extractor, Kind
 from .passes import LastPass, Shown, shown_by
@@ -71,6 +71,8 @@ class Session:
         self.busy = None           # the label of a modal operator's work in steps (live passes wait)
         self.shown: Shown | None = None  # the view and motion the hidden set holds for
         self.read: Candidates | None = None   # the last pass's candidates (see engine_steps' reuse)
+        self.enter_while: tuple | None = None  # (window, area) the pass will put in its own local view
+        self.picked = None                     # (object, view layer) selected for that entry (_meanwhile)
 
     def reset(self) -> None:
         """Forget everything (a file was loaded, an undo or redo, or the add-on goes away):
@@ -160,6 +162,7 @@ class Session:
                 job = self.worker.submit(Culler, scene, resolution, strategy=strategy,
                                          chunk_triangles=CHUNK_TRIANGLES, chunk_cache=self.chunks,
                                          display=display)
+            self._meanwhile()                         # (a pass's: see cull)
             try:
                 yield job
             except GeneratorExit:                     # stopped: close what the build makes
@@ -230,7 +233,32 @@ class Session:
             culler.forget(everything=True)
         elif fresh:
             culler.forget()
-        return self.worker.run(culler.cull, camera, envelope=envelope, lights=lights), objects
+        job = self.worker.submit(culler.cull, camera, envelope=envelope, lights=lights)
+        self._meanwhile()
+        return job.result(), objects
+
+    def _meanwhile(self) -> None:
+        """While the engine thread builds or culls (a pass that will enter the add-on's own
+        local view): select the object Blender's local view needs (where the view draws no
+        selected one) and evaluate that selection now.  Blender lets Python threads run
+        while it evaluates, so the engine's work covers it (about a base update: 0.5 s
+        at 50,000 objects); the entry after the pass then evaluates nothing.  Only an
+        evaluation runs beside the engine thread, never an operator (see
+        :func:`.worker.quiet`)."""
+        view, self.enter_while = self.enter_while, None
+        if view is None or view[1].spaces.active.local_view is not None:
+            return
+        win, area = view
+        picked = localview.pick(win, area)
+        if picked is not None:
+            self.picked = (picked, win.view_layer)
+            win.view_layer.update()
+
+    def _unpick(self) -> None:
+        """Deselect what :meth:`_meanwhile` selected (its evaluation joins the pass's last update)."""
+        picked, self.picked = self.picked, None
+        if picked is not None:
+            picked[0].select_set(False, view_layer=picked[1])
 
     def cull(self, context, camera: Camera, display: Size, fresh: bool = False, progress: Callable | None = None,
              restart: bool = False, envelope: Envelope | str | None = None,
@@ -251,12 +279,21 @@ class Session:
             context.view_layer.update()            # edits still pending reach the handler now, not below
             blender_s = time.perf_counter() - t_update
             view_rule = shading.rule(context)
-            result, objects = self.compute(context, camera, display, fresh, progress, restart, envelope,
-                                           view_rule.lights)
-            state, held = result.state, self.held
-            culled = state != Visibility.VISIBLE
-            protected = policy.never_hidden(context, objects, held.uids, held.collection, culled, self.extractor)
-            protected |= policy.drawn_beyond_depth(view_rule, state, settings.cull_raytraced)
+            view = None if show_only else hide_view(context)
+            self.enter_while = view
+            try:
+                result, objects = self.compute(context, camera, display, fresh, progress, restart, envelope,
+                                               view_rule.lights)
+                state, held = result.state, self.held
+                culled = state != Visibility.VISIBLE
+                protected = policy.never_hidden(context, objects, held.uids, held.collection, culled,
+                                                self.extractor)
+                protected |= policy.drawn_beyond_depth(view_rule, state, settings.cull_raytraced)
+            except BaseException:
+                self._unpick()                     # the pass failed: the selection as it was
+                raise
+            finally:
+                self.enter_while = None
             settings.last_rule = view_rule.why
             hide = np.isin(visibility.uids(), held.uids[culled & ~protected])
             before = visibility.COUNT["changed"]
@@ -265,11 +302,13 @@ class Session:
                 if show_only:
                     visibility.release(~hide)
                 else:
-                    view = hide_view(context)
                     if view is None:                   # hidden everywhere: not evaluated from now on
                         sealed = np.flatnonzero(culled & ~protected)
                         self.extractor.seal([objects[i] for i in sealed.tolist()], held.uids[sealed])
-                    visibility.apply(hide, view)
+                    try:
+                        visibility.apply(hide, view)
+                    finally:
+                        self._unpick()
                 # Showing an object again makes the depsgraph report it, and every
                 # object sharing its mesh, as changed geometry.  Nothing else can have
                 # changed since the update above, so evaluate now and let the handler

@@ -55,6 +55,7 @@ CHECKS = {
         "view_user_leaves_local_record_ends",
         "view_undo_keeps_visible_drawn", "view_save_keeps_culled", "view_saved_file_opens_drawn",
         "view_saved_file_without_hiding_opens_plain", "view_operator_waits_for_engine",
+        "view_failed_pass_keeps_selection",
     ],
     "handlers": ["save_keeps_culled", "saved_file_opens_shown_without_addon", "old_file_restored_on_enable",
                  "old_file_restored_on_load"],

@@ -217,3 +217,30 @@ def toggle_waits_for_engine():
     bpy.ops.occ.restore()                            # ends the own local view: view3d.localview
     check("view_operator_waits_for_engine", job.done() and space.local_view is None,
           (job.done(), space.local_view))
+
+
+def failed_pass_keeps_selection():
+    """The object a pass selects for Blender's local view (evaluated while the engine
+    works) is deselected after the entry, and when the pass fails before it."""
+    _scene()
+    win, area, space, other = _view()
+    SESSION = addon("session").SESSION
+    for o in bpy.context.view_layer.objects.selected:
+        o.select_set(False)
+    cull()
+    ok_entry = space.local_view is not None and not len(bpy.context.view_layer.objects.selected)
+    bpy.ops.occ.restore()
+
+    def broken(*_args, **_kwargs):
+        raise RuntimeError("a pass that fails")
+
+    culler = SESSION.culler
+    culler.cull = broken                             # the engine's pass fails on its thread
+    try:
+        r, err = cull()
+    finally:
+        del culler.cull
+    check("view_failed_pass_keeps_selection",
+          ok_entry and r != {"FINISHED"} and not len(bpy.context.view_layer.objects.selected)
+          and SESSION.picked is None and space.local_view is None,
+          (ok_entry, r, [o.name for o in bpy.context.view_layer.objects.selected], space.local_view))
