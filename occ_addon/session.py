@@ -280,7 +280,10 @@ class Session:
             blender_s = time.perf_counter() - t_update
             view_rule = shading.rule(context)
             view = None if show_only else hide_view(context)
-            self.enter_while = view
+            # a pass after one that hid nothing (live mode over an open view) likely hides
+            # nothing either: no selection for an entry that will not come (its deselection
+            # would cost the pass a base update)
+            self.enter_while = view if self.last is None or self.last.hidden.any() else None
             try:
                 result, objects = self.compute(context, camera, display, fresh, progress, restart, envelope,
                                                view_rule.lights)
