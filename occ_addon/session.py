@@ -162,10 +162,10 @@ class Session:
                 job = self.worker.submit(Culler, scene, resolution, strategy=strategy,
                                          chunk_triangles=CHUNK_TRIANGLES, chunk_cache=self.chunks,
                                          display=display)
-            self._meanwhile()                         # (a pass's: see cull)
             try:
+                self._meanwhile()                     # (a pass's: see cull)
                 yield job
-            except GeneratorExit:                     # stopped: close what the build makes
+            except BaseException:                     # stopped or failed: close what the build makes
                 self.worker.submit(_close_built, job)
                 raise
             self.culler = job.result()
