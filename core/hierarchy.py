@@ -359,7 +359,7 @@ def build_hierarchy(unit_bounds, object_units, tree_parent, tree_object, max_chi
         roots = [r for r in _fold(b, tree_parent, own) if r is not None]
         carried = np.zeros(n, dtype=bool)
         carried[tree_object[tree_object >= 0]] = True
-        roots.extend(object_node(o) for o in np.flatnonzero(~carried))
+        roots.extend(int(leaf_of[o]) if single[o] else object_node(o) for o in np.flatnonzero(~carried).tolist())
         root = b.group(roots)
     h = b.flatten(root)
     h.refit(ub)                 # grafted boxes were transformed: make every box the tight union
