@@ -171,6 +171,40 @@ def test_moved_objects_reach_the_gpu(ctx):
                     assert r.stats.fresh == 0
 
 
+def test_fresh_passes_upload_only_what_moved(ctx, monkeypatch):
+    """A Cull click restarts the strategy (``cull(fresh=True)``: a memory-less
+    ``om_coherent`` pass).  The GPU's boxes follow the hierarchy and the objects moved,
+    not the memory, so a fresh pass uploads no unit that did not move, and a move made
+    around fresh passes still reaches the GPU: the steady passes after them hide
+    exactly what the truth hides."""
+    scene, cam = wall_scene()
+    wall = scene.matrices[0].copy()
+    away = wall.copy()
+    away[2, 3] -= 40.0                                           # 40 units down: out of the view
+    with Culler(scene, (64, 48), strategy="gpu", ctx=ctx) as c:
+        gpu_pass(c, cam)
+        if not on_43(c):
+            pytest.skip("the GPU path needs OpenGL 4.3")
+        sent = []
+        upload = c.strategy.gpu.upload
+        monkeypatch.setattr(c.strategy.gpu, "upload",
+                            lambda boxes, valid, world, units=None: (sent.append(len(boxes)),
+                                                                     upload(boxes, valid, world, units)))
+        wall_units = len(c.units.of_object[0])
+        for m, hidden in ((None, True), (away, False), (wall, True), (away, False)):
+            sent.clear()
+            if m is not None:
+                c.set_matrices([0], m[None])
+            truth = c.truth(cam)
+            assert truth[1] != hidden
+            r = c.cull(cam, fresh=True)
+            assert r.stats.fresh == 1 and not (truth & ~r.visible).any()
+            assert sent == ([] if m is None else [wall_units])
+            r = c.cull(cam)
+            assert r.stats.fresh == 0 and not (truth & ~r.visible).any()
+            assert (r.state[1] == Visibility.OCCLUDED) == hidden
+
+
 def test_forget_keeps_the_gpu_memory_and_hides_nothing_seen(ctx):
     """The add-on's fresh passes (a click, a camera cut, an edit) call ``forget()``:
     the GPU pass keeps its boxes and memory (no ``om_coherent`` pass, no upload: the

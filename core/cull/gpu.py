@@ -51,7 +51,10 @@ class Gpu(Strategy):
         self.last_camera = None
 
     def reset(self):
-        self.uploaded_for = None
+        """A new engine's first pass next (``cull(fresh=True)``, the add-on's Cull click):
+        the memory goes.  The GPU's boxes and matrices stay: they follow the hierarchy
+        (checked by identity every pass) and the objects moved (:meth:`moved`), not
+        anything a pass taught, so a click does not upload every unit again."""
         self.remembered = False
         self.last_camera = None
         self.fallback.reset()
