@@ -19,6 +19,7 @@
 import math
 from dataclasses import dataclass, field
 
+import bpy
 import numpy as np
 
 from ..core.lights import Light
@@ -108,12 +109,22 @@ def _world_sun(world):
     return any(n.type in ("TEX_ENVIRONMENT", "TEX_SKY") for n in world.node_tree.nodes)
 
 
+LIGHT_TYPE = bpy.types.Object.bl_rna.properties["type"].enum_items["LIGHT"].value
+
+
 def scene_lights_of(scene):
     """Every light object drawn in the scene's view layer that casts shadows, as
     :class:`..core.lights.Light` (world space)."""
     out = []
     layer = scene.view_layers[0] if scene.view_layers else None
-    for o in scene.objects:
+    objects = scene.objects
+    # the lights' positions in the list, from one bulk read of every object's type
+    # (an enum reads as its items' values): no attribute read per object
+    types = np.zeros(len(objects), dtype=np.int32)
+    objects.foreach_get("type", types)
+    at = np.flatnonzero(types == LIGHT_TYPE).tolist()
+    items = objects.values() if at else []           # one list; indexing the collection is O(i)
+    for o in (items[i] for i in at):
         if o.type != "LIGHT" or not o.data.use_shadow:
             continue
         if layer is not None and not o.visible_get(view_layer=layer):

@@ -50,9 +50,10 @@ SHOW_TAG = {"OBJECT", "DATA", "TIME"}
 # object to read in bulk: 35 ms at 50,000 objects, and a pass asks several times).
 VIEW_RECORD = "occ_view_culled"
 RECORDS = ("occ_culled", VIEW_RECORD)
-# Within one pass (:func:`one_pass`) each record over ``bpy.data.objects`` is read once:
-# inside an operator's call no user action, undo or file load runs, and every write of
-# a record is this module's (:func:`_store`), which keeps the memo current.
+# Within one pass (:func:`one_pass`) each record over ``bpy.data.objects``, and the
+# objects' identities (:func:`uids`), are read once: inside an operator's call no user
+# action, undo or file load runs, and every write of a record is this module's
+# (:func:`_store`), which keeps the memo current.
 _memo: dict | None = None
 
 
@@ -74,11 +75,12 @@ def flags(prop, collection=None):
     """``(n,) bool`` of a boolean property over ``collection`` (default ``bpy.data.objects``)."""
     objs = bpy.data.objects if collection is None else collection
     memo = _memo if collection is None and prop in RECORDS else None
+    n = len(objs)                                  # (a walk of Blender's list: once)
     if memo is not None:
         hit = memo.get(prop)
-        if hit is not None and len(hit) == len(objs):
+        if hit is not None and len(hit) == n:
             return hit.copy()
-    out = np.zeros(len(objs), dtype=bool)
+    out = np.zeros(n, dtype=bool)
     objs.foreach_get(prop, out)
     if memo is not None:
         memo[prop] = out.copy()
@@ -93,11 +95,10 @@ def layer_flags(prop, layer_uids: np.ndarray, layer_objects):
     if _memo is None or prop not in RECORDS:
         return flags(prop, layer_objects)
     data = flags(prop)
-    ids = _memo.get("uids")
-    if ids is None or len(ids) != len(data):
-        ids = _memo["uids"] = uids()
-        _memo["order"] = np.argsort(ids, kind="stable")
-    order = _memo["order"]
+    ids = uids()
+    order = _memo.get("order")
+    if order is None or len(order) != len(ids):
+        order = _memo["order"] = np.argsort(ids, kind="stable")
     return data[order[np.searchsorted(ids, layer_uids, sorter=order)]]
 
 
@@ -129,10 +130,20 @@ def ident(idblock):
 def uids(collection=None):
     """``(n,) int64`` identities (:func:`ident`) over ``collection`` (default ``bpy.data.objects``)."""
     objs = bpy.data.objects if collection is None else collection
+    memo = _memo if collection is None else None
+    n = len(objs)                                  # (a walk of Blender's list: once)
+    if memo is not None:                           # within one pass (see one_pass): read once
+        hit = memo.get("uids")
+        if hit is not None and len(hit) == n:
+            return hit.copy()
+        memo.pop("order", None)
     if not HAS_SESSION_UID:
-        return idents(objs)
-    out = np.zeros(len(objs), dtype=np.int64)
-    objs.foreach_get("session_uid", out)
+        out = idents(objs)
+    else:
+        out = np.zeros(n, dtype=np.int64)
+        objs.foreach_get("session_uid", out)
+    if memo is not None:
+        memo["uids"] = out.copy()
     return out
 
 

@@ -68,6 +68,22 @@ def records_read_once_a_pass():
                 lf = vis.layer_flags(p, vis.uids(layer), layer)
                 if not np.array_equal(lf, fresh(p, layer)):
                     bad.append(("layer", step, p))
+
+    def fresh_uids():
+        out = np.zeros(len(bpy.data.objects), dtype=np.int64)
+        bpy.data.objects.foreach_get("session_uid", out)
+        return out
+
+    with vis.one_pass():                              # identities: read once, and a new object seen
+        first = vis.uids()
+        if not np.array_equal(first, fresh_uids()) or not np.array_equal(vis.uids(), first):
+            bad.append("uids in a pass")
+        extra = box("extra", (0, 5, 0), (1, 6, 1))
+        if not np.array_equal(vis.uids(), fresh_uids()) or vis.ident(extra) not in vis.uids():
+            bad.append("uids after an object was added")
+        if not np.array_equal(vis.layer_flags("occ_culled", vis.uids(layer), layer), fresh("occ_culled", layer)):
+            bad.append("layer records after an object was added")
+    bpy.data.objects.remove(extra)
     ob = bpy.data.objects["b5"]
     before = bool(vis.flags("occ_culled")[list(bpy.data.objects).index(ob)])
     ob.occ_culled = not before                        # a script's write, outside any pass
