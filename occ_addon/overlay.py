@@ -12,7 +12,7 @@ from .session import SESSION
 MAX_BOXES = 4000            # wireframes drawn at most (the largest culled ones)
 INSET = 160                 # occupancy inset width in pixels
 _handles = []
-_cache = {"key": None, "lines": None, "quads": None, "grid": None}
+_cache = {"key": None, "lines": None, "grid": None, "batch": None, "inset": None}
 
 
 def _shader(kind):
@@ -35,7 +35,7 @@ def _geometry():
             size = np.prod(np.maximum(boxes[:, 1] - boxes[:, 0], 1e-9), axis=1)
             boxes = boxes[np.argsort(size)[-MAX_BOXES:]]
         grid = last.occupancy if last.occupancy is not None else np.zeros((0, 0), dtype=bool)
-        _cache.update(key=SESSION.version, lines=box_lines(boxes), grid=grid, batch=None)
+        _cache.update(key=SESSION.version, lines=box_lines(boxes), grid=grid, batch=None, inset=None)
     return _cache
 
 
@@ -64,6 +64,19 @@ def _draw_view():
     gpu.state.blend_set("NONE")
 
 
+def _inset(grid):
+    """The occupancy inset's batches (its backdrop, the occupied tiles or None) and
+    height in pixels: made once per pass, not per redraw."""
+    from gpu_extras.batch import batch_for_shader
+    shader = _shader("2D")
+    h = INSET * grid.shape[0] / max(grid.shape[1], 1)
+    back = np.array([[20, 20], [20 + INSET, 20], [20 + INSET, 20 + h], [20, 20], [20 + INSET, 20 + h],
+                     [20, 20 + h]], dtype=np.float32)
+    quads = occupancy_quads(grid, 20, 20, INSET, h)
+    return (shader, batch_for_shader(shader, "TRIS", {"pos": back}),
+            batch_for_shader(shader, "TRIS", {"pos": quads}) if len(quads) else None, h)
+
+
 def _draw_pixel():
     scene = bpy.context.scene
     geo = _geometry()
@@ -71,25 +84,24 @@ def _draw_pixel():
         return
     import blf
     import gpu
-    from gpu_extras.batch import batch_for_shader
     grid = geo["grid"]
+    top = 30
     if grid.size:
-        h = INSET * grid.shape[0] / max(grid.shape[1], 1)
-        shader = _shader("2D")
+        if geo.get("inset") is None:                # one set of batches per pass, not per redraw
+            geo["inset"] = _inset(grid)
+        shader, back, tiles, h = geo["inset"]
         gpu.state.blend_set("ALPHA")
         shader.bind()
-        back = np.array([[20, 20], [20 + INSET, 20], [20 + INSET, 20 + h], [20, 20], [20 + INSET, 20 + h],
-                         [20, 20 + h]], dtype=np.float32)
         shader.uniform_float("color", (0.0, 0.0, 0.0, 0.5))
-        batch_for_shader(shader, "TRIS", {"pos": back}).draw(shader)
-        quads = occupancy_quads(grid, 20, 20, INSET, h)
-        if len(quads):
+        back.draw(shader)
+        if tiles is not None:
             shader.uniform_float("color", (0.3, 0.9, 0.4, 0.6))
-            batch_for_shader(shader, "TRIS", {"pos": quads}).draw(shader)
+            tiles.draw(shader)
         gpu.state.blend_set("NONE")
+        top = 30 + h
     s = scene.occ
     blf.size(0, 13)
-    blf.position(0, 20, 30 + INSET * grid.shape[0] / max(grid.shape[1], 1) if grid.size else 30, 0)
+    blf.position(0, 20, top, 0)
     blf.draw(0, f"occluded {s.last_occluded}  outside {s.last_outside}  of {s.last_tested}  "
                 f"hidden {s.last_triangles_hidden:,} tris  {s.last_ms:.1f} ms")
 
@@ -109,4 +121,4 @@ def uninstall():
     space = bpy.types.SpaceView3D
     while _handles:
         space.draw_handler_remove(_handles.pop(), "WINDOW")
-    _cache.update(key=None, lines=None, grid=None, batch=None)
+    _cache.update(key=None, lines=None, grid=None, batch=None, inset=None)
