@@ -107,7 +107,10 @@ class Culler:
     resolution: the renderer then takes each query pixel's occluder depth as the
     farthest of the display pixels it stands for, so a gap open on the display is
     never closed by the query (where the renderer supports it; see
-    :attr:`conservative_display`).
+    :attr:`conservative_display`); query_pixels: count the pixels each query box
+    rasterises (``PassStats.query_raster_pixels``, the 2003 paper's figure, which the
+    bench reports): a projection of every box tested, which a caller that never reads
+    it (the add-on) leaves off.
 
     Objects with NaN or infinite values (``scene.invalid``) are kept VISIBLE,
     never drawn as occluders, and named in a warning and in ``invalid_names``.
@@ -117,8 +120,9 @@ class Culler:
                  options: CullOptions | None = None, max_tests: int = 8, max_children: int = 8,
                  exact_bounds: bool = False, hierarchy: str = "tree", chunk_triangles: int | None = None,
                  chunk_min_triangles: int | None = None, ctx=None, chunk_cache: ChunkCache | None = None,
-                 display: Resolution | None = None) -> None:
+                 display: Resolution | None = None, query_pixels: bool = True) -> None:
         self.resolution = check_resolution(resolution)
+        self.query_pixels = query_pixels
         self.display = None if display is None else check_resolution(display)
         self.strategy_name = strategy
         self.max_tests = max_tests
@@ -304,7 +308,7 @@ class Culler:
             return CullResult(empty, self._count(empty, PassStats()), np.zeros((0, 0), bool))
         if REGISTRY[self.strategy_name].needs_truth and truth is None:
             truth = self.truth(camera)
-        cp = CullPass(self.hierarchy, self.renderer, camera, self.options, self.scene_size)
+        cp = CullPass(self.hierarchy, self.renderer, camera, self.options, self.scene_size, self.query_pixels)
         self.strategy(cp, chunk=self.options.chunk, truth=truth)
         stats = cp.finish()
         state = cp.object_state()

@@ -161,7 +161,7 @@ class Session:
                     self.worker.submit(old.close)
                 job = self.worker.submit(Culler, scene, resolution, strategy=strategy,
                                          chunk_triangles=CHUNK_TRIANGLES, chunk_cache=self.chunks,
-                                         display=display)
+                                         display=display, query_pixels=False)
             try:
                 self._meanwhile()                     # (a pass's: see cull)
                 yield job

@@ -97,6 +97,23 @@ def test_auto_learns_from_a_real_frustum_only_pass(ctx):
     assert np.array_equal(a.state, fresh.state)
 
 
+@pytest.mark.parametrize("strategy", ["om_multi", "two_pass", "gpu"])
+def test_query_pixels_off_changes_no_answer(ctx, strategy):
+    """``Culler(query_pixels=False)`` (the add-on's) skips only the count of the pixels the
+    query boxes rasterise: the same states and every other counter, pass after pass."""
+    scene, cams, _ = scenes.random_city(5, 300)
+    with Culler(scene, (128, 96), strategy=strategy, ctx=ctx) as on, \
+            Culler(scene, (128, 96), strategy=strategy, ctx=ctx, query_pixels=False) as off:
+        counted = 0
+        for cam in list(cams[:3]) + [cams[0]]:
+            a, b = on.cull(cam), off.cull(cam)
+            assert np.array_equal(a.state, b.state)
+            assert (a.stats.queries, a.stats.query_rect_pixels) == (b.stats.queries, b.stats.query_rect_pixels)
+            assert b.stats.query_raster_pixels == 0
+            counted += a.stats.query_raster_pixels
+        assert counted > 0                       # (the gpu strategy's first pass is om_coherent's)
+
+
 @pytest.mark.parametrize("strategy", ["vfc", "om_multi", "oracle"])
 def test_pass_counters(ctx, strategy):
     """CPU time outside GL, GL calls and blocking reads (where the renderer counts

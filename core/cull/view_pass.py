@@ -29,8 +29,11 @@ class CullPass:
     infinite values: kept visible by the engine, never occluders).
     """
 
-    def __init__(self, tree, renderer, camera, options, scene_size):
+    def __init__(self, tree, renderer, camera, options, scene_size, query_pixels: bool = True):
         self.tree = tree
+        # count the pixels each query box rasterises (the 2003 paper's figure: a projection
+        # of every box tested); without it, query_raster_pixels stays 0
+        self.query_pixels = query_pixels
         self.renderer = renderer
         self.camera = camera
         self.options = options
@@ -266,12 +269,15 @@ class CullPass:
             self.stats.queries += len(r)
             self.stats.multiple_queries += 1
             self.stats.samples_passed += int(samples.sum())     # threshold 0: boxes with any sample
-            outline = self.outline_pixels(grown[asked])
-            # nodes reached without rectangles (the two-pass strategy): their outlines
-            area = np.where(self.has_geometry[nodes[asked]], (r[:, 2] - r[:, 0] + 1) * (r[:, 3] - r[:, 1] + 1),
-                            np.ceil(outline))
+            area = (r[:, 2] - r[:, 0] + 1) * (r[:, 3] - r[:, 1] + 1)
+            measured = self.has_geometry[nodes[asked]]
+            if self.query_pixels or not measured.all():
+                outline = self.outline_pixels(grown[asked])
+                # nodes reached without rectangles (the two-pass strategy): their outlines
+                area = np.where(measured, area, np.ceil(outline))
+                if self.query_pixels:
+                    self.stats.query_raster_pixels += int(np.minimum(outline, area).sum())
             self.stats.query_rect_pixels += int(area.sum())
-            self.stats.query_raster_pixels += int(np.minimum(outline, area).sum())
             visible[asked] = samples > self.threshold
         return visible
 
