@@ -1,6 +1,6 @@
 """What hiding costs Blender itself, without the add-on: plain bpy, N objects.
 
-    .venv/bin/python tools/blender_hide_cost.py [--objects 50000] [--repeat 3]
+    .venv/bin/python tools/blender_hide_cost.py [--objects 50000] [--repeat 3] [--by-view-size]
 
 Builds N one-triangle objects sharing one mesh, then times the depsgraph
 update (``view_layer.update()``) that follows each kind of visibility change
@@ -73,15 +73,46 @@ def timed_update():
     return time.perf_counter() - t
 
 
+def by_view_size(n, repeat):
+    """The update after one local-view bit, with all, a third and a twenty-fifth of the
+    objects in the view's local view, and after selecting one object: what the base
+    update costs grows with the view layer's objects or with those the view shows."""
+    items = bpy.data.objects.values()
+    space = local_view(items)
+    print(f"{'change, then view_layer.update()':58s} {'median s':>9s} {'max s':>7s}")
+    for k in (n, n // 3, n // 25):
+        for o in items[k:]:
+            o.local_view_set(space, False)
+        bpy.context.view_layer.update()
+        times, selects = [], []
+        for r in range(repeat):
+            items[0].local_view_set(space, r % 2 == 1)
+            times.append(timed_update())
+            items[1].select_set(r % 2 == 0)
+            selects.append(timed_update())
+        items[0].local_view_set(space, True)
+        items[1].select_set(False)
+        bpy.context.view_layer.update()
+        for label, v in ((f"local-view bit, one object ({k:,} of {n:,} in the view)", times),
+                         (f"selection of one object ({k:,} in the view)", selects)):
+            print(f"{label:58s} {statistics.median(v):9.3f} {max(v):7.3f}")
+    leave_local_view()
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--objects", type=int, default=50_000)
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--by-view-size", action="store_true",
+                    help="only: one local-view bit's update with fewer objects in the view, and a selection's")
     args = ap.parse_args()
     n = args.objects
     t = time.perf_counter()
     build(n)
     print(f"{n:,} objects built in {time.perf_counter() - t:.1f} s (bpy {bpy.app.version_string})")
+    if args.by_view_size:
+        by_view_size(n, args.repeat)
+        return
     objs = bpy.data.objects
     third = np.zeros(n, dtype=bool)
     third[::3] = True
