@@ -110,6 +110,9 @@ def _world_sun(world):
 
 
 LIGHT_TYPE = bpy.types.Object.bl_rna.properties["type"].enum_items["LIGHT"].value
+# Blender 4.2+ reads an enum in bulk as its items' values (checked in 4.2, 5.0, 5.2);
+# Blender 3.4's foreach_get of an enum fills the array with garbage
+BULK_ENUMS = bpy.app.version >= (4, 2, 0)
 
 
 def scene_lights_of(scene):
@@ -118,13 +121,16 @@ def scene_lights_of(scene):
     out = []
     layer = scene.view_layers[0] if scene.view_layers else None
     objects = scene.objects
-    # the lights' positions in the list, from one bulk read of every object's type
-    # (an enum reads as its items' values): no attribute read per object
-    types = np.zeros(len(objects), dtype=np.int32)
-    objects.foreach_get("type", types)
-    at = np.flatnonzero(types == LIGHT_TYPE).tolist()
-    items = objects.values() if at else []           # one list; indexing the collection is O(i)
-    for o in (items[i] for i in at):
+    found = objects
+    if BULK_ENUMS:
+        # the lights' positions in the list, from one bulk read of every object's type:
+        # no attribute read per object
+        types = np.zeros(len(objects), dtype=np.int32)
+        objects.foreach_get("type", types)
+        at = np.flatnonzero(types == LIGHT_TYPE).tolist()
+        items = objects.values() if at else []       # one list; indexing the collection is O(i)
+        found = [items[i] for i in at]
+    for o in found:
         if o.type != "LIGHT" or not o.data.use_shadow:
             continue
         if layer is not None and not o.visible_get(view_layer=layer):
