@@ -135,6 +135,24 @@ def test_pass_counters(ctx, strategy):
         assert s.queries == 0 and s.query_raster_pixels == 0
 
 
+def test_frustum_leaves_below_carry_their_rectangles(ctx):
+    """Stage 3's leaves (``frustum_leaves_below``, the nodes between reached without
+    rectangles) are the frustum's leaves below the root, each with the rectangle, tiles
+    and distance a full reach gives it."""
+    from core.cull.stages import frustum_leaves_below
+    scene, cams, _ = scenes.random_city(11, 300)
+    with Culler(scene, (128, 96), strategy="om_multi", ctx=ctx) as c:
+        for cam in cams[:3]:
+            full = CullPass(c.hierarchy, c.renderer, cam, c.options, c.scene_size)
+            want = np.sort(full.frustum_leaves(geometry=True))
+            f = CullPass(c.hierarchy, c.renderer, cam, c.options, c.scene_size)
+            got = np.sort(frustum_leaves_below(f, f.root()))
+            assert len(got) and np.array_equal(got, want)
+            assert f.has_geometry[got].all()
+            for a in ("rects", "tiles", "dist", "crosses"):
+                assert np.array_equal(getattr(f, a)[got], getattr(full, a)[want]), a
+
+
 def test_outline_pixels_of_a_box_facing_the_camera(ctx):
     """A box seen straight on rasterises its front face's area, in pixels."""
     scene = scenes.boxes_scene([((0, -20, -20), (0.2, 20, 20))])

@@ -64,14 +64,19 @@ def test_list(cp, pending):
 
 
 def frustum_leaves_below(cp, nodes):
-    """Leaves inside the frustum in the subtrees of reached ``nodes`` (reaching the
-    nodes between, with their rectangles)."""
+    """Leaves inside the frustum in the subtrees of reached ``nodes``, with their
+    rectangles (the nodes between are reached without: only the leaves are tested,
+    drawn and marked in the map)."""
     out, front = [], nodes
     while len(front):
         leaf = cp.tree.is_leaf[front]
         out.append(front[leaf])
-        front = cp.children_in_frustum(front[~leaf])
-    return np.concatenate(out) if out else np.zeros(0, dtype=np.int64)
+        front = cp.children_in_frustum(front[~leaf], geometry=False)
+    leaves = np.concatenate(out) if out else np.zeros(0, dtype=np.int64)
+    bare = leaves[~cp.has_geometry[leaves]]
+    if len(bare):
+        cp.ensure_geometry(bare)
+    return leaves
 
 
 def resolve(cp, nodes, visible):
