@@ -97,12 +97,17 @@ def _set_all(layer, space, state=True, only=None):
         items[i].local_view_set(space, state)
 
 
+def _draws_selected(space, layer) -> bool:
+    """Whether 3D view ``space`` draws an object selected in ``layer``."""
+    return any(o.visible_get(view_layer=layer, viewport=space) for o in layer.objects.selected)
+
+
 def pick(win, area):
     """Blender enters local view with the selection: where the view draws no selected
     object, select one it draws (for the entry only) and return it; None where one is
     selected already, or nothing is drawn.  The caller deselects it after the entry."""
     space, layer = area.spaces.active, win.view_layer
-    if any(o.visible_get(view_layer=layer, viewport=space) for o in layer.objects.selected):
+    if _draws_selected(space, layer):
         return None
     picked = next((o for o in layer.objects if o.visible_get(view_layer=layer, viewport=space)), None)
     if picked is not None:
@@ -119,7 +124,7 @@ def enter(win, area) -> None:
         return
     layer = win.view_layer
     picked = pick(win, area)
-    if picked is None and not any(o.visible_get(view_layer=layer, viewport=space) for o in layer.objects.selected):
+    if picked is None and not _draws_selected(space, layer):
         return                                       # nothing drawn: nothing to hide either
     try:
         _toggle(win, area)
