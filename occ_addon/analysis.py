@@ -204,25 +204,42 @@ def push_undo(message: str) -> None:
         bpy.ops.ed.undo_push(message=message)
 
 
-def link_collection(scene, name: str, object_names: list[str]) -> None:
-    """Make collection ``name`` hold exactly ``object_names`` (an earlier analysis's
-    objects that this one saw are unlinked: deleting the collection's contents
-    must never delete what the camera sees).  The collection is excluded in every
-    view layer of every scene that links it: it gives its objects no way into a view
-    layer, so linking changes nothing anyone sees (an object whose own collection is
-    excluded stays out)."""
+def link_collection(scene, name: str, object_names: list[str]) -> tuple[int, list[str]]:
+    """Make the add-on's part of collection ``name`` exactly ``object_names``; returns
+    ``(how many it links now, the names in it it leaves although this analysis saw them)``.
+
+    The add-on owns only what it linked there (the ``occ_collected`` record on the
+    object): an object the user put there is the user's, and stays whatever the
+    analysis says.  One the add-on linked is unlinked again once an analysis sees it
+    (deleting the collection's contents must never delete what the camera sees),
+    unless it is the object's last collection: an object in no collection is not
+    written at the next save, so that one stays, and becomes the user's.  The
+    collection is excluded in every view layer of every scene that links it: it gives
+    its objects no way into a view layer, so linking changes nothing anyone sees (an
+    object whose own collection is excluded stays out)."""
     coll = bpy.data.collections.get(name) or bpy.data.collections.new(name)
     if coll.name not in scene.collection.children:
         # excluded before its objects are linked: they never get a base through it
         scene.collection.children.link(coll)
     exclude_everywhere(coll)
     wanted = set(object_names)
+    kept = []
     for obj in [o for o in coll.objects if o.name not in wanted]:
-        coll.objects.unlink(obj)
+        if obj.occ_collected and len(obj.users_collection) > 1:
+            coll.objects.unlink(obj)
+            obj.occ_collected = False
+        else:
+            if obj.occ_collected:               # its only home now (the user moved it there)
+                obj.occ_collected = False
+            kept.append(obj.name)
+    linked = 0
     for n in object_names:
         obj = bpy.data.objects.get(n)
         if obj is not None and obj.name not in coll.objects:
             coll.objects.link(obj)
+            obj.occ_collected = True
+            linked += 1
+    return linked, kept
 
 
 def exclude_everywhere(coll) -> None:

@@ -284,13 +284,17 @@ class OCC_OT_analyze(Stepped, bpy.types.Operator):
         except OSError as e:
             return failed(self, OccError(f"cannot write the report {analysis.path}: {e.strerror or e}"))
         never = analysis.never_visible
+        kept = ""
         if self.link_never_visible:
-            link_collection(context.scene, "Never Visible", never)
+            _, users = link_collection(context.scene, "Never Visible", never)
             push_undo("Collect Never Visible")
+            if users:       # seen, but the user's there (linked by them, or their only collection)
+                kept = (f"; {len(users)} seen but left in 'Never Visible' (yours there, or their only "
+                        f"collection): {', '.join(users[:5])}{' ...' if len(users) > 5 else ''}")
         warn(self)
         self.report({"INFO"}, f"{len(analysis.frames)} frames in {time.perf_counter() - analysis.started:.1f} s; "
                               f"{len(never)} of {len(analysis.seen)} objects never visible; "
-                              f"report {analysis.path}")
+                              f"report {analysis.path}{kept}")
         return {"FINISHED"}
 
 

@@ -96,9 +96,14 @@ def register():
     # The same for the culled 3D view's local-view bits (visibility.py, localview.py).
     bpy.types.Object.occ_view_culled = BoolProperty(name="Hidden in the Culled View", default=False,
                                                     options={"HIDDEN"})
+    # Linked into "Never Visible" by an analysis (analysis.link_collection): the add-on
+    # unlinks only what it linked; what the user put there is the user's.
+    bpy.types.Object.occ_collected = BoolProperty(name="Collected as Never Visible", default=False,
+                                                  options={"HIDDEN"})
 
 
 def unregister():
+    del bpy.types.Object.occ_collected
     del bpy.types.Object.occ_view_culled
     del bpy.types.Object.occ_culled
     del bpy.types.Object.occ_never_cull

@@ -92,6 +92,96 @@ def never_visible_adds_no_path():
     check("never_visible_excluded_everywhere", excluded, "")
 
 
+def _homes():
+    """Object name -> how many collections (scene collections included) hold it."""
+    return {o.name: len(o.users_collection) for o in bpy.data.objects}
+
+
+def _collect(name):
+    report = os.path.join(WORK, f"{name}.json")
+    return bpy.ops.occ.analyze(filepath=report, frame_start=1, frame_end=1, link_never_visible=True, rule="SEEN")
+
+
+def never_visible_keeps_users_objects():
+    """"Collect Never Visible" never leaves an object in no collection, and leaves
+    alone what the user put in "Never Visible", by each route a user gets there: the
+    Move operator (M) into it, an object added while it is the active collection, a
+    script linking a linked duplicate into it only.  The next collecting analysis
+    keeps each, the file saved and opened again holds each, and the add-on still
+    unlinks what it linked once an analysis sees it."""
+    scene = new_scene()
+    own = bpy.data.collections.new("Own")
+    scene.collection.children.link(own)
+    box("hidden", (3, -1, 0), (4, 1, 1), own)            # behind the wall: collected
+    box("moved", (3, 2, 0), (4, 3, 1), own)              # behind the wall too
+    box("open", (-3, -2, 0), (-2, -1, 1))                # in view, before the wall
+    update()
+    r0 = _collect("never_visible_routes_0")
+    never = bpy.data.collections["Never Visible"]
+    first = sorted(o.name for o in never.objects)
+    # 1. M: "moved" into "Never Visible" only (the operator's own unlink and link)
+    moved = bpy.data.objects["moved"]
+    for o in bpy.context.view_layer.objects:
+        o.select_set(o is moved)
+    bpy.context.view_layer.objects.active = moved
+    props = {p.identifier for p in bpy.ops.object.move_to_collection.get_rna_type().properties}
+    where = ({"collection_uid": never.session_uid} if "collection_uid" in props          # 5.x
+             else {"collection_index": 1 + [c.name for c in scene.collection.children].index("Never Visible")})
+    try:
+        r_move = bpy.ops.object.move_to_collection(**where)
+    except RuntimeError as e:                            # then as a drag in the outliner does
+        r_move = str(e)
+        for c in list(moved.users_collection):
+            c.objects.unlink(moved)
+        never.objects.link(moved)
+    # 2. added while "Never Visible" is the active collection (the user includes it in
+    #    the view layer to look at it: an excluded collection cannot be the active one;
+    #    then excludes it again)
+    layer = bpy.context.view_layer
+    layer.layer_collection.children["Never Visible"].exclude = False
+    layer.active_layer_collection = layer.layer_collection.children["Never Visible"]
+    bpy.ops.mesh.primitive_cube_add(location=(-3, 1, 0), size=0.5)
+    bpy.context.active_object.name = "added"
+    layer.active_layer_collection = layer.layer_collection
+    layer.layer_collection.children["Never Visible"].exclude = True
+    # 3. a script: a linked duplicate of an object there, linked into it only
+    dup = bpy.data.objects["hidden"].copy()
+    dup.name = "duplicate"
+    never.objects.link(dup)
+    update()
+    mine = {n: [c.name for c in bpy.data.objects[n].users_collection] for n in ("moved", "added", "duplicate")}
+    before = _homes()
+    r1 = _collect("never_visible_routes_1")
+    after = _homes()
+    lost = sorted(n for n, k in before.items() if k and not after.get(n))
+    held = {o.name for o in never.objects}
+    for route, name in (("move", "moved"), ("add_active", "added"), ("script_duplicate", "duplicate")):
+        check(f"never_visible_route_{route}_kept",
+              r0 == r1 == {"FINISHED"} and mine[name] == ["Never Visible"] and name in held
+              and name not in lost and after.get(name) == 1,
+              (r0, r1, r_move if route == "move" else "", mine[name], lost, sorted(held)))
+    check("never_visible_routes_nothing_lost", "moved" in first and "hidden" in first and not lost,
+          (first, lost))
+    path = os.path.join(WORK, "never_visible_routes.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    missing = sorted(n for n in before if n not in bpy.data.objects)
+    check("never_visible_routes_saved_and_opened", not missing, missing)
+    # what the user linked there beside its own collection stays too; what the add-on
+    # linked goes once an analysis sees it
+    scene = bpy.context.scene
+    never = bpy.data.collections["Never Visible"]
+    never.objects.link(bpy.data.objects["open"])         # the user's, though seen
+    bpy.data.objects["wall"].location.z = -20.0          # now "hidden" is seen
+    update()
+    r2 = _collect("never_visible_routes_2")
+    held = sorted(o.name for o in never.objects)
+    check("never_visible_routes_users_link_kept_ours_unlinked",
+          r2 == {"FINISHED"} and "open" in held and "hidden" not in held
+          and [c.name for c in bpy.data.objects["hidden"].users_collection] == ["Own"],
+          (r2, held, [c.name for c in bpy.data.objects["hidden"].users_collection]))
+
+
 def dangling_collections():
     """Addresses of the collections the scene's children and its view layers' layer
     collections point to that are no datablock of ``bpy.data`` any more (freed).
