@@ -97,30 +97,38 @@ class Session:
         self.worker.shutdown()
 
     def reread_transforms(self) -> None:
-        """The next pass re-evaluates every transform before reading them (as after a
-        view-layer switch): a Cull click and an analysis's start, where the file has
-        several view layers or scenes, trust no original ``matrix_world`` another
-        layer's evaluation may have left behind."""
+        """The next pass compares every transform it reads with the evaluated one (as
+        after a view-layer switch): a Cull click and an analysis's frames, where the
+        file has several view layers or scenes, trust no original ``matrix_world``
+        another layer's evaluation may have left behind."""
         self.layer = None
 
     def candidates(self, context, verify: bool = False) -> Candidates:
         """The candidates of a pass; objects the add-on hid and must give back
         (hidden by the user too, not evaluated and able to change, or, with
         ``verify``, edited since they were read) are shown first and evaluated,
-        so the pass sees them as Blender draws them."""
+        so the pass sees them as Blender draws them.
+
+        The rule for every call into Blender a pass makes (issue 30): a pass tags,
+        writes and evaluates nothing the user did not change, beyond what hiding needs
+        (its hide flags and records, the tags of the objects it shows again, one
+        ``view_layer.update()`` of the window's layer to take pending edits and to
+        apply its hiding).  No ``update_tag`` of objects it does not show, no
+        evaluation of other view layers or scenes, no ``frame_set``, no operator beside
+        the engine thread (:func:`.worker.quiet`).  Tagging every object's transform
+        once made a Cull click the trigger of a Blender crash (a hair system's instance
+        object tagged after an emitter's delete and undo, with a second view layer:
+        ``../shared/repro/blender_hair_undo_two_layers.py``)."""
         layer = (context.scene.name, context.view_layer.name)
         # (with one scene of one view layer no object can have moved elsewhere)
         alone = len(bpy.data.scenes) == 1 and len(context.scene.view_layers) == 1
-        if layer != self.layer and not alone:
-            # Another view layer than the last pass's: an object moved while it was not in
-            # the evaluated layer keeps a stale original matrix_world until this layer's
-            # evaluation writes it back, and the candidates read originals in bulk.
-            # Once per switch: tag every transform and evaluate.
-            for ob in context.scene.objects:
-                ob.update_tag(refresh={"OBJECT"})
-            context.view_layer.update()
+        # Another view layer than the last pass's: an object moved while it was not in
+        # the evaluated layer keeps a stale original matrix_world until this layer's
+        # evaluation writes it back, and the candidates read originals in bulk: once
+        # per switch, every one is compared with its evaluated copy (Extractor.fresh_matrices).
+        every = layer != self.layer and not alone
         self.layer = layer
-        cand = self.extractor.candidates(context, verify)
+        cand = self.extractor.candidates(context, verify, every)
         if len(cand.give_back):
             visibility.release(np.isin(visibility.uids(), cand.give_back))
             context.view_layer.update()

@@ -81,4 +81,6 @@ CHECKS = {
 
 # Cases that once crashed Blender, each in a process of its own (see cases.ALONE): case -> its checks.
 ALONE = {"undo_after_collect": ["undo_after_collect_no_dangling", "undo_after_collect_keeps_last_edit",
-                                "redo_after_collect_no_dangling"]}
+                                "redo_after_collect_no_dangling"],
+         "hair_undo_two_layers": ["hair_undo_cull_truth", "hair_undo_cull_after_undo_truth",
+                                  "hair_undo_two_layers_no_crash", "hair_undo_two_layers_truth"]}

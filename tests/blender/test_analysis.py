@@ -15,7 +15,7 @@ def test_analysis_report_holds(case_run, name):
 
 
 @pytest.mark.parametrize("case", sorted(ALONE))
-def test_undo_after_collecting_never_visible_is_safe(tmp_path, case):
+def test_case_that_once_crashed_blender_is_safe(tmp_path, case):
     """A case that once crashed Blender, in a process of its own: a crash shows as this
     test's failure (rc -11 and the output tail), not the other cases'."""
     results, p = run_script(CASES, tmp_path, ROOT, case)

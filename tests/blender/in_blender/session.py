@@ -367,3 +367,80 @@ def large_mesh_triangles_in_place():
     v, f = extract._read_mesh(mesh)
     check("large_mesh_triangles_in_place", n >= extract.RAW_TRIANGLES and got is not None
           and np.array_equal(got, want) and np.array_equal(f, want), (n, got is None))
+
+
+# --- Blender's own crash, and what the add-on may do near it (issue 30) -----------------
+
+def _hair(emitter, source):
+    """A hair system on ``emitter`` that instances ``source`` (4 strands)."""
+    emitter.modifiers.new("hair", "PARTICLE_SYSTEM")
+    ps = emitter.particle_systems[0].settings
+    ps.type, ps.count, ps.render_type, ps.instance_object = "HAIR", 4, "OBJECT", source
+
+
+def hair_undo_two_layers():
+    """The ingredients of Blender's crash (``../shared/repro/blender_hair_undo_two_layers.py``)
+    with the add-on's operations between them: a hair system instancing an object that
+    was moved, a second view layer shown in the window, the emitter deleted and the
+    deletion undone, then Cull, Analyze, a live pass, frame changes and the other
+    layer's evaluation.  Plain Blender does not crash on these steps (the instance
+    object is not moved or tagged after the second layer is shown); a Cull click that tagged
+    every object's transform (every click, in a file of several view layers; a click
+    that finds the engine built reads nothing more that would evaluate it again) made
+    Blender crash at the next ``frame_set``.  Run in a process of its own:
+    a crash shows as the test's exit status (the old code crashed at the ``frame_set``
+    after the undo, rc 139)."""
+    scene = new_scene()
+    emitter = box("Emitter", (-3, -1, 0), (-2, 1, 1))            # in view, before the wall
+    source = box("HairSource", (-3, 2, 0), (-2, 3, 1))           # in view too: the first click
+    _hair(emitter, source)                                       # hides nothing
+    source.location.x += 0.5                                     # moved, in the first layer
+    update()
+    bpy.ops.ed.undo_push(message="build")
+    layer = scene.view_layers.new("Second")
+    bpy.context.window.view_layer = layer
+    update()
+    bpy.ops.ed.undo_push(message="view layer")
+    # What every pass does first, on its own (the old code tagged every transform there;
+    # the rest of a click happened to evaluate past the tags here, not in seed 843's
+    # file): the candidates read for a new view layer
+    SESSION = addon("session").SESSION
+    SESSION.reread_transforms()
+    SESSION.candidates(bpy.context)
+    bpy.data.objects.remove(bpy.data.objects["Emitter"], do_unlink=True)
+    bpy.ops.ed.undo_push(message="delete")
+    bpy.ops.ed.undo()
+    update()
+    bpy.context.scene.frame_set(55)                              # every view layer's depsgraph
+    clicks = [cull()[0], cull()[0]]         # the second click finds the engine built: no rebuild
+    box("behind", (3, -1, 0), (4, 1, 1))    # then something the wall hides
+    update()
+    steps = [("undo, clicks", clicks == [{"FINISHED"}] * 2 and "Emitter" in bpy.data.objects)]
+    r = cull()
+    steps.append(("cull", r[0]))
+    promise("hair_undo_cull_truth")
+    bpy.data.objects.remove(bpy.data.objects["Emitter"], do_unlink=True)
+    bpy.ops.ed.undo_push(message="delete again")
+    bpy.ops.ed.undo()
+    update()
+    r = cull()
+    steps.append(("cull after undo", r[0]))
+    promise("hair_undo_cull_after_undo_truth")
+    report = os.path.join(WORK, "hair_undo.json")
+    steps.append(("analyze", bpy.ops.occ.analyze(filepath=report, frame_start=1, frame_end=3)))
+    live = addon("live")
+    live.DEBOUNCE_S = 0.0
+    live.start(bpy.context)
+    bpy.context.scene.camera.location.y += 0.2
+    update()
+    for _ in range(2):
+        live._tick()
+    live.stop(bpy.context)
+    steps.append(("live", bpy.context.scene.occ.live))
+    bpy.context.scene.frame_set(55)                              # every view layer's depsgraph
+    bpy.context.scene.view_layers["ViewLayer"].update()
+    bpy.context.scene.frame_set(1)
+    steps.append(("frames", bpy.context.scene.frame_current))
+    check("hair_undo_two_layers_no_crash", steps[0][1] and steps[1][1] == steps[2][1] == steps[3][1] == {"FINISHED"},
+          steps)
+    promise("hair_undo_two_layers_truth")
