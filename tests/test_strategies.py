@@ -200,3 +200,28 @@ def test_coherent_default_stays_within_its_read_budget(ctx, strategy):
                     if getattr(c.renderer, "path", None) == "4.3":
                         timing = Auto.ROUND_TRIPS if strategy == "auto" else 0
                         assert r.stats.blocking_reads <= COHERENT_READS + timing
+
+
+# A group (a Blender collection) holding one box in front of a wall and two behind it;
+# the wall a root of its own.  Front to back, the group opens before the wall is drawn.
+GROUPED = [((0.0, -6.0, -2.0), (0.5, 6.0, 6.0)),          # wall
+           ((-3.0, -2.0, 0.0), (-2.0, -1.0, 1.0)),        # in front, in the group
+           ((3.0, -1.0, 0.0), (4.0, 1.0, 1.0)),           # behind, in the group
+           ((3.0, 2.0, 0.0), (4.0, 3.0, 1.0))]            # behind, in the group
+
+
+@pytest.mark.parametrize("name", [n for n in STRATEGIES if n != "vfc"])
+@pytest.mark.parametrize("grouped", [False, True])
+def test_a_group_that_opens_before_the_wall_still_culls_behind_it(ctx, name, grouped):
+    """Every occlusion strategy culls the two boxes behind the wall, whether or not a
+    group holds them with one in front: a node judged on a map that lacked an opened
+    group's contents once went to a query, and the map then lacked the wall, so the
+    boxes behind it were drawn unqueried (om_multi, om_coherent, two_pass, gpu)."""
+    tree = (np.array([-1, -1, 1, 1, 1]), np.array([0, -1, 1, 2, 3])) if grouped else None
+    scene = scenes.boxes_scene(GROUPED, tree=tree)
+    camera = scenes.cam((-10.0, 0.0, 1.0), (0.0, 0.0, 1.0), fov_y_deg=23.0, aspect=16 / 9)
+    with Culler(scene, (160, 90), strategy=name, ctx=ctx) as c:
+        truth = c.truth(camera)
+        state = c.cull(camera).state
+    assert truth.tolist() == [True, True, False, False]
+    assert state.tolist() == [Visibility.VISIBLE, Visibility.VISIBLE, Visibility.OCCLUDED, Visibility.OCCLUDED]

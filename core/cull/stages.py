@@ -31,13 +31,18 @@ def stage1(cp, front, chunk):
         # drawn in this chunk would find them occupied: defer it too.
         proven = crosses | free | (empty & ~nearer(tiles, empty & leaf, inside=True))
         # A node over (on screen) and behind a nearer inner node opened in this chunk
-        # was judged on a map that lacks that node's contents: a query decides.
-        proven &= crosses | free | ~nearer(tiles, proven & ~leaf, inside=False)
+        # was judged on a map that lacks that node's contents: it goes back to the
+        # front, judged again beside that node's children.  (Deferred to a query
+        # instead, it left the map without its own contents, and every farther node
+        # it covers was then drawn unqueried: a collection holding one object in front
+        # of a wall and others behind it culled none of them.)
+        again = proven & ~crosses & ~free & nearer(tiles, proven & ~leaf, inside=False)
+        proven &= ~again
         cp.stats.near_visible += int(crosses.sum())
         cp.stats.queries_skipped += int((proven & ~crosses & ~free).sum())
         cp.draw_leaves(head[proven & leaf & ~cp.predrawn[head]])
-        front = np.concatenate([front, cp.children_in_frustum(head[proven & ~leaf])])
-        pending.append(head[~proven])
+        front = np.concatenate([front, head[again], cp.children_in_frustum(head[proven & ~leaf])])
+        pending.append(head[~proven & ~again])
     return np.concatenate(pending) if pending else np.zeros(0, dtype=np.int64)
 
 
