@@ -5,7 +5,7 @@ One module for every writer and reader of the report: ``python -m core analyze``
 ``merge`` (:mod:`core.lab.analyze`) and the add-on's ``occ.analyze``
 (``occ_addon/analysis.py``).  Numpy only (no bpy, no GL), so the extension ships it.
 
-A report is a JSON object (README, "Report schema")::
+A report is a JSON object (docs/scripting.md, "Report schema")::
 
     {"frames": [{"frame": f, "visible": [name, ...]}, ...],        # ascending frames
      "objects": {name: {"frames_visible": k, "first": f, "last": f}, ...},   # sorted by name

@@ -5,7 +5,7 @@ shows is culled -- a depth buffer at a lower resolution can close a gap of one
 display pixel, so it is not used by default.  ``fast`` queries at half the display
 resolution per side (a quarter of the pixels) and grows query boxes by one query
 pixel, so tiny objects between low-resolution pixel centres are kept; its error
-is measured by ``python -m core tradeoff`` and written in the README.
+is measured by ``python -m core tradeoff`` and written in docs/performance.md.
 """
 
 from dataclasses import dataclass, replace

@@ -38,7 +38,7 @@ class OccSettings(bpy.types.PropertyGroup):
         items=[("conservative", "Conservative", "Query at the display resolution: hides nothing visible"),
                ("fast", "Fast", "Query at half the display resolution against the display's farthest "
                                 "depths: hides nothing visible; faster where queries, not drawing, "
-                                "dominate (README)")])
+                                "dominate (docs/performance.md)")])
     max_resolution: IntProperty(
         name="Max Query Size", default=1920, min=16, max=8192,
         description="Longest side of the query buffer; larger displays are scaled down to it")

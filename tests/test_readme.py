@@ -1,5 +1,7 @@
-"""The README as a user reads it: its Python example runs, its commands exist."""
+"""The README as a user reads it: its Python example runs, its commands exist (there and in
+docs/), and it stays short, with install, the Blender quick start and the example first."""
 
+import glob
 import os
 import re
 import shlex
@@ -11,6 +13,8 @@ from tests.cli_helpers import ROOT
 
 with open(os.path.join(ROOT, "README.md"), encoding="utf-8") as _f:
     README = _f.read()
+DOCS = {os.path.relpath(p, ROOT): open(p, encoding="utf-8").read()
+        for p in sorted(glob.glob(os.path.join(ROOT, "docs", "*.md")))}
 
 
 def _section(title):
@@ -30,16 +34,27 @@ def test_scripted_analysis_example_runs():
 
 
 def test_command_lines_name_real_options():
-    """Every ``python -m core COMMAND ... --option`` the README shows is an option of COMMAND."""
+    """Every ``python -m core COMMAND ... --option`` the README or a docs/ page shows at the
+    start of a line is an option of COMMAND."""
     sub = next(a for a in build_parser()._actions if a.dest == "command").choices
     seen = 0
-    for line in re.findall(r"^python -m core (\w+)(.*)$", README, flags=re.M):
-        command, rest = line
-        options = {o for a in sub[command]._actions for o in a.option_strings}
-        for flag in re.findall(r"(--[a-z-]+)", rest):
-            assert flag in options, (command, flag)
-            seen += 1
+    for page, text in {"README.md": README, **DOCS}.items():
+        for command, rest in re.findall(r"^python -m core (\w+)(.*)$", text, flags=re.M):
+            options = {o for a in sub[command]._actions for o in a.option_strings}
+            for flag in re.findall(r"(--[a-z-]+)", rest):
+                assert flag in options, (page, command, flag)
+                seen += 1
     assert seen > 10
+
+
+def test_the_readme_is_short_and_starts_with_what_a_user_needs():
+    """At most 250 lines; install, the Blender quick start and the script example within
+    its first two screens (about 120 lines)."""
+    lines = README.splitlines()
+    assert len(lines) <= 250, len(lines)
+    head = "\n".join(lines[:120])
+    for marker in ("\n## Quick start in Blender\n", "\n## Install\n", "\n## Scripted analysis\n", "```python\n"):
+        assert marker in head, marker
 
 
 def test_headless_blender_command_enables_the_extension():

@@ -1,5 +1,5 @@
 """tools/blender_scale.py: its grid and its engine mode on a small grid (the Blender
-mode needs minutes; the README's figures come from it)."""
+mode needs minutes; docs/performance.md's figures come from it)."""
 
 import json
 import os

@@ -16,7 +16,7 @@ Blender offers to Python, median of ``--repeat``:
   one view) of one object, and of a third of the objects, one call each, and back.
 
 Any of these is a cost a culling pass pays on top of its own work whenever
-what it hides changes; the README's "Blender at scale" section quotes it.
+what it hides changes; docs/performance.md's "Blender at scale" section quotes it.
 """
 
 import argparse

@@ -25,8 +25,8 @@ from .jobs import load_job
 # file name pattern (after the scene title) -> what the index says about it
 FILES = (
     (".json", "the benchmark report: per strategy the summary and every frame's time and triangles "
-              "(schema in the README, 'Report schema')"),
-    (".txt", "the benchmark table as printed (columns explained in the README)"),
+              "(schema in docs/scripting.md, 'Report schema')"),
+    (".txt", "the benchmark table as printed (columns explained in docs/performance.md, 'Reading the tables')"),
     ("_frame_ms.png", "frame time along the camera path per strategy, log scale"),
     ("_triangles.png", "triangles drawn along the camera path per strategy, log scale"),
     ("_view.png", "the middle frame as the camera sees it, one shade per visible object, with the counts of "
