@@ -44,6 +44,11 @@ from . import localview
 
 # Shown again: re-evaluate transform, geometry and animation at the current frame.
 SHOW_TAG = {"OBJECT", "DATA", "TIME"}
+# ... but an object a particle system instances: the dependency graph kept evaluating it
+# while it was hidden (its instances need it), so nothing of it is stale, and a transform
+# tag on it is what Blender 4.2 and 5.0 crash on after an emitter's delete and undo
+# (../shared/repro/blender_hair_undo_two_layers.py): its data only.
+INSTANCED_SHOW_TAG = {"DATA"}
 
 
 # The add-on's records (a property of the add-on's own costs Blender about 0.7 us an
@@ -172,10 +177,24 @@ def write(hide, record):
     shown = changed[~hide[changed]]
     if len(shown):
         items = objs.values()                      # one list; ListBase indexing is O(i) per call
+        instanced = particle_instanced()
         for i in shown:                            # O(shown): a tag each, no re-sync each
-            items[i].update_tag(refresh=SHOW_TAG)
+            o = items[i]
+            o.update_tag(refresh=INSTANCED_SHOW_TAG if o.as_pointer() in instanced else SHOW_TAG)
     first = objs[int(changed[0])]
     first.hide_viewport = bool(hide[changed[0]])   # the RNA update: bases re-synced, relations rebuilt
+
+
+def particle_instanced() -> set:
+    """``as_pointer()`` of every object a particle system instances (its instance object,
+    or its instance collection's objects): particle settings are few."""
+    out = set()
+    for p in bpy.data.particles:
+        if p.instance_object is not None:
+            out.add(p.instance_object.as_pointer())
+        if p.instance_collection is not None:
+            out.update(o.as_pointer() for o in p.instance_collection.all_objects)
+    return out
 
 
 # the 3D view (SpaceView3D pointer) whose local-view bits the view record cleared
