@@ -34,7 +34,7 @@ else is handled conservatively by construction:
   dynamic: hidden, it would not be evaluated).
 
 Objects are identified by ``session_uid`` (unique for the Blender session,
-kept by renames; see :func:`.visibility.ident` for Blender 3.4); caches are
+kept by renames; see :func:`.identity.ident` for Blender 3.4); caches are
 keyed by it and by the mesh datablock's id, and are dropped on undo, redo and
 file load (:meth:`Session.reset`), where Blender may give an unchanged id back
 with other contents.
@@ -59,9 +59,9 @@ import bpy
 import numpy as np
 
 from ..core import OccError, Scene
-from . import visibility
+from . import identity
 from .cameras import pass_view
-from .visibility import ident
+from .identity import ident
 from .worker import Progress
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
@@ -416,7 +416,7 @@ def shown_by_collections(view_layer):
         lc, ok = stack.pop()
         ok = ok and not lc.exclude and not lc.hide_viewport and not lc.collection.hide_viewport
         if ok:
-            ids.append(visibility.uids(lc.collection.objects))
+            ids.append(identity.uids(lc.collection.objects))
         stack.extend((c, ok) for c in lc.children)
     return np.unique(np.concatenate(ids)) if ids else np.zeros(0, dtype=np.int64)
 
@@ -467,7 +467,7 @@ def bystanders(view_layer, held: np.ndarray) -> list:
     Never culled, so counted visible by analyze.  The held ones are told apart in
     bulk (one ``foreach_get``); only the others are looked at one by one."""
     layer = view_layer.objects
-    rest = np.flatnonzero(~np.isin(visibility.uids(layer), held))
+    rest = np.flatnonzero(~np.isin(identity.uids(layer), held))
     if not len(rest):
         return []
     items = layer.values()                        # one list; indexing the collection is O(i)
@@ -498,7 +498,7 @@ def drawn(view_layer, uids_all: np.ndarray, space=None) -> np.ndarray:
             ids = shown_by_collections(view_layer)
             return np.fromiter((user_shown(o, view_layer, ids) and not o.hide_viewport
                                 for o in view_layer.objects), dtype=bool, count=len(uids_all))
-        ids = visibility.idents(shown)
+        ids = identity.idents(shown)
         return np.isin(uids_all, ids)
     if space is not None:
         found = next(((w, a) for w in context.window_manager.windows for a in w.screen.areas
@@ -515,7 +515,7 @@ def drawn(view_layer, uids_all: np.ndarray, space=None) -> np.ndarray:
         region = next((r for r in area.regions if r.type == "WINDOW"), None)
         with context.temp_override(window=win, area=area, region=region):
             shown = bpy.context.visible_objects
-    ids = visibility.idents(shown)
+    ids = identity.idents(shown)
     return np.isin(uids_all, ids)
 
 
@@ -541,9 +541,9 @@ class Candidates:
         :meth:`Extractor.fresh_matrices`; ``every``: of every evaluated candidate)."""
         self.view_layer = view_layer
         layer = view_layer.objects
-        uids_all = visibility.uids(layer)
-        stale_all = visibility.layer_flags("occ_culled", uids_all, layer)     # hidden everywhere: not evaluated
-        culled_all = stale_all | visibility.layer_flags(visibility.VIEW_RECORD, uids_all, layer)
+        uids_all = identity.uids(layer)
+        stale_all = identity.layer_flags("occ_culled", uids_all, layer)     # hidden everywhere: not evaluated
+        culled_all = stale_all | identity.layer_flags(identity.VIEW_RECORD, uids_all, layer)
         info = extractor.info
         no_instances = filters_geometry(space)
         # drawn now, or hidden by the add-on: only those can take part (what else the user
@@ -1018,7 +1018,7 @@ def _tree(scene, objects, uids):
         node = len(parent)
         parent.append(parent_node)
         carried.append(-1)
-        for uid in visibility.uids(coll.objects).tolist():
+        for uid in identity.uids(coll.objects).tolist():
             if uid in index and uid not in node_of:
                 node_of[uid] = len(parent)
                 parent.append(node)

@@ -14,8 +14,8 @@ import bpy
 from bpy.app.handlers import persistent
 
 from . import live, localview, visibility
+from .identity import ident
 from .session import SESSION
-from .visibility import ident
 
 _listeners: list[Callable[[], None]] = []
 

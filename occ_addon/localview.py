@@ -29,6 +29,7 @@ saved with it (:func:`.visibility.lift`).
 import bpy
 import numpy as np
 
+from .identity import uids
 from .worker import quiet
 
 # the add-on's own local views: SpaceView3D pointer -> the session ids of the objects
@@ -85,7 +86,6 @@ def _toggle(win, area) -> None:
 
 
 def _layer_uids(layer):
-    from .visibility import uids
     return np.sort(uids(layer.objects))
 
 
@@ -234,7 +234,6 @@ def adopt() -> None:
         else:
             fresh = ~np.isin(now, own["uids"], assume_unique=True)
         if fresh.any():
-            from .visibility import uids
             ids = uids(layer.objects)
             _set_all(layer, space, True, np.isin(ids, now[fresh]))
         own.update(layer=layer.name, uids=now)
@@ -244,7 +243,6 @@ def resync(culled) -> None:
     """After an undo or redo (the bits come back with the data, the view does not):
     every object of an own local view holds its bit but those ``culled`` (``(m,)
     int64`` session ids the restored record hides there)."""
-    from .visibility import uids
     for pointer, own in list(_own.items()):
         found = find(pointer)
         if found is None or found[2].local_view is None:

@@ -22,9 +22,9 @@ of every visible instance as seen (:func:`members_seen`).
 import numpy as np
 
 from ..core import Visibility
-from . import visibility
+from . import identity
 from .extract import DRAWN_TYPES, bystanders, is_instancer, kind
-from .visibility import ident
+from .identity import ident
 
 
 def draws_beyond_geometry(collection) -> bool:
@@ -56,23 +56,23 @@ def never_hidden(context, objects: list, uids: np.ndarray, collection: np.ndarra
     (dynamic, an instance's members) are asked only there."""
     settings = context.scene.occ
     out = np.zeros(len(objects), dtype=bool)
-    flagged = [visibility.uids()[visibility.flags("occ_never_cull")]]
+    flagged = [identity.uids()[identity.flags("occ_never_cull")]]
     coll = settings.exclude_collection
     if coll is not None:
-        flagged.append(visibility.uids(coll.all_objects if settings.exclude_children else coll.objects))
+        flagged.append(identity.uids(coll.all_objects if settings.exclude_children else coll.objects))
     colls = {}                                         # collection id -> (collection, its instances' k)
     for k in np.flatnonzero(collection):
         c = objects[k].instance_collection
         colls.setdefault(ident(c), (c, []))[1].append(k)
     for c, at in colls.values():
-        flagged.append(visibility.uids(c.all_objects))
+        flagged.append(identity.uids(c.all_objects))
         if culled[at].any() and draws_beyond_geometry(c):
             out[at] = True
     # ... and so are those of instances the engine does not hold (drawn as wire or
     # bounds, in front): hiding a member would take it out of them too
     for o in bystanders(context.view_layer, uids):
         if is_instancer(o) and ident(o.instance_collection) not in colls:
-            flagged.append(visibility.uids(o.instance_collection.all_objects))
+            flagged.append(identity.uids(o.instance_collection.all_objects))
     out[np.isin(uids, np.concatenate(flagged))] = True
     at = np.flatnonzero(culled & ~out)                 # cached, in bulk: what Blender has no bulk form of
     out[at] = extractor.dynamic_of(objects, uids, at)

@@ -22,7 +22,7 @@ from ..core.envelope import Envelope
 from ..core.motion import LivePolicy
 from ..core.settings import preset, query_resolution
 from ..core.units import ChunkCache
-from . import localview, policy, shading, visibility
+from . import identity, localview, policy, shading, visibility
 from .cameras import hide_view
 from .extract import Candidates, Extractor, Kind
 from .passes import LastPass, Shown, shown_by
@@ -130,7 +130,7 @@ class Session:
         self.layer = layer
         cand = self.extractor.candidates(context, verify, every)
         if len(cand.give_back):
-            visibility.release(np.isin(visibility.uids(), cand.give_back))
+            visibility.release(np.isin(identity.uids(), cand.give_back))
             context.view_layer.update()
             cand = self.extractor.candidates(context)
         return cand
@@ -278,8 +278,8 @@ class Session:
         for: live mode checks every redraw against it).  ``show_only``: a pass
         during motion: it shows what it finds visible and hides nothing new (what
         stays hidden is hidden in this pass too, so it holds for its envelope)."""
-        # the records are read once a pass (see visibility.one_pass)
-        with visibility.one_pass():
+        # the records are read once a pass (see identity.one_pass)
+        with identity.one_pass():
             settings = context.scene.occ
             t = time.perf_counter()
             visibility.reconcile()                 # what the user showed is the user's
@@ -306,7 +306,7 @@ class Session:
             finally:
                 self.enter_while = None
             settings.last_rule = view_rule.why
-            hide = np.isin(visibility.uids(), held.uids[culled & ~protected])
+            hide = np.isin(identity.uids(), held.uids[culled & ~protected])
             before = visibility.COUNT["changed"]
             self.applying = True
             try:

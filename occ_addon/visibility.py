@@ -35,12 +35,12 @@ animation would stay at the frame it was hidden on): every object shown is
 tagged (O(shown), cheap), and one ordinary assignment re-syncs the bases.
 """
 
-import contextlib
 
 import bpy
 import numpy as np
 
 from . import localview
+from .identity import VIEW_RECORD, flags, one_pass, store, uids
 
 # Shown again: re-evaluate transform, geometry and animation at the current frame.
 SHOW_TAG = {"OBJECT", "DATA", "TIME"}
@@ -49,115 +49,6 @@ SHOW_TAG = {"OBJECT", "DATA", "TIME"}
 # tag on it is what Blender 4.2 and 5.0 crash on after an emitter's delete and undo
 # (../shared/repro/blender_hair_undo_two_layers.py): its data only.
 INSTANCED_SHOW_TAG = {"DATA"}
-
-
-# The add-on's records (a property of the add-on's own costs Blender about 0.7 us an
-# object to read in bulk: 35 ms at 50,000 objects, and a pass asks several times).
-VIEW_RECORD = "occ_view_culled"
-RECORDS = ("occ_culled", VIEW_RECORD)
-# Within one pass (:func:`one_pass`) each record over ``bpy.data.objects``, and the
-# objects' identities (:func:`uids`), are read once: inside an operator's call no user
-# action, undo or file load runs, and every write of a record is this module's
-# (:func:`_store`), which keeps the memo current.
-_memo: dict | None = None
-
-
-@contextlib.contextmanager
-def one_pass():
-    """Read each record once in the block (a pass, a Restore); nested blocks share it."""
-    global _memo
-    outer = _memo
-    if outer is None:
-        _memo = {}
-    try:
-        yield
-    finally:
-        if outer is None:
-            _memo = None
-
-
-def flags(prop, collection=None):
-    """``(n,) bool`` of a boolean property over ``collection`` (default ``bpy.data.objects``)."""
-    objs = bpy.data.objects if collection is None else collection
-    memo = _memo if collection is None and prop in RECORDS else None
-    n = len(objs)                                  # (a walk of Blender's list: once)
-    if memo is not None:
-        hit = memo.get(prop)
-        if hit is not None and len(hit) == n:
-            return hit.copy()
-    out = np.zeros(n, dtype=bool)
-    objs.foreach_get(prop, out)
-    if memo is not None:
-        memo[prop] = out.copy()
-    return out
-
-
-def layer_flags(prop, layer_uids: np.ndarray, layer_objects):
-    """``(k,) bool``: :func:`flags` of ``prop`` over a view layer's objects
-    (``layer_objects``, their identities ``layer_uids``): within :func:`one_pass`, a record
-    is taken from its one read over ``bpy.data.objects`` (every object of a view layer
-    is one of them)."""
-    if _memo is None or prop not in RECORDS:
-        return flags(prop, layer_objects)
-    data = flags(prop)
-    ids = uids()
-    order = _memo.get("order")
-    if order is None or len(order) != len(ids):
-        order = _memo["order"] = np.argsort(ids, kind="stable")
-    return data[order[np.searchsorted(ids, layer_uids, sorter=order)]]
-
-
-def _store(prop, values, at=None):
-    """Write record ``prop`` over ``bpy.data.objects``: all of ``values`` (``(n,) bool``)
-    in bulk, or item by item at indices ``at`` (few changed)."""
-    values = np.ascontiguousarray(values, dtype=bool)
-    if at is None:
-        bpy.data.objects.foreach_set(prop, values)
-    else:
-        items = bpy.data.objects.values()          # one list; ListBase indexing is O(i) per call
-        for i in at:
-            setattr(items[i], prop, bool(values[i]))
-    if _memo is not None:
-        _memo[prop] = values.copy()
-
-
-# Blender 3.5+ gives every datablock a session id (kept by renames, never reused in a
-# session); Blender 3.4 has none: there the address stands in (reused only after a
-# deletion, and a new object is always reported to the depsgraph handler as changed).
-HAS_SESSION_UID = "session_uid" in bpy.types.ID.bl_rna.properties
-
-
-def ident(idblock):
-    """The identity of a datablock for this Blender session."""
-    return idblock.session_uid if HAS_SESSION_UID else idblock.as_pointer()
-
-
-def uids(collection=None):
-    """``(n,) int64`` identities (:func:`ident`) over ``collection`` (default ``bpy.data.objects``)."""
-    objs = bpy.data.objects if collection is None else collection
-    memo = _memo if collection is None else None
-    n = len(objs)                                  # (a walk of Blender's list: once)
-    if memo is not None:                           # within one pass (see one_pass): read once
-        hit = memo.get("uids")
-        if hit is not None and len(hit) == n:
-            return hit.copy()
-        memo.pop("order", None)
-    if not HAS_SESSION_UID:
-        out = idents(objs)
-    else:
-        out = np.zeros(n, dtype=np.int64)
-        objs.foreach_get("session_uid", out)
-    if memo is not None:
-        memo["uids"] = out.copy()
-    return out
-
-
-def idents(items) -> np.ndarray:
-    """``(n,) int64`` identities (:func:`ident`) of a sequence of datablocks (a list
-    such as ``context.visible_objects``): one attribute read each, no call."""
-    if HAS_SESSION_UID:
-        return np.array([o.session_uid for o in items], dtype=np.int64)
-    return np.array([o.as_pointer() for o in items], dtype=np.int64)
 
 
 def write(hide, record):
@@ -221,7 +112,7 @@ def reconcile():
         return n
     touched = culled & ~flags("hide_viewport")
     if touched.any():
-        _store("occ_culled", culled & ~touched)
+        store("occ_culled", culled & ~touched)
     return n + int(touched.sum())
 
 
@@ -238,7 +129,7 @@ def _reconcile_view():
     _view["pointer"] = None
     record = flags(VIEW_RECORD)
     if record.any():
-        _store(VIEW_RECORD, np.zeros(len(record), dtype=bool))
+        store(VIEW_RECORD, np.zeros(len(record), dtype=bool))
     return int(record.sum())
 
 
@@ -259,9 +150,9 @@ def _set_record(prop, old, new):
     bulk write of an add-on property costs about 1 us per object), else in bulk."""
     idx = np.flatnonzero(old != new)
     if len(idx) * 8 < len(new):
-        _store(prop, new, at=idx)
+        store(prop, new, at=idx)
     elif len(idx):
-        _store(prop, new)
+        store(prop, new)
 
 
 def apply(hide, view=None):

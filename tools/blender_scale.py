@@ -440,7 +440,7 @@ def _false_negatives(bpy):
         truth = sess.worker.run(sess.culler.truth, camera)
         objs = bpy.data.objects
         flags = _addon("occ_addon.visibility").culled()    # either channel, one bulk read each
-        ids = _addon("occ_addon.visibility").uids(objs)     # the engine's objects by session id
+        ids = _addon("occ_addon.identity").uids(objs)     # the engine's objects by session id
         by_id = np.argsort(ids)
         hidden = flags[by_id[np.searchsorted(ids, sess.held.uids, sorter=by_id)]]
         return int((truth & hidden).sum()), int(hidden.sum())

@@ -165,7 +165,7 @@ def modal_steps():
         steps = SESSION.prepare_steps(bpy.context, display)
         wall = bpy.data.objects["wall"]
         reads, edited = 0, False
-        uid = addon("visibility").ident(wall)
+        uid = addon("identity").ident(wall)
         for item in steps:
             if isinstance(item, worker.Job):
                 item.wait()

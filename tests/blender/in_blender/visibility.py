@@ -28,14 +28,14 @@ def user_hide_wins():
 
 
 def records_read_once_a_pass():
-    """Within one pass (visibility.one_pass) the records read from the memo are what a
+    """Within one pass (identity.one_pass) the records read from the memo are what a
     fresh bulk read of Blender's data gives, through a seeded run of the module's
     writes (item by item and in bulk), over all objects and over a view layer holding
     some of them; outside a pass a write not of the module's (a script) is seen."""
     import random
 
     import numpy as np
-    vis = addon("visibility")
+    vis, ids = addon("visibility"), addon("identity")
     new_scene()
     layer_coll = bpy.data.collections.new("part")
     bpy.context.scene.collection.children.link(layer_coll)
@@ -53,19 +53,19 @@ def records_read_once_a_pass():
 
     rng = random.Random(11)
     bad = []
-    with vis.one_pass():
+    with ids.one_pass():
         for step in range(60):
-            prop = rng.choice(vis.RECORDS)
+            prop = rng.choice(ids.RECORDS)
             n = len(bpy.data.objects)
             new = np.array([rng.random() < 0.5 for _ in range(n)])
             if rng.random() < 0.5:                    # few changed: item by item
-                new = vis.flags(prop)
+                new = ids.flags(prop)
                 new[rng.randrange(n)] ^= True
-            vis._set_record(prop, vis.flags(prop), new)
-            for p in vis.RECORDS:
-                if not np.array_equal(vis.flags(p), fresh(p)):
+            vis._set_record(prop, ids.flags(prop), new)
+            for p in ids.RECORDS:
+                if not np.array_equal(ids.flags(p), fresh(p)):
                     bad.append(("flags", step, p))
-                lf = vis.layer_flags(p, vis.uids(layer), layer)
+                lf = ids.layer_flags(p, ids.uids(layer), layer)
                 if not np.array_equal(lf, fresh(p, layer)):
                     bad.append(("layer", step, p))
 
@@ -74,22 +74,22 @@ def records_read_once_a_pass():
         bpy.data.objects.foreach_get("session_uid", out)
         return out
 
-    with vis.one_pass():                              # identities: read once, and a new object seen
-        first = vis.uids()
-        if not np.array_equal(first, fresh_uids()) or not np.array_equal(vis.uids(), first):
+    with ids.one_pass():                              # identities: read once, and a new object seen
+        first = ids.uids()
+        if not np.array_equal(first, fresh_uids()) or not np.array_equal(ids.uids(), first):
             bad.append("uids in a pass")
         extra = box("extra", (0, 5, 0), (1, 6, 1))
-        if not np.array_equal(vis.uids(), fresh_uids()) or vis.ident(extra) not in vis.uids():
+        if not np.array_equal(ids.uids(), fresh_uids()) or ids.ident(extra) not in ids.uids():
             bad.append("uids after an object was added")
-        if not np.array_equal(vis.layer_flags("occ_culled", vis.uids(layer), layer), fresh("occ_culled", layer)):
+        if not np.array_equal(ids.layer_flags("occ_culled", ids.uids(layer), layer), fresh("occ_culled", layer)):
             bad.append("layer records after an object was added")
     bpy.data.objects.remove(extra)
     ob = bpy.data.objects["b5"]
-    before = bool(vis.flags("occ_culled")[list(bpy.data.objects).index(ob)])
+    before = bool(ids.flags("occ_culled")[list(bpy.data.objects).index(ob)])
     ob.occ_culled = not before                        # a script's write, outside any pass
-    seen = bool(vis.flags("occ_culled")[list(bpy.data.objects).index(ob)])
+    seen = bool(ids.flags("occ_culled")[list(bpy.data.objects).index(ob)])
     if seen == before:
         bad.append("script write not seen outside a pass")
-    vis._store("occ_culled", np.zeros(len(bpy.data.objects), dtype=bool))
-    vis._store(vis.VIEW_RECORD, np.zeros(len(bpy.data.objects), dtype=bool))
+    ids.store("occ_culled", np.zeros(len(bpy.data.objects), dtype=bool))
+    ids.store(ids.VIEW_RECORD, np.zeros(len(bpy.data.objects), dtype=bool))
     check("records_read_once_a_pass", not bad, bad[:5])
