@@ -99,12 +99,14 @@ def bpy_cli():
     return hits[0] if hits else None
 
 
-def anchored_excludes():
-    """The manifest's ``paths_exclude_pattern`` entries that name a path from the root
-    (``"/core/lab/"``), as lists of name patterns (``["core", "lab"]``)."""
+def manifest_excludes():
+    """The manifest's ``paths_exclude_pattern``: ``(anchored, anywhere)``, the entries that
+    name a path from the root (``"/core/lab/"``) as lists of name patterns (``["core",
+    "lab"]``), and the name patterns that match at any depth (``"ruff.toml"``)."""
     with open(os.path.join(ROOT, "blender_manifest.toml"), "rb") as f:
         patterns = tomllib.load(f)["build"]["paths_exclude_pattern"]
-    return [p.strip("/").split("/") for p in patterns if p.startswith("/")]
+    return ([p.strip("/").split("/") for p in patterns if p.startswith("/")],
+            [p.rstrip("/") for p in patterns if not p.startswith("/") and "/" not in p.rstrip("/")])
 
 
 def excluded(rel, anchored):
@@ -120,8 +122,8 @@ def copy_sources(dest):
     if os.path.exists(dest):
         shutil.rmtree(dest)
     os.makedirs(dest)
-    anchored = anchored_excludes()
-    default = shutil.ignore_patterns("__pycache__", "*.pyc", ".*")
+    anchored, anywhere = manifest_excludes()
+    default = shutil.ignore_patterns("__pycache__", "*.pyc", ".*", *anywhere)
 
     def ignore(folder, names):
         rel = os.path.relpath(folder, ROOT)
