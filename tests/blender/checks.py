@@ -29,6 +29,7 @@ CHECKS = {
         *[f"camera_scale_{t}_{c}" for t in ("small", "mirrored", "large", "nonuniform") for c in ("ignored", "truth")],
         "camera_mirrored_through_hole", "camera_mirrored_hole_truth",
         "camera_panoramic_refused", "camera_scale_zero_reported",
+        "camera_render_size_matches", "camera_render_sizes_truth",
     ],
     "session": [
         "identity_swapped_names", "identity_swap_truth", "identity_delete_rename", "identity_delete_truth",
