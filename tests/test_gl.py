@@ -111,3 +111,26 @@ def test_two_renderers_alive_at_once_each_use_their_own_context():
                 assert a.cull(ortho_cam()).state.tolist() == [0, 1]
                 assert b.cull(ortho_cam()).state.tolist() == [0]
                 assert a.truth(ortho_cam()).tolist() == [True, False]
+
+
+def test_a_released_context_is_not_kept():
+    """A renderer that made its own context keeps nothing of it once released: the
+    per-context GL state (a weak-keyed map whose value held a framebuffer of the
+    context) kept every context a process made, one more per engine rebuild."""
+    import gc
+    import weakref
+
+    from core.gl import renderer
+
+    scene = boxes_scene([((-1, -1, -3), (1, 1, -2))])
+    before = len(renderer._CONTEXT_STATE)
+    kept = []
+    for _ in range(3):
+        with Culler(scene, (8, 8), strategy="om_multi", display=(16, 16)) as c:
+            c.cull(ortho_cam())
+            c.truth(ortho_cam())
+            kept.append(weakref.ref(c.renderer.ctx))
+        del c
+    gc.collect()
+    assert len(renderer._CONTEXT_STATE) == before
+    assert all(k() is None for k in kept)

@@ -575,6 +575,9 @@ class BaseRenderer:
         created it: that frees them all)."""
         self.activate()
         if self.own_ctx:
+            # the per-context state holds a framebuffer that holds the context: the weak
+            # key alone would keep every context this process made
+            _CONTEXT_STATE.pop(self.ctx, None)
             self.ctx.release()
             return
         for a in reversed(list(self._attachments.values())):
