@@ -19,12 +19,11 @@ from .cull import DEFAULT_STRATEGY, REGISTRY, CullPass, CullResult, PassStats, V
 from .errors import OccError
 from .hierarchy import build_hierarchy
 from .scene import Scene
-from .settings import CullOptions
+from .settings import CullOptions, check_resolution
 from .units import ChunkCache
 
 Resolution = tuple[int, int]
 DEFAULT_RESOLUTION = (640, 360)
-MAX_RESOLUTION = 8192          # per side; beyond this llvmpipe and most GPUs refuse targets
 
 
 def parse_resolution(text):
@@ -33,15 +32,7 @@ def parse_resolution(text):
         w, h = (int(x) for x in str(text).lower().split("x"))
     except ValueError:
         raise OccError(f"resolution must look like 640x360, got '{text}'") from None
-    return check_resolution((w, h))
-
-
-def check_resolution(resolution):
-    w, h = (int(x) for x in resolution)
-    if not (1 <= w <= MAX_RESOLUTION and 1 <= h <= MAX_RESOLUTION):
-        raise OccError(f"resolution must be between 1x1 and {MAX_RESOLUTION}x{MAX_RESOLUTION}, "
-                       f"got {w}x{h}")
-    return w, h
+    return check_resolution((w, h))[0]
 
 
 # The box of a unit that must never be reached (NaN or infinite values): the
@@ -121,9 +112,9 @@ class Culler:
                  exact_bounds: bool = False, hierarchy: str = "tree", chunk_triangles: int | None = None,
                  chunk_min_triangles: int | None = None, ctx=None, chunk_cache: ChunkCache | None = None,
                  display: Resolution | None = None, query_pixels: bool = True) -> None:
-        self.resolution = check_resolution(resolution)
+        self.resolution, shown = check_resolution(resolution, display)
         self.query_pixels = query_pixels
-        self.display = None if display is None else check_resolution(display)
+        self.display = None if display is None else shown
         self.strategy_name = strategy
         self.max_tests = max_tests
         self.strategy = make_strategy(strategy, max_tests)

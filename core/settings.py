@@ -13,6 +13,23 @@ from dataclasses import dataclass, replace
 from .errors import OccError
 from .occupancy import DEFAULT_TILES
 
+MAX_RESOLUTION = 8192          # per side; beyond this llvmpipe and most GPUs refuse targets
+
+
+def check_resolution(resolution, display=None):
+    """``((w, h), (dw, dh))``: a pass's query resolution and its display resolution (the
+    query's where ``display`` is None), each 1 to :data:`MAX_RESOLUTION` per side, the
+    display at least the query; an :class:`OccError` naming the sizes otherwise.  The one
+    rule the engine, its renderers and the add-on's setting share."""
+    w, h = (int(x) for x in resolution)
+    dw, dh = (w, h) if display is None else (int(x) for x in display)
+    for what, (a, b) in (("resolution", (w, h)), ("display resolution", (dw, dh))):
+        if not (1 <= a <= MAX_RESOLUTION and 1 <= b <= MAX_RESOLUTION):
+            raise OccError(f"{what} must be between 1x1 and {MAX_RESOLUTION}x{MAX_RESOLUTION}, got {a}x{b}")
+    if dw < w or dh < h:
+        raise OccError(f"display resolution {dw}x{dh} must be at least the query resolution {w}x{h}")
+    return (w, h), (dw, dh)
+
 
 @dataclass(frozen=True)
 class CullOptions:

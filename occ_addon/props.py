@@ -4,6 +4,7 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
 from ..core import REGISTRY
+from ..core.settings import MAX_RESOLUTION
 
 # The add-on's default is the best-culling conservative strategy, not the engine's
 # "auto": auto weighs the engine's own drawing against its tests and may hide nothing
@@ -40,7 +41,7 @@ class OccSettings(bpy.types.PropertyGroup):
                                 "depths: hides nothing visible; faster where queries, not drawing, "
                                 "dominate (docs/performance.md)")])
     max_resolution: IntProperty(
-        name="Max Query Size", default=1920, min=16, max=8192,
+        name="Max Query Size", default=1920, min=16, max=MAX_RESOLUTION,
         description="Longest side of the query buffer; larger displays are scaled down to it")
     exclude_collection: PointerProperty(
         name="Exclude", type=bpy.types.Collection,

@@ -17,10 +17,9 @@ import bpy
 import numpy as np
 
 from ..core import Camera, Culler, CullResult, OccError, Visibility
-from ..core.engine import MAX_RESOLUTION
 from ..core.envelope import Envelope
 from ..core.motion import LivePolicy
-from ..core.settings import preset, query_resolution
+from ..core.settings import MAX_RESOLUTION, preset, query_resolution
 from ..core.units import ChunkCache
 from . import identity, localview, policy, shading, visibility
 from .cameras import hide_view

@@ -19,8 +19,7 @@ import pytest
 
 from core import Camera, Culler, Scene, Visibility
 from core.cull import REGISTRY
-from core.engine import MAX_RESOLUTION
-from core.settings import PRESETS, preset, query_resolution
+from core.settings import MAX_RESOLUTION, PRESETS, preset, query_resolution
 
 BOX_V = np.array([[x, y, z] for z in (0, 1) for y in (0, 1) for x in (0, 1)], dtype=np.float64) - 0.5
 BOX_F = np.array([[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],

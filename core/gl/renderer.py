@@ -52,6 +52,7 @@ import numpy as np
 
 from ..bounds import transform_boxes
 from ..errors import OccError
+from ..settings import check_resolution
 from . import shaders
 from .context import choose_path, create_context
 from .layout import BOX_TRIANGLES  # noqa: F401  (re-exported: the renderer's box triangles)
@@ -158,25 +159,13 @@ def GLRenderer(scene, width: int, height: int, ctx=None, units=None, display=Non
     A factory named as the class it was, so call sites construct it as before."""
     from .renderer_41 import Renderer41
     from .renderer_43 import Renderer43
-    check_resolution(width, height, display)      # before a context is made
+    check_resolution((width, height), display)    # before a context is made
     own = ctx is None
     ctx = create_context() if own else ctx
     cls = {"4.3": Renderer43, "4.1": Renderer41}[choose_path(ctx, path)]
     r = cls(scene, width, height, ctx=ctx, units=units, display=display)
     r.own_ctx = own
     return r
-
-
-def check_resolution(width, height, display=None):
-    """``((w, h), (dw, dh))`` the query and display resolutions; an :class:`OccError`
-    naming the sizes where one is empty or the display is smaller than the query's."""
-    if width < 1 or height < 1:
-        raise OccError(f"resolution must be at least 1x1, got {width}x{height}")
-    w, h = int(width), int(height)
-    dw, dh = (w, h) if display is None else (int(display[0]), int(display[1]))
-    if dw < w or dh < h:
-        raise OccError(f"display resolution {dw}x{dh} must be at least the query resolution {w}x{h}")
-    return (w, h), (dw, dh)
 
 
 class BaseRenderer:
@@ -188,7 +177,7 @@ class BaseRenderer:
     path = ""                       # per path: "4.3" or "4.1"
 
     def __init__(self, scene, width: int, height: int, ctx=None, units=None, display=None):
-        (self.width, self.height), self.display = check_resolution(width, height, display)
+        (self.width, self.height), self.display = check_resolution((width, height), display)
         self.reduces = self.display != (self.width, self.height)
         self.own_ctx = ctx is None
         self.ctx = ctx if ctx is not None else create_context()
