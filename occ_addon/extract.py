@@ -929,12 +929,16 @@ class Extractor:
 
 
 def _mesh_fingerprint(mesh, memo):
-    """Sizes and a checksum of a mesh's vertex positions (once per mesh: ``memo``)."""
+    """Sizes and checksums of a mesh's vertex positions and of its faces' corners (once
+    per mesh: ``memo``): an edit of the faces alone (edges rotated, faces deleted and
+    others made of the same vertices) changes what the mesh covers as much as a move
+    of its vertices."""
     key = ("fp", ident(mesh))
     hit = memo.get(key)
     if hit is None:
         co = positions(mesh)
-        hit = memo[key] = (len(mesh.vertices), len(mesh.polygons), zlib.crc32(co))
+        hit = memo[key] = (len(mesh.vertices), len(mesh.polygons), zlib.crc32(co),
+                           zlib.crc32(_corner_vertices(mesh)))
     return hit
 
 

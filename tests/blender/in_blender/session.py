@@ -93,6 +93,34 @@ def hidden_edits():
         promise(f"hidden_edit_{what}_truth")
 
 
+def hidden_faces_edit():
+    """An edit of a hidden object's faces alone (no vertex moved, as many faces as
+    before) is seen by the next Cull: a second wall "inner", hidden behind the first
+    with the target behind it, gets its face over the target rebuilt from the vertices
+    of its other face; the first wall then moves away, and the target, now seen
+    through the hole, must be drawn."""
+    new_scene()
+    me = bpy.data.meshes.new("inner")
+    v = [(2, y, z) for y, z in ((-2, -1), (2, -1), (2, 3), (-2, 3))]        # over the target
+    v += [(2, y, z) for y, z in ((-5, 4), (-3, 4), (-3, 5), (-5, 5))]        # off to one side
+    me.from_pydata(v, [], [(0, 1, 2, 3), (4, 5, 6, 7)])
+    me.update()
+    inner = bpy.data.objects.new("inner", me)
+    bpy.context.scene.collection.objects.link(inner)
+    box("target", (3, -1, 0), (4, 1, 1))
+    update()
+    cull()
+    hid = hidden_by_addon("inner") and hidden_by_addon("target")
+    me.polygons[0].vertices = (7, 6, 5, 4)          # the same quad as face 1, turned over
+    me.update()
+    bpy.data.objects["wall"].location.z = -20.0     # the first wall goes
+    update()
+    r, err = cull()
+    check("hidden_faces_edit_seen", hid and r == {"FINISHED"} and not hidden_by_addon("target"),
+          (hid, r, hidden_by_addon("target"), err[-500:]))
+    promise("hidden_faces_edit_truth")
+
+
 def fast_preset_keeps_display_gaps():
     """The fast preset queries at half the display's resolution, yet hides nothing the
     display shows: a slit of one display pixel, between two pixel centres of the
