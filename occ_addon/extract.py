@@ -943,8 +943,36 @@ def _mesh_fingerprint(mesh, memo):
 
 
 def _modifiers_fingerprint(obj):
+    """Each modifier's type and every setting it has (its RNA properties and, for
+    geometry nodes, its inputs): a modifier edited while the object is hidden changes
+    the geometry as much as a vertex moved."""
     mods = obj.modifiers            # most objects have none: no generator made (50,000 a pass)
-    return tuple([(m.type, m.show_viewport) for m in mods]) if len(mods) else ()
+    return tuple([_settings(m) for m in mods]) if len(mods) else ()
+
+
+def _settings(m) -> tuple:
+    """A comparable value of one modifier's settings."""
+    out = [m.type]
+    for p in m.bl_rna.properties:
+        if p.identifier in ("rna_type", "name", "is_active", "show_expanded", "persistent_uid") \
+                or p.type == "COLLECTION":
+            continue
+        out.append(_value(getattr(m, p.identifier, None)))
+    if m.type == "NODES":                               # its inputs are ID properties
+        out.extend((k, _value(m[k])) for k in m.keys())
+    return tuple(out)
+
+
+def _value(v):
+    """A hashable stand-in for an RNA or ID-property value (datablocks by identity)."""
+    if isinstance(v, bpy.types.ID):
+        return ("id", ident(v))
+    if isinstance(v, (bool, int, float, str)) or v is None:
+        return v
+    try:
+        return tuple(_value(x) for x in v)
+    except TypeError:
+        return repr(type(v))
 
 
 def fingerprint(obj, k: Kind, memo: dict) -> tuple | None:

@@ -119,6 +119,20 @@ def hidden_faces_edit():
     check("hidden_faces_edit_seen", hid and r == {"FINISHED"} and not hidden_by_addon("target"),
           (hid, r, hidden_by_addon("target"), err[-500:]))
     promise("hidden_faces_edit_truth")
+    # a modifier's setting edited while hidden: an array's second copy now stands in front
+    new_scene()
+    target = box("target", (3, -1, 0), (4, 1, 1))
+    mod = target.modifiers.new("array", "ARRAY")
+    mod.count, mod.use_relative_offset = 1, False
+    update()
+    cull()
+    hid = hidden_by_addon("target")
+    mod.count, mod.use_constant_offset, mod.constant_offset_displace = 2, True, (-8.0, 0.0, 0.0)
+    update()
+    r, err = cull()
+    check("hidden_modifier_edit_seen", hid and r == {"FINISHED"} and not hidden_by_addon("target"),
+          (hid, r, hidden_by_addon("target"), err[-500:]))
+    promise("hidden_modifier_edit_truth")
 
 
 def fast_preset_keeps_display_gaps():
