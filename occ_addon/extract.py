@@ -938,8 +938,23 @@ def _mesh_fingerprint(mesh, memo):
     if hit is None:
         co = positions(mesh)
         hit = memo[key] = (len(mesh.vertices), len(mesh.polygons), zlib.crc32(co),
-                           zlib.crc32(_corner_vertices(mesh)))
+                           zlib.crc32(_corner_vertices(mesh)), _shape_keys_fingerprint(mesh))
     return hit
+
+
+def _shape_keys_fingerprint(mesh):
+    """Each shape key's settings and a checksum of its positions (a key's value set by
+    hand while the object is hidden moves its vertices as much as an edit)."""
+    keys = mesh.shape_keys
+    if keys is None:
+        return ()
+    out = [keys.use_relative, keys.eval_time]
+    for kb in keys.key_blocks:
+        co = np.empty(len(kb.data) * 3, dtype=np.float32)
+        kb.data.foreach_get("co", co)
+        out.append((kb.value, kb.mute, kb.slider_min, kb.slider_max, kb.relative_key.name,
+                    kb.vertex_group, zlib.crc32(co)))
+    return tuple(out)
 
 
 def _modifiers_fingerprint(obj):

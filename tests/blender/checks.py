@@ -36,6 +36,7 @@ CHECKS = {
         "hidden_unedited_stays_hidden",
         "hidden_edit_move_seen", "hidden_edit_move_truth", "hidden_edit_nan_seen", "hidden_edit_nan_truth",
         "hidden_faces_edit_seen", "hidden_faces_edit_truth", "hidden_modifier_edit_seen", "hidden_modifier_edit_truth",
+        "hidden_shape_key_edit_seen", "hidden_shape_key_edit_truth",
         "display_fast_preset_slit_kept", "display_fast_preset_truth", "display_fast_preset_closed_hidden",
         "steps_cancel_build_nothing_changed", "steps_cancel_build_then_cull", "steps_cancel_build_truth",
         "steps_edit_between_steps_seen", "steps_edit_between_steps_truth", "steps_analyze_cancel_restores_frame",

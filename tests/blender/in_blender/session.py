@@ -133,6 +133,23 @@ def hidden_faces_edit():
     check("hidden_modifier_edit_seen", hid and r == {"FINISHED"} and not hidden_by_addon("target"),
           (hid, r, hidden_by_addon("target"), err[-500:]))
     promise("hidden_modifier_edit_truth")
+    # a shape key's value set by hand while hidden: the key moves the box in front
+    new_scene()
+    target = box("target", (3, -1, 0), (4, 1, 1))
+    target.shape_key_add(name="Basis")
+    key = target.shape_key_add(name="forward")
+    for p in key.data:
+        p.co.x -= 8.0
+    key.value = 0.0
+    update()
+    cull()
+    hid = hidden_by_addon("target")
+    key.value = 1.0
+    update()
+    r, err = cull()
+    check("hidden_shape_key_edit_seen", hid and r == {"FINISHED"} and not hidden_by_addon("target"),
+          (hid, r, hidden_by_addon("target"), err[-500:]))
+    promise("hidden_shape_key_edit_truth")
 
 
 def fast_preset_keeps_display_gaps():
