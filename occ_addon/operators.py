@@ -313,6 +313,12 @@ def failed(op, error):
     dropped (the next pass rebuilds it) and the report says where to look."""
     if isinstance(error, OccError):
         op.report({"ERROR"}, str(error))
+    elif isinstance(error, ReferenceError):
+        # a script or another add-on's timer removed an object the steps had read (a
+        # window holds back only the user's own edits while the steps run)
+        SESSION.reset()
+        op.report({"ERROR"}, "the scene changed under the pass (an object it had read was removed by a "
+                             f"script or another add-on): nothing new was hidden; run it again ({error})")
     else:
         traceback.print_exc()
         SESSION.reset()

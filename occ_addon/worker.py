@@ -24,6 +24,7 @@ disable/enable of the add-on kept its last engine's context, about 20 MB
 """
 
 import ctypes
+import gc
 import os
 import queue
 import sys
@@ -57,14 +58,19 @@ class Job:
         self._done.set()
 
     def done(self):
-        return self._done.is_set()
+        if self._done.is_set():
+            _GC.settle()
+            return True
+        return False
 
     def wait(self):
         self._done.wait()
+        _GC.settle()
 
     def result(self):
         """The call's value (waiting for it), or its exception raised here."""
         self._done.wait()
+        _GC.settle()
         if not self._ok:
             raise self._value
         return self._value
@@ -111,6 +117,8 @@ class EngineThread:
                 out._set(False, e)
             else:
                 out._set(True, value)
+            finally:
+                _GC.ran()
 
     def alive(self):
         return self._thread is not None and self._thread.is_alive()
@@ -125,6 +133,7 @@ class EngineThread:
                                             daemon=True)
             self._thread.start()
         out = Job()
+        _GC.hold()
         self._jobs.put((fn, args, kwargs, out))
         self._last = out
         return out
@@ -134,6 +143,7 @@ class EngineThread:
         last = self._last
         if last is not None and self.alive():
             last.wait()
+        _GC.settle()
 
     def run(self, fn, *args, **kwargs):
         return self.submit(fn, *args, **kwargs).result()
@@ -143,6 +153,51 @@ class EngineThread:
             self._jobs.put(None)
             self._thread.join(timeout=10)
         self._thread = self._jobs = None
+        _GC.settle()
+
+
+class CollectorHold:
+    """Python's cyclic garbage collector never runs while the engine thread works.
+
+    A collection runs on whichever thread happens to allocate, and it walks (and may
+    free) every object of the process: on the engine thread it can free a main-thread
+    cycle holding bpy objects, or walk a context override's dictionary while Blender
+    reads it without the GIL inside another add-on's operator (``temp_override`` from
+    a timer during a build).  Blender segfaulted so, its engine thread collecting inside
+    ``build_hierarchy`` while the main thread ran ``object.delete`` (``tools/override_stress.py``).
+    So the main thread turns the collector off when it hands over work (where it was
+    on) and back on, on the main thread, once every job handed over has run: a
+    collection then runs on the main thread, between Blender's operators.  Reference
+    counting frees everything else as before; what the collector would have freed waits
+    for the end of the build."""
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._pending = 0          # jobs handed over and not yet run
+        self._held = False         # the collector was on and this hold turned it off
+
+    def hold(self):
+        """On the main thread, before a job is handed over."""
+        with self._lock:
+            self._pending += 1
+            if not self._held and gc.isenabled():
+                gc.disable()
+                self._held = True
+
+    def ran(self):
+        """On the engine thread, after a job ran (the collector stays off: see settle)."""
+        with self._lock:
+            self._pending -= 1
+
+    def settle(self):
+        """On the main thread: the collector back on once no job is left."""
+        with self._lock:
+            if self._held and self._pending <= 0:
+                self._held = False
+                gc.enable()
+
+
+_GC = CollectorHold()
 
 
 _THREADS = weakref.WeakSet()

@@ -60,17 +60,20 @@ def child(args):
     from build_extension import plain_zip
 
     work = args.work
-    bpy.ops.extensions.package_install_files(filepath=plain_zip(os.path.join(work, "dist")),
-                                             repo="user_default", enable_on_install=True)
+    if not args.no_addon:
+        bpy.ops.extensions.package_install_files(filepath=plain_zip(os.path.join(work, "dist")),
+                                                 repo="user_default", enable_on_install=True)
     bpy.ops.wm.read_homefile(use_empty=True)
     build_rows(bpy, args.objects, unique=False)
     scene = bpy.context.scene
-    scene.occ.source, scene.occ.hide_in = "CAMERA", "VIEW"
+    if not args.no_addon:
+        scene.occ.source, scene.occ.hide_in = "CAMERA", "VIEW"
     scene.frame_start, scene.frame_end = 1, 3
     bpy.context.view_layer.update()
-    session = sys.modules[f"{MOD}.occ_addon.session"].SESSION
-    worker = sys.modules[f"{MOD}.occ_addon.worker"]
-    analysis = sys.modules[f"{MOD}.occ_addon.analysis"]
+    if not args.no_addon:
+        session = sys.modules[f"{MOD}.occ_addon.session"].SESSION
+        worker = sys.modules[f"{MOD}.occ_addon.worker"]
+        analysis = sys.modules[f"{MOD}.occ_addon.analysis"]
     win = bpy.context.window_manager.windows[0]
     areas = {a.type: a for a in win.screen.areas}
     region = {t: next(r for r in a.regions if r.type == "WINDOW") for t, a in areas.items()}
@@ -207,6 +210,18 @@ def child(args):
 
     out = {"objects": args.objects, "cycles": 0, "failures": [], "ops": stats, "builds": 0, "analyses": 0,
            "cancelled": 0, "timer_registered": bpy.app.timers.is_registered(foreign_timer)}
+    if args.no_addon:            # the control: the same foreign operators, no add-on, as long
+        t0 = time.perf_counter()
+        for k in range(args.cycles):
+            if args.minutes and time.perf_counter() - t0 > 60 * args.minutes:
+                break
+            print(f"CYCLE {k}", flush=True)
+            for _ in range(40):
+                foreign_timer()
+            out["cycles"] = k + 1
+        bpy.app.timers.unregister(foreign_timer)
+        print(MARK + json.dumps(out), flush=True)
+        return
     first = bpy.ops.occ.cull()
     out["first_cull"] = sorted(first)
     t0 = time.perf_counter()
@@ -263,6 +278,8 @@ def main(argv=None):
     ap.add_argument("--per-call", type=int, default=3, help="operators per timer call")
     ap.add_argument("--minutes", type=float, help="stop each run's cycles after this long")
     ap.add_argument("--json")
+    ap.add_argument("--no-addon", action="store_true",
+                    help="the control: the same foreign operators without the extension installed")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--work", help=argparse.SUPPRESS)
     ap.add_argument("--seed", type=int, default=0, help=argparse.SUPPRESS)
@@ -276,6 +293,8 @@ def main(argv=None):
         env = {**os.environ, "BLENDER_USER_RESOURCES": os.path.join(work, "user"), "PYTHONFAULTHANDLER": "1"}
         cmd = [sys.executable, os.path.abspath(__file__), "--child", "--work", work, "--seed", str(run),
                "--cycles", str(args.cycles), "--objects", str(args.objects), "--per-call", str(args.per_call)]
+        if args.no_addon:
+            cmd.append("--no-addon")
         if args.minutes:
             cmd += ["--minutes", str(args.minutes)]
         t = time.perf_counter()
