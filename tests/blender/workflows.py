@@ -21,7 +21,19 @@ modifiers, shape keys, curves) and runs ``--steps`` steps drawn from ``KINDS``
     NaN are not hidden;
 (f) live mode shows on exactly when its timer runs;
 (g) a NaN in one object never stops a cull;
+(h) around every operation of the add-on (cull, restore, a live pass, analyze with
+    or without "Collect Never Visible", enabling and disabling it): no object that
+    was in a collection is in none after it (or has no users), and no object leaves
+    ``bpy.data.objects``;
 and an analyze step's report names, per frame, every object the truth sees.
+
+Some steps carry the ingredients of a known crash of Blender itself (README Limits;
+../shared/repro/blender_hair_undo_two_layers.py): view layers added, removed and
+shown, a second scene shown, instance sources of hair (object and collection) and
+geometry nodes moved, an emitter deleted and the deletion undone (and redone), a
+file reverted.  A seed that crashes Blender ends its process (rc -11 / 139); with
+``--progress FILE`` each step is written there before it runs, so the crashing step
+is known (tests/blender/test_workflows.py and tools/crash_campaign.py read it).
 
 The truth is computed independently of the add-on's extractor: the evaluated
 depsgraph's object instances (instances included), their evaluated triangles
@@ -33,11 +45,15 @@ records are never touched by the check.
 
 Reproduce one seed:  python tests/blender/workflows.py --seed N [--steps 300]
 (builds the extension zip and installs it in a temporary user folder first).
+Does a crash need the add-on?  ... --seed N --steps S --plain  (the same step kinds, the
+add-on never installed, its steps skipped: each step draws from a generator of its own).
+Many seeds, one process each, crashes counted:  python tools/crash_campaign.py --help
 """
 
 import argparse
 import contextlib
 import copy
+import faulthandler
 import io
 import json
 import math
@@ -60,21 +76,28 @@ HISTORY_TAIL = 25
 # Step kinds and their weights: what users do, in rough proportion.
 KINDS = {
     "cull": 14, "restore": 4, "camera_move": 8, "camera_scale": 3, "camera_lens": 2,
-    "object_move": 8, "hide_eye": 5, "hide_monitor": 5, "coll_eye": 2, "coll_monitor": 2,
-    "coll_exclude": 2, "view_layer": 1, "add": 3, "delete": 2, "rename": 2, "rename_swap": 1,
+    "object_move": 8, "hide_eye": 5, "hide_monitor": 5, "coll_eye": 2, "coll_exclude": 2,
+    "coll_monitor": 2, "view_layer": 4, "add": 3, "delete": 2, "rename": 2, "rename_swap": 1,
     "rename_replace": 1, "duplicate": 2, "link": 2, "move_collection": 2, "frame": 4,
-    "never_cull": 2, "exclude_setting": 2, "undo": 3, "redo": 1, "save_reload": 1,
-    "addon_toggle": 1, "live": 2, "analyze": 1, "display_type": 2, "bad_value": 1,
+    "never_cull": 2, "exclude_setting": 2, "undo": 3, "redo": 3, "save_reload": 1,
+    "addon_toggle": 1, "live": 2, "analyze": 3, "display_type": 2, "bad_value": 1,
     "mesh_edit": 3, "object_scale": 2, "settings": 2, "camera_nudge": 4,
+    # the ingredients of a known crash of Blender itself (issue 30; README Limits), each
+    # weighted to come up several times in every 300-step seed
+    "instance_move": 5, "scene_switch": 4, "emitter_undo": 4, "revert": 3,
+    # what a user does with the "Never Visible" collection an analysis collected
+    "nv_move": 3, "nv_add": 3, "nv_duplicate": 3,
 }
 # Scene features, switched off like step kinds: a geometry-nodes instancer whose
 # instances stand far from its mesh, props animated by keyframes, props carried by
 # an animated parent (an empty) or following it by a constraint, hair particles
 # instancing an object, a vertex instancer (a point mesh and its child), props
 # with an array modifier, a text and a bevelled curve, a prop moved by a driver and
-# one whose animated shape key raises it.
+# one whose animated shape key raises it; a second hair system instancing a collection
+# and a geometry-nodes instancer of an object (their sources moved by "instance_move"),
+# and a second scene that shares the walls and props ("scene_switch").
 FEATURES = {"scene_gn", "scene_animated", "scene_parent", "scene_particles", "scene_verts", "scene_modifiers",
-            "scene_curves", "scene_deform"}
+            "scene_curves", "scene_deform", "scene_hair_collection", "scene_gn_object", "scene_second"}
 # Instancers whose instances vanish when their source object is hidden (monitor):
 # the source counts as seen wherever its instances are.  Particle instances stay
 # drawn when their object is hidden; geometry nodes here use no object.
@@ -84,7 +107,14 @@ NEEDS_ADDON = {"cull", "restore", "never_cull", "exclude_setting", "live", "anal
 # Steps after which Blender's undo system gets a step, as the UI pushes one after
 # every user edit (the add-on's Cull and Restore carry no UNDO flag: no push; an
 # analysis pushes its own step when it collects the never-visible objects).
-NO_PUSH = {"cull", "restore", "undo", "redo", "save_reload", "addon_toggle", "live", "analyze"}
+NO_PUSH = {"cull", "restore", "undo", "redo", "save_reload", "addon_toggle", "live", "analyze", "emitter_undo",
+           "revert"}
+# Steps that run the add-on's own operations, checked by (h) around them (analyze:
+# around its operator only; the live pass after every step while live mode is on).
+ADDON_OPS = {"cull", "restore", "live", "addon_toggle"}
+# What --plain skips besides NEEDS_ADDON: the add-on's switch.
+PLAIN_SKIPS = {"addon_toggle"}
+NEVER_VISIBLE = "Never Visible"        # the collection "Collect Never Visible" fills (occ_addon/analysis.py)
 
 # Step kinds switched off because the add-on still fails them, each with its reason.
 # Empty when the add-on passes everything.
@@ -94,12 +124,20 @@ KNOWN_UNFIXED = {
         "hide flags (memfile undo restores Blender data as it was), and with the add-on disabled no "
         "code runs to show them again; enabling the add-on restores them (checked: every enable is "
         "followed by the state check).  Not fixable from the add-on while its hiding is Blender data."),
+    "hair_member_drawn": (
+        "a member of a hair system's instance collection ('HairLib') that is also drawn itself (its "
+        "collection included in a view layer): the add-on hides it (monitor) when its own box is occluded, "
+        "and Blender then leaves it out of the hair instances, which are seen (a member hidden in the "
+        "viewport is no particle instance, as with a collection instance).  Switched off: new view layers "
+        "exclude 'HairLib', no step includes it, a member moved elsewhere leaves it (seed 10 finds it)."),
 }
 
 # Narrower switches for KNOWN_UNFIXED (a situation, not a whole step kind):
 #   "instanced_member_drawn": no member of the instanced collection 'Lib' is also drawn
 #       directly (new view layers exclude 'Lib'; a member moved elsewhere leaves 'Lib');
-#   "wire_instanced_member": members of 'Lib' keep a solid display.
+#   "wire_instanced_member": members of 'Lib' keep a solid display;
+#   "hair_member_drawn": the same as "instanced_member_drawn" for 'HairLib', the
+#       collection a hair system instances.
 
 # What cannot be exercised in background Blender (said in the report, not silently):
 NOT_EXERCISED = {
@@ -130,7 +168,8 @@ def bootstrap(args):
     # the same string hashes as the test (set order inside the add-on repeats too)
     env = {**os.environ, "BLENDER_USER_RESOURCES": os.path.join(work, "user"), "PYTHONHASHSEED": "0"}
     cmd = [sys.executable, os.path.abspath(__file__), "--zip", zips[0], "--work", work] + sys.argv[1:]
-    sys.exit(subprocess.run(cmd, env=env).returncode)
+    rc = subprocess.run(cmd, env=env).returncode
+    sys.exit(128 - rc if rc < 0 else rc)        # killed by a signal: as a shell says it (139: SIGSEGV)
 
 
 def parse_args(argv=None):
@@ -143,10 +182,16 @@ def parse_args(argv=None):
     p.add_argument("--skip", default="", help="comma-separated step kinds to leave out")
     p.add_argument("--validate", action="store_true",
                    help="harness self-check: never enable the add-on (every check must pass)")
+    p.add_argument("--plain", action="store_true",
+                   help="plain Blender: the same step kinds as the seed's run, the add-on never installed and "
+                        "its steps skipped (does a crash need the add-on?)")
     p.add_argument("--verbose", action="store_true", help="print each step")
     p.add_argument("--hide-in", default="AUTO", choices=("AUTO", "VIEW", "EVERYWHERE"),
                    help="the add-on's Hide In setting (VIEW: the window's 3D view's local-view bits)")
     p.add_argument("--tail", type=int, default=HISTORY_TAIL, help="history steps shown with a failure")
+    p.add_argument("--drop", default="", help="comma-separated step numbers done as nothing (the same "
+                   "kinds after them: to narrow down what a crash needs)")
+    p.add_argument("--progress", help="file each step is written to before it runs (what a crash leaves)")
     return p.parse_args(argv)
 
 
@@ -209,11 +254,14 @@ def clear_addon_record(obj):
 class World:
     """The running state of one seed: rng, model of the user's intent, undo mirror, history."""
 
-    def __init__(self, seed, work, validate, skip):
+    def __init__(self, seed, work, validate, skip, plain=False):
         self.seed = seed
-        self.rng = random.Random(seed)
+        self.rng = random.Random(seed)          # the scene's build; then each step's own (run_seed)
+        self.choices = random.Random(seed)      # the sequence of step kinds
         self.work = work
         self.validate = validate
+        self.plain = plain          # the same sequence without the add-on: its steps skipped
+        self.plain_on = True        # plain: whether the add-on would be enabled now
         self.kinds = {k: w for k, w in {**KINDS, **dict.fromkeys(FEATURES, 0)}.items()
                       if k not in skip and k not in KNOWN_UNFIXED}
         if validate:
@@ -227,6 +275,9 @@ class World:
         self.counts = {}
         self.stats = {"truth_checks": 0, "hidden_at_checks": 0, "visible_at_checks": 0}
         self.pending = []           # problems a step found itself (analyze)
+        self.saved = None           # (path, model) of the file saved last
+        self.note = ""              # what a step did before its own action (a first analysis)
+        self.drop = set()           # step numbers done as nothing (--drop)
 
 
 def new_id(w, obj):
@@ -274,6 +325,31 @@ def scatter_group():
     join = ng.nodes.new("GeometryNodeJoinGeometry")
     ng.links.new(line.outputs["Mesh"], iop.inputs["Points"])
     ng.links.new(cube.outputs["Mesh"], iop.inputs["Instance"])
+    ng.links.new(gin.outputs[0], join.inputs[0])
+    ng.links.new(iop.outputs["Instances"], join.inputs[0])
+    ng.links.new(join.outputs[0], gout.inputs[0])
+    return ng
+
+
+def object_scatter_group(src):
+    """A geometry-nodes group: the input mesh plus three instances of object ``src``
+    (its transform relative to the modified object: moving ``src`` moves them)."""
+    import bpy
+    ng = bpy.data.node_groups.new("wf_objscatter", "GeometryNodeTree")
+    ng.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    ng.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    gin, gout = ng.nodes.new("NodeGroupInput"), ng.nodes.new("NodeGroupOutput")
+    line = ng.nodes.new("GeometryNodeMeshLine")
+    line.inputs["Count"].default_value = 3
+    line.inputs["Offset"].default_value = (1.5, 1.0, 0.0)
+    info = ng.nodes.new("GeometryNodeObjectInfo")
+    info.inputs["Object"].default_value = src
+    info.inputs["As Instance"].default_value = True
+    info.transform_space = "RELATIVE"
+    iop = ng.nodes.new("GeometryNodeInstanceOnPoints")
+    join = ng.nodes.new("GeometryNodeJoinGeometry")
+    ng.links.new(line.outputs["Mesh"], iop.inputs["Points"])
+    ng.links.new(info.outputs["Geometry"], iop.inputs["Instance"])
     ng.links.new(gin.outputs[0], join.inputs[0])
     ng.links.new(iop.outputs["Instances"], join.inputs[0])
     ng.links.new(join.outputs[0], gout.inputs[0])
@@ -334,6 +410,19 @@ def build_scene(w):
         ps.type, ps.count, ps.hair_length = "HAIR", 4, 1.0
         ps.render_type, ps.instance_object, ps.particle_size = "OBJECT", src, 2.5
         ps.display_method = "RENDER"
+    if "scene_hair_collection" in w.kinds:               # hair instancing a collection (excluded itself)
+        hair_lib = bpy.data.collections.new("HairLib")
+        scene.collection.children.link(hair_lib)
+        add_box(w, "HairPiece", (0, 0, 0), (0.3, 0.3, 0.6), hair_lib)
+        add_box(w, "HairPiece.001", (0.5, 0, 0), (0.2, 0.2, 0.2), hair_lib)
+        bpy.context.view_layer.layer_collection.children["HairLib"].exclude = True
+        em = add_box(w, "HairEmitter", (rng.uniform(-6, 6), rng.uniform(-6, 6), 0.2), (0.6, 0.6, 0.2),
+                     colls["Props"])
+        em.modifiers.new("hair", "PARTICLE_SYSTEM")
+        ps = em.particle_systems[0].settings
+        ps.type, ps.count, ps.hair_length = "HAIR", 3, 1.0
+        ps.render_type, ps.instance_collection, ps.particle_size = "COLLECTION", hair_lib, 2.0
+        ps.display_method = "RENDER"
     if "scene_verts" in w.kinds:                         # a vertex instancer: points, and a child box
         pts = bpy.data.meshes.new("VertPoints")
         pts.from_pydata([(rng.uniform(-8, 8), rng.uniform(-8, 8), 0.4) for _ in range(3)], [], [])
@@ -389,11 +478,29 @@ def build_scene(w):
     gn = add_box(w, "Scatter", (rng.uniform(2, 6), rng.uniform(-3, 3), 0.3), (0.4, 0.4, 0.4), colls["Props"])
     if "scene_gn" in w.kinds:
         gn.modifiers.new("scatter", "NODES").node_group = scatter_group()
+    if "scene_gn_object" in w.kinds:                     # geometry nodes instancing an object
+        src = add_box(w, "GNSource", (rng.uniform(-6, 6), rng.uniform(-6, 6), 0.3), (0.4, 0.4, 0.7),
+                      colls["Props"])
+        host = add_box(w, "GNHost", (rng.uniform(-6, 6), rng.uniform(-6, 6), 0.2), (0.3, 0.3, 0.3),
+                       colls["Props"])
+        host.modifiers.new("objscatter", "NODES").node_group = object_scatter_group(src)
     other = scene.view_layers.new("Other")              # a second view layer
     other.layer_collection.children["Lib"].exclude = True
+    if "HairLib" in other.layer_collection.children:
+        other.layer_collection.children["HairLib"].exclude = True
+    if "scene_second" in w.kinds:                        # another scene, sharing walls and props
+        second = bpy.data.scenes.new("Second")
+        second.frame_start, second.frame_end = FRAMES
+        for name in ("Walls", "Props"):
+            second.collection.children.link(colls[name])
+        cam2 = bpy.data.objects.new("cam2", bpy.data.cameras.new("cam2"))
+        second.collection.objects.link(cam2)
+        second.camera = cam2
+        place_camera(w, cam2)
+        second.view_layers.new("Second Other")
     other.layer_collection.children["Props"].children["Sub"].exclude = True
     place_camera(w, cam)
-    if not w.validate:
+    if addon_enabled():
         scene.occ.source = "CAMERA"
         scene.occ.hide_in = HIDE_IN["mode"]
     bpy.context.view_layer.update()
@@ -595,7 +702,8 @@ def truth_visible(w):
             if not drawn[owner]:
                 continue
             seen_as = [owner]
-            if inst.is_instance and owner_obj.instance_type in SOURCE_HIDES_INSTANCES:
+            if inst.is_instance and (owner_obj.instance_type in SOURCE_HIDES_INSTANCES
+                                     or hair_collection_member(owner_obj, ob.original)):
                 seen_as.append(ob.original.name)       # hiding the source would hide this instance
             mesh = ob.to_mesh()
             if mesh is None:
@@ -640,6 +748,17 @@ def truth_visible(w):
         for cname in stand_in:
             bpy.data.objects.remove(bpy.data.objects[cname], do_unlink=True)
         context.view_layer.update()
+
+
+def hair_collection_member(owner, src):
+    """Whether ``src`` is instanced by a particle system of ``owner`` that instances a
+    collection: such instances vanish when their object is hidden (monitor), as a
+    collection instance's do (an object's hair instances stay drawn)."""
+    for ps in owner.particle_systems:
+        c = ps.settings.instance_collection
+        if ps.settings.render_type == "COLLECTION" and c is not None and src.name in c.all_objects:
+            return True
+    return False
 
 
 _GL = {}          # the harness's own GL context, made and used on its own thread
@@ -810,7 +929,7 @@ def pick(w, hidden_first=0.5, animated=None):
     if not objs:
         return None
     ours = [o for o in objs if hidden_by_addon(o)]
-    if ours and w.rng.random() < hidden_first:
+    if w.rng.random() < hidden_first and ours:              # one draw either way (--plain replays)
         return w.rng.choice(ours)
     return w.rng.choice(objs)
 
@@ -954,6 +1073,8 @@ def step_view_layer(w, kind):
         new = scene.view_layers.new("Third")
         if "instanced_member_drawn" in KNOWN_UNFIXED:
             new.layer_collection.children["Lib"].exclude = True
+        if "hair_member_drawn" in KNOWN_UNFIXED and "HairLib" in new.layer_collection.children:
+            new.layer_collection.children["HairLib"].exclude = True
         for m in model["objects"].values():
             m["eye"][new.name] = False
         for path, lc in layer_collections(new):
@@ -1009,7 +1130,8 @@ def step_layer_collection(w, kind):
     """coll_eye / coll_exclude: a layer collection's eye or exclude box in the active view layer."""
     import bpy
     scene, vl = bpy.context.scene, bpy.context.view_layer
-    path, lc = w.rng.choice([x for x in layer_collections(vl) if x[0][0] != "Lib"])
+    fixed = {"Lib"} | ({"HairLib"} if "hair_member_drawn" in KNOWN_UNFIXED else set())
+    path, lc = w.rng.choice([x for x in layer_collections(vl) if x[0][0] not in fixed])
     if kind == "coll_eye":
         lc.hide_viewport = not lc.hide_viewport
     else:
@@ -1169,11 +1291,223 @@ def step_move_collection(w, kind, o):
         return f"move '{name}': already in {dest.name}"
     srcs = list(o.users_collection)
     dest.objects.link(o)
-    if srcs and (rng.random() < 0.7 or ("instanced_member_drawn" in KNOWN_UNFIXED
-                                        and srcs[0].name == "Lib")):
+    if srcs and (rng.random() < 0.7 or ("instanced_member_drawn" in KNOWN_UNFIXED and srcs[0].name == "Lib")
+                 or ("hair_member_drawn" in KNOWN_UNFIXED and srcs[0].name == "HairLib")):
         srcs[0].objects.unlink(o)
     forget_lost_bases(w)
     return f"move '{name}' from {[c.name for c in srcs]} to {dest.name}"
+
+
+def instance_sources():
+    """The objects that hair systems and geometry nodes instance, and their instancers."""
+    import bpy
+    srcs, hosts = [], []
+    for o in bpy.context.scene.objects:
+        if "wf_id" not in o:
+            continue
+        for ps in o.particle_systems:
+            hosts.append(o)
+            s = ps.settings
+            srcs += [s.instance_object] if s.instance_object is not None else []
+            srcs += list(s.instance_collection.all_objects) if s.instance_collection is not None else []
+        for m in o.modifiers:
+            if m.type == "NODES" and m.node_group is not None:
+                hosts.append(o)
+                srcs += [n.inputs["Object"].default_value for n in m.node_group.nodes
+                         if n.bl_idname == "GeometryNodeObjectInfo" and n.inputs["Object"].default_value]
+    return [o for o in srcs if "wf_id" in o], hosts
+
+
+def step_instance_move(w, kind):
+    """A hair system's instance object (or a member of its collection), a geometry-nodes
+    instancer's object, or an instancer itself moved (or only tagged for an update, as a
+    script or a driver does)."""
+    rng = w.rng
+    srcs, hosts = instance_sources()
+    pool = srcs if srcs and (not hosts or rng.random() < 0.75) else hosts
+    if not pool:
+        return "instance_move: no instancing system"
+    o = rng.choice(sorted(pool, key=lambda x: x.name))
+    how = rng.random()
+    if how < 0.15:
+        o.update_tag()
+        return f"instance source '{o.name}' tagged for an update"
+    if how < 0.35:
+        o.rotation_euler.z += rng.uniform(-1.0, 1.0)
+        o.scale = (o.scale[0] * rng.choice([0.7, 1.4]),) + tuple(o.scale[1:])
+        return f"instance source '{o.name}' turned and scaled"
+    o.location.x += rng.uniform(-1.5, 1.5)
+    o.location.y += rng.uniform(-1.5, 1.5)
+    return f"instance source '{o.name}' moved to {tuple(round(x, 2) for x in o.location)}"
+
+
+def step_scene_switch(w, kind):
+    """The window shows the second scene (sharing walls and props), evaluated there,
+    maybe a frame change or an edit of a shared object in it, then back to the first
+    scene and its view layer (checks and the model are of the first scene)."""
+    import bpy
+    rng, win = w.rng, bpy.context.window
+    second = bpy.data.scenes.get("Second")
+    if second is None or win is None:
+        return "scene_switch: no second scene"
+    first, layer = bpy.context.scene, bpy.context.view_layer.name
+    win.scene = second
+    if rng.random() < 0.4 and len(second.view_layers) > 1:
+        win.view_layer = rng.choice(list(second.view_layers))
+    bpy.context.view_layer.update()
+    what = f"scene '{second.name}' ('{bpy.context.view_layer.name}')"
+    r = rng.random()
+    if r < 0.3:
+        f = rng.randint(*FRAMES)
+        second.frame_set(f)
+        what += f", frame {f}"
+    elif r < 0.6:
+        shared = [o for o in second.objects if "wf_id" in o and o.animation_data is None]
+        if shared:
+            o = rng.choice(shared)
+            o.location.z += rng.uniform(-0.5, 0.5)
+            bpy.context.view_layer.update()
+            what += f", moved '{o.name}' there"
+    win.scene = first
+    back = first.view_layers.get(layer)
+    if back is not None:
+        switch_view_layer(back)                 # the window shows the scene's first layer again otherwise
+    else:
+        bpy.context.view_layer.update()
+    return what + f", back to '{first.name}' ('{bpy.context.view_layer.name}')"
+
+
+def step_emitter_undo(w, kind):
+    """A hair emitter (or a geometry-nodes instancer) deleted, the deletion an undo step,
+    undone; sometimes redone (and undone again); sometimes a frame change after it
+    (what evaluates every view layer's depsgraph)."""
+    import bpy
+    rng = w.rng
+    _, hosts = instance_sources()
+    if not hosts:
+        return "emitter_undo: no emitter"
+    o = rng.choice(sorted(set(hosts), key=lambda x: x.name))
+    wid, name = o["wf_id"], o.name
+    bpy.data.objects.remove(o, do_unlink=True)
+    del w.model["objects"][wid]
+    if rng.random() < 0.5:
+        bpy.context.view_layer.update()
+    push_undo(w, "delete")
+    what = [f"delete emitter '{name}'", do_undo(w, "undo")]
+    if rng.random() < 0.3:
+        what.append(do_undo(w, "redo"))
+        if rng.random() < 0.5:
+            what.append(do_undo(w, "undo"))
+    if rng.random() < 0.5:
+        bpy.context.view_layer.update()
+    if rng.random() < 0.4:
+        f = rng.randint(*FRAMES)
+        bpy.context.scene.frame_set(f)
+        what.append(f"frame {f}")
+    return ", ".join(what)
+
+
+def never_visible(w, collect=True):
+    """The "Never Visible" collection; an analysis collects it first where there is none
+    (and the add-on is on): a user's steps with it follow one.  None when there is none."""
+    import bpy
+    never = bpy.data.collections.get(NEVER_VISIBLE)
+    if never is None and collect and addon_enabled():
+        w.note = f"first {do_analyze(w, collect=True)}; "
+        never = bpy.data.collections.get(NEVER_VISIBLE)
+    elif never is None and collect and w.plain and w.plain_on:    # as far as plain Blender goes
+        never = bpy.data.collections.new(NEVER_VISIBLE)
+        bpy.context.scene.collection.children.link(never)
+        for vl in bpy.context.scene.view_layers:
+            vl.layer_collection.children[never.name].exclude = True
+            w.model["lc"][(vl.name, (never.name,))] = [False, True]
+        w.note = f"first an empty '{NEVER_VISIBLE}' (--plain); "
+    if never is None or never.name not in bpy.context.scene.collection.children:
+        return None
+    return never
+
+
+def step_nv_move(w, kind, o):
+    """M into "Never Visible": the object's only collection is that one (excluded in
+    every view layer: it has a base nowhere after)."""
+    import bpy
+    never, name = never_visible(w), o.name
+    if never is None:
+        return f"nv_move '{name}': no '{NEVER_VISIBLE}'"
+    if o.name not in bpy.context.scene.objects:
+        return f"nv_move '{name}': not in the scene"
+    view = bpy.context.view_layer
+    for b in view.objects:
+        b.select_set(b == o)
+    if view.objects.get(o.name) is not None:
+        view.objects.active = o
+    props = {p.identifier for p in bpy.ops.object.move_to_collection.get_rna_type().properties}
+    where = ({"collection_uid": never.session_uid} if "collection_uid" in props                    # 5.x
+             else {"collection_index": 1 + [c.name for c in bpy.context.scene.collection.children].index(never.name)})
+    how = "M"
+    try:
+        if view.objects.get(o.name) is None or not o.select_get():
+            raise RuntimeError("not selectable in this view layer")
+        bpy.ops.object.move_to_collection(**where)
+    except RuntimeError:
+        pass
+    if [c.name for c in o.users_collection] != [never.name]:     # as a drag in the outliner does
+        how = "outliner"
+        for c in list(o.users_collection):
+            if c != never:
+                c.objects.unlink(o)
+        if o.name not in never.objects:
+            never.objects.link(o)
+    forget_lost_bases(w)
+    return f"move '{name}' into '{NEVER_VISIBLE}' only ({how}) -> {[c.name for c in o.users_collection]}"
+
+
+def step_nv_add(w, kind):
+    """"Never Visible" included in the view layer to look at it, made the active
+    collection, an object added (it lands there), and excluded again."""
+    import bpy
+    never = never_visible(w)
+    if never is None:
+        return f"nv_add: no '{NEVER_VISIBLE}'"
+    view = bpy.context.view_layer
+    lc = view.layer_collection.children.get(never.name)
+    if lc is None:
+        return f"nv_add: '{NEVER_VISIBLE}' not in '{view.name}'"
+    was = lc.exclude
+    lc.exclude = False                          # an excluded collection cannot be the active one
+    view.active_layer_collection = lc
+    p = in_view_point(w) if w.rng.random() < 0.5 else (w.rng.uniform(-9, 9), w.rng.uniform(-9, 9), 0.5)
+    bpy.ops.mesh.primitive_cube_add(location=p, size=0.5)
+    o = bpy.context.active_object
+    o.name = "AddedNV"
+    new_id(w, o)
+    view.active_layer_collection = view.layer_collection
+    lc.exclude = was
+    for v in bpy.context.scene.view_layers:
+        for p2, lc2 in layer_collections(v):
+            w.model["lc"][(v.name, p2)] = [lc2.hide_viewport, lc2.exclude]
+    forget_lost_bases(w)
+    w.model["objects"][o["wf_id"]] = object_intent(o)
+    return f"add '{o.name}' with '{NEVER_VISIBLE}' active -> {[c.name for c in o.users_collection]}"
+
+
+def step_nv_duplicate(w, kind):
+    """A script's linked duplicate of an object in "Never Visible", linked there only."""
+    never = never_visible(w)
+    if never is None:
+        return f"nv_duplicate: no '{NEVER_VISIBLE}'"
+    inside = sorted((o for o in never.objects if "wf_id" in o), key=lambda x: x.name)
+    if not inside:
+        return f"nv_duplicate: nothing in '{NEVER_VISIBLE}'"
+    o = w.rng.choice(inside)
+    m = w.model["objects"].get(o["wf_id"])
+    c = o.copy()                                # a linked duplicate: its data shared
+    never.objects.link(c)
+    new_id(w, c)
+    intent = object_intent(c, monitor=m["monitor"] if m else c.hide_viewport)
+    intent["never"] = m["never"] if m else intent["never"]
+    w.model["objects"][c["wf_id"]] = intent
+    return f"linked duplicate '{o.name}' -> '{c.name}' in '{NEVER_VISIBLE}' only"
 
 
 SCENE_STEPS = {
@@ -1183,13 +1517,15 @@ SCENE_STEPS = {
     "frame": step_frame, "view_layer": step_view_layer, "add": step_add, "settings": step_settings,
     "exclude_setting": step_exclude_setting, "coll_eye": step_layer_collection,
     "coll_exclude": step_layer_collection, "coll_monitor": step_collection_monitor,
+    "instance_move": step_instance_move, "scene_switch": step_scene_switch, "emitter_undo": step_emitter_undo,
+    "revert": lambda w, kind: do_revert(w), "nv_add": step_nv_add, "nv_duplicate": step_nv_duplicate,
 }
 OBJECT_STEPS = {
     "object_move": step_object_move, "hide_eye": step_hide_eye, "hide_monitor": step_hide_monitor,
     "object_scale": step_object_scale, "mesh_edit": step_mesh_edit, "display_type": step_display_type,
     "never_cull": step_never_cull, "delete": step_delete, "rename": step_rename,
     "rename_swap": step_rename_swap, "rename_replace": step_rename_replace, "duplicate": step_copy,
-    "link": step_copy, "move_collection": step_move_collection,
+    "link": step_copy, "move_collection": step_move_collection, "nv_move": step_nv_move,
 }
 
 
@@ -1238,15 +1574,17 @@ def check_live_state():
     return []
 
 
-def do_analyze(w):
+def do_analyze(w, collect=None):
     """occ.analyze over three frames: each frame's report names every object the truth
-    sees then, and the scene is left as it was."""
+    sees then, and the scene is left as it was.  ``collect``: "Collect Never Visible"
+    (None: drawn at random)."""
     import bpy
     scene = bpy.context.scene
     first = w.rng.randint(FRAMES[0], FRAMES[1] - 2)
     frame = scene.frame_current
     path = os.path.join(w.work, f"wf_{w.seed}_analyze.json")
-    collect = w.rng.random() < 0.5                  # "Collect Never Visible" ticked
+    drawn = w.rng.random() < 0.5                    # "Collect Never Visible" ticked
+    collect = drawn if collect is None else collect
     # the truth of the scene as it is before the operator ("Collect Never Visible"
     # relinks objects: the scene after it may differ)
     truths = {}
@@ -1255,6 +1593,7 @@ def do_analyze(w):
         seen, _ = truth_visible(w)
         truths[f] = (seen or set(), {o.name for o in bpy.context.view_layer.objects if o.visible_get()})
     scene.frame_set(frame)
+    before = homes()
     try:
         r = bpy.ops.occ.analyze(filepath=path, frame_start=first, frame_end=first + 2,
                                 link_never_visible=collect)
@@ -1262,6 +1601,8 @@ def do_analyze(w):
         if "failed" in str(e):
             raise
         return f"analyze {first}..{first + 2} -> report: {e}"
+    finally:
+        w.pending += check_homes(before, "analyze" + (" collecting never visible" if collect else ""))
     problems = []
     if scene.frame_current != frame:
         problems.append(f"analyze: the frame is {scene.frame_current}, was {frame}")
@@ -1282,7 +1623,8 @@ def do_analyze(w):
                             f"{scene.occ.exclude_collection and scene.occ.exclude_collection.name}")
     never = bpy.data.collections.get("Never Visible")
     if collect and never is not None:               # deleting its contents must never delete what is seen
-        wrong = sorted(o.name for o in never.objects if o.name in seen_any)
+        # (what the add-on linked there: what the user put there is the user's, seen or not)
+        wrong = sorted(o.name for o in never.objects if o.name in seen_any and getattr(o, "occ_collected", True))
         if wrong:
             problems.append(f"analyze: 'Never Visible' holds objects seen in frames {first}..{first + 2}: {wrong}")
     w.pending += problems
@@ -1300,6 +1642,31 @@ def do_analyze(w):
         # the add-on makes the collection an undo step of its own (the history is never empty here)
         mirror_undo_push(w)
     return f"analyze {first}..{first + 2}{' collecting never visible' if collect else ''} -> {sorted(r)}"
+
+
+def homes():
+    """``{identity: (name, in a collection and used)}`` of every object in ``bpy.data``."""
+    import bpy
+    return {getattr(o, "session_uid", 0) or o.as_pointer(): (o.name, len(o.users_collection) > 0 and o.users > 0)
+            for o in bpy.data.objects}
+
+
+def check_homes(before, operation):
+    """(h): nothing the add-on's ``operation`` did left an object in no collection, or
+    took one out of ``bpy.data.objects`` (``before``: :func:`homes` before it)."""
+    import bpy
+    after = homes()
+    problems = []
+    gone = sorted(name for k, (name, _) in before.items() if k not in after)
+    if gone:
+        problems.append(f"h: {operation} removed objects from bpy.data.objects: {gone}")
+    lost = sorted(after[k][0] for k, (_, home) in before.items() if home and k in after and not after[k][1])
+    if lost:
+        objs = bpy.data.objects
+        problems.append(f"h: {operation} left objects in no collection (or unused): "
+                        + ", ".join(f"'{n}' (users {objs[n].users}, occ_collected "
+                                    f"{getattr(objs[n], 'occ_collected', None)})" for n in lost))
+    return problems
 
 
 def has_nan(o):
@@ -1364,16 +1731,48 @@ def do_save_reload(w):
     import bpy
     path = os.path.join(w.work, f"wf_{w.seed}.blend")
     bpy.ops.wm.save_as_mainfile(filepath=path)
-    how = w.rng.choice(["plain", "disabled", "enable_after"] if addon_enabled() else ["plain"])
-    if how != "plain":
+    how = w.rng.choice(["plain", "disabled", "enable_after"] if addon_on(w) else ["plain"])
+    if w.plain:                                  # the add-on as it would be after the step
+        w.plain_on = w.plain_on and how != "disabled"
+    elif how != "plain":
         bpy.ops.preferences.addon_disable(module=ADDON_MODULE)
     bpy.ops.wm.open_mainfile(filepath=path)
-    if how == "enable_after":
+    if how == "enable_after" and not w.plain:
         bpy.ops.preferences.addon_enable(module=ADDON_MODULE)
+    w.saved = (path, copy.deepcopy(w.model))
     # loading starts a new undo history whose first step Blender does not undo to
     w.undo, w.undo_pos = [], -1
     push_undo(w, "reload")
     return f"save and reload ({how})"
+
+
+def do_revert(w):
+    """File > Revert: the file saved last (saved now, or by an earlier step), after a
+    few edits since the save that the revert throws away."""
+    import bpy
+    rng = w.rng
+    path = os.path.join(w.work, f"wf_{w.seed}.blend")
+    what = []
+    if w.saved is None or w.saved[0] != bpy.data.filepath or rng.random() < 0.6:
+        bpy.ops.wm.save_as_mainfile(filepath=path)
+        w.saved = (path, copy.deepcopy(w.model))
+        what.append("save")
+    for _ in range(rng.randint(0, 2)):             # edits after the save (lost by the revert)
+        o = pick(w, hidden_first=0.3)
+        if o is None:
+            break
+        if rng.random() < 0.5:
+            o.location.x += rng.uniform(-2, 2)
+            what.append(f"move '{o.name}'")
+        else:
+            step_move_collection(w, "move_collection", o)
+            what.append(f"relink '{o.name}'")
+        push_undo(w, "edit")
+    bpy.ops.wm.revert_mainfile()
+    w.model = copy.deepcopy(w.saved[1])
+    w.undo, w.undo_pos = [], -1
+    push_undo(w, "revert")
+    return ", ".join(what + ["revert"])
 
 
 def do_addon_toggle(w):
@@ -1387,15 +1786,40 @@ def do_addon_toggle(w):
     return "add-on enabled"
 
 
+def plain_truth(w, kind):
+    """--plain: what the harness itself does with Blender in a cull or an analyze step of
+    the add-on's run (its truth: the evaluated depsgraph's instances, its frame changes),
+    without the add-on."""
+    import bpy
+    if not w.plain_on or kind not in ("cull", "analyze"):
+        return ""
+    if kind == "cull":
+        truth_visible(w)
+        return ", the truth drawn"
+    scene = bpy.context.scene
+    first, frame = w.rng.randint(FRAMES[0], FRAMES[1] - 2), scene.frame_current
+    for f in range(first, first + 3):
+        scene.frame_set(f)
+        truth_visible(w)
+    scene.frame_set(frame)
+    return f", the truth drawn in frames {first}..{first + 2}"
+
+
+def addon_on(w):
+    """Whether the add-on is enabled (--plain: would be, in the run this one replays)."""
+    return w.plain_on if w.plain else addon_enabled()
+
+
 def choose(w):
     kinds = dict(w.kinds)
-    if not addon_enabled() and not w.validate:
-        for k in NEEDS_ADDON | ({"undo", "redo"} if "undo_while_disabled" in KNOWN_UNFIXED else set()):
+    if not addon_on(w) and not w.validate:
+        undoes = {"undo", "redo", "emitter_undo"}
+        for k in NEEDS_ADDON | (undoes if "undo_while_disabled" in KNOWN_UNFIXED else set()):
             kinds.pop(k, None)
         if "addon_toggle" in kinds:
             kinds["addon_toggle"] *= 8               # users turn it back on soon
     names = sorted(k for k in kinds if kinds[k])
-    return w.rng.choices(names, weights=[kinds[k] for k in names])[0]
+    return w.choices.choices(names, weights=[kinds[k] for k in names])[0]
 
 
 class Tee(io.TextIOBase):
@@ -1412,24 +1836,45 @@ class Tee(io.TextIOBase):
         self.real.flush()
 
 
-def run_seed(w, steps, verbose=False):
+def run_seed(w, steps, verbose=False, progress=None):
+    """``progress``: a file each step is written to (flushed) before it runs: what a crash leaves."""
     import bpy
+    if progress:
+        progress.write(f"{w.seed} 0 build\n")
+        progress.flush()
     build_scene(w)
     for step in range(1, steps + 1):
         kind = choose(w)
+        # each step draws from its own generator: the step kinds of a seed do not depend
+        # on what a step drew (--plain replays the same kinds without the add-on)
+        w.rng = random.Random(f"{w.seed}:{step}")
         what = kind
         tee = Tee(sys.stderr)
         problems = []
+        if progress:
+            progress.write(f"{w.seed} {step} {kind}\n")
+            progress.flush()
         with contextlib.redirect_stderr(tee):
             try:
-                if kind in ("undo", "redo"):
+                before = homes() if kind in ADDON_OPS else None
+                if step in w.drop:
+                    what = f"{kind} (dropped)"
+                elif w.plain and kind in NEEDS_ADDON | PLAIN_SKIPS:
+                    if kind == "addon_toggle":
+                        w.plain_on = not w.plain_on
+                    what = f"{kind} (skipped: --plain)" + plain_truth(w, kind)
+                elif kind in ("undo", "redo"):
                     what = do_undo(w, kind)
                 elif kind == "save_reload":
                     what = do_save_reload(w)
                 elif kind == "addon_toggle":
                     what = do_addon_toggle(w)
+                elif kind == "revert":
+                    what = do_revert(w)
                 else:
                     what = do_step(w, kind)
+                if before is not None:
+                    problems += check_homes(before, kind.replace("_", " "))
                 if kind not in NO_PUSH:
                     push_undo(w, kind)
                 bpy.context.view_layer.update()
@@ -1441,7 +1886,9 @@ def run_seed(w, steps, verbose=False):
                     # the moved camera, or was shown when the camera left its envelope
                     problems += check_cull(w)
                 if live:
+                    before = homes()
                     drive_live()
+                    problems += check_homes(before, "a live pass")
                 if addon_enabled():
                     problems += check_live_state()
                 problems += check_state(w, after_restore=kind == "restore" or not addon_enabled())
@@ -1454,7 +1901,8 @@ def run_seed(w, steps, verbose=False):
         if "Traceback" in tee.buf.getvalue():
             problems.append("d: traceback printed: " + tee.buf.getvalue()[-2000:])
         w.counts[kind] = w.counts.get(kind, 0) + 1
-        w.history.append(f"{step}: {what}")
+        w.history.append(f"{step}: {w.note}{what}")
+        w.note = ""
         if verbose:
             print(f"[seed {w.seed}] {step}: {what}", flush=True)
         if problems:
@@ -1465,7 +1913,7 @@ def run_seed(w, steps, verbose=False):
 
 def main():
     args = parse_args()
-    if not args.zip and not args.validate:
+    if not args.zip and not (args.validate or args.plain):
         bootstrap(args)
     sys.path.insert(0, ROOT)                     # the repository's core: the truth, apart from the add-on's copy
     from concurrent.futures import ThreadPoolExecutor
@@ -1477,17 +1925,20 @@ def main():
     work = args.work or tempfile.mkdtemp(prefix="occ_workflows_")
     skip = {s for s in args.skip.split(",") if s}
     out = {"seeds": {}, "not_exercised": NOT_EXERCISED, "known_unfixed": KNOWN_UNFIXED}
-    if not args.validate:
+    if not (args.validate or args.plain):
         bpy.ops.extensions.package_install_files(filepath=args.zip, repo="user_default", enable_on_install=True)
     pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="wf-truth")
+    progress = open(args.progress, "a", encoding="utf-8") if args.progress else None     # noqa: SIM115
+    faulthandler.enable()                        # a crash prints the Python stack of its step
     for seed in seeds:
-        w = World(seed, work, args.validate, skip)
+        w = World(seed, work, args.validate, skip, args.plain)
         w.truth_pool, w.tail = pool, args.tail
+        w.drop = {int(s) for s in args.drop.split(",") if s}
         t = time.perf_counter()
-        if not args.validate and not addon_enabled():
+        if not (args.validate or args.plain) and not addon_enabled():
             bpy.ops.preferences.addon_enable(module=ADDON_MODULE)
         try:
-            failure = run_seed(w, args.steps, args.verbose)
+            failure = run_seed(w, args.steps, args.verbose, progress)
         except Exception:
             failure = {"step": len(w.history), "kind": "harness", "problems": [traceback.format_exc()],
                        "history": w.history[-w.tail:]}
@@ -1501,6 +1952,9 @@ def main():
     if "ctx" in _GL:
         pool.submit(_GL["ctx"].release).result()
     pool.shutdown()
+    if progress:
+        progress.write("end\n")
+        progress.close()
     print("OCC_WORKFLOWS_END", file=sys.stderr, flush=True)    # what follows is the exit's
     print("OCC_WORKFLOWS " + json.dumps(out), flush=True)
 
