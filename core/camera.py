@@ -66,7 +66,7 @@ def look_at(eye, target, up):
         raise OccError(f"camera up {up.tolist()} has zero length; give a direction such as [0, 0, 1]")
     s = np.cross(f, up)
     sn = np.linalg.norm(s)
-    if sn <= 1e-9 * max(np.linalg.norm(up), 1e-300):
+    if sn <= 1e-9 * max(np.linalg.norm(up), tol.tiny):
         raise OccError(f"camera up {up.tolist()} is parallel to the view direction")
     s = s / sn
     u = np.cross(s, f)
@@ -205,7 +205,7 @@ def camera_cut(before, after, scene_size):
     cut: what a coherent strategy remembers, and what live mode calls a fresh pass."""
     if before is None:
         return True
-    if np.linalg.norm(after.eye - before.eye) > tol.coherence_move_rel * max(scene_size, 1e-300):
+    if np.linalg.norm(after.eye - before.eye) > tol.coherence_move_rel * max(scene_size, tol.tiny):
         return True
     r0, r1 = before.view[:3, :3], after.view[:3, :3]
     # rotation angle of r1 @ r0.T from its trace (rows of a view rotation are orthonormal)

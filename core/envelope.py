@@ -251,7 +251,7 @@ def _jumps(z, ok, tan_px, distance, w_tol):
         near = np.minimum(z0, z1)
         ang = np.minimum(px[kk, jj], px[kk + 1, jj])
         with np.errstate(invalid="ignore"):
-            small = np.abs(z1 - z0) <= 0.5 * ang * near * near / max(distance, 1e-300)
+            small = np.abs(z1 - z0) <= 0.5 * ang * near * near / max(distance, tol.tiny)
         jump = ~small                                            # inf - inf (empty pixels) is NaN: a jump
         o = np.moveaxis(out, axis, 0)
         o[kk[jump], jj[jump]] = True
@@ -446,7 +446,7 @@ def occluder_polygons(culler, eye):
     size = np.linalg.norm(box[:, MAX] - box[:, MIN], axis=1)
     gap = np.linalg.norm(np.maximum(np.maximum(box[:, MIN], -box[:, MAX]), 0.0), axis=1)
     with np.errstate(divide="ignore"):
-        score = size / np.maximum(gap, 1e-300)
+        score = size / np.maximum(gap, tol.tiny)
     objs = valid[np.argsort(-score)[:umbra.OBJECTS]]
     cache = culler.__dict__.setdefault("_polygons", {})
     polys, weight = [], []
@@ -464,7 +464,7 @@ def occluder_polygons(culler, eye):
         polys.append(world)
         d = np.linalg.norm(world.mean(axis=1), axis=1)
         weight.append(np.linalg.norm(np.cross(world[:, 2] - world[:, 0], world[:, 3] - world[:, 1]), axis=1)
-                      / np.maximum(d * d, 1e-300))
+                      / np.maximum(d * d, tol.tiny))
     if not polys:
         return np.zeros((0, 4, 3))
     polys = np.concatenate(polys)
@@ -588,15 +588,15 @@ def sample_views(camera, envelope, count, rng):
     out = []
     for _ in range(count):
         v = rng.normal(size=3)
-        v *= envelope.distance * rng.random() ** (1.0 / 3.0) / max(np.linalg.norm(v), 1e-300)
+        v *= envelope.distance * rng.random() ** (1.0 / 3.0) / max(np.linalg.norm(v), tol.tiny)
         a = math.radians(envelope.angle_deg) * math.sqrt(rng.random())
         axis = np.cross(d, rng.normal(size=3))
-        axis /= max(np.linalg.norm(axis), 1e-300)
+        axis /= max(np.linalg.norm(axis), tol.tiny)
         if envelope.any_roll:
             rot = _rotation(axis, a) @ _rotation(d, math.pi * (2.0 * rng.random() - 1.0))
         else:
             axis = rng.normal(size=3)
-            rot = _rotation(axis / max(np.linalg.norm(axis), 1e-300), math.radians(envelope.angle_deg) * rng.random())
+            rot = _rotation(axis / max(np.linalg.norm(axis), tol.tiny), math.radians(envelope.angle_deg) * rng.random())
         world = rot @ r.T                                # camera axes in world space, turned
         view = np.eye(4)
         view[:3, :3] = world.T

@@ -41,7 +41,7 @@ def project_rects(boxes, clip_matrix, width, height, near=None):
     c = corners(boxes)                                               # (n, 8, 3)
     n = len(c)
     near = planes_from_matrix(clip_matrix)[4] if near is None else near
-    scale = np.abs(c).reshape(n, 24).max(axis=1, initial=0.0) + 1e-300
+    scale = np.abs(c).reshape(n, 24).max(axis=1, initial=0.0) + tol.tiny
     dist = c @ near[:3] + near[3]                                    # (n, 8)
     # Conservative: a corner at or in front of the near plane (within a guard
     # relative to the box's magnitude) means the box reaches the eye's side.
@@ -65,7 +65,7 @@ def project_rects(boxes, clip_matrix, width, height, near=None):
     w = pts @ clip_matrix[3, :3] + clip_matrix[3, 3]
     # Points kept lie on or in front of the near plane, where w >= near > 0 (or
     # w = 1, orthographic); the floor only guards rounding on the plane itself.
-    w = np.where(keep, np.maximum(w, 1e-300), 1.0)
+    w = np.where(keep, np.maximum(w, tol.tiny), 1.0)
     px = (clip[..., 0] / w + 1.0) * (0.5 * width)
     py = (clip[..., 1] / w + 1.0) * (0.5 * height)
     big = np.float64(4.0 * (width + height) + 16.0)                 # off screen, never overflows int64

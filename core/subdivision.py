@@ -54,6 +54,7 @@ import numpy as np
 from .bounds import MAX, MIN, check_boxes, surface_area
 from .errors import OccError
 from .sah import bin_unions, sweep
+from .tolerance import tol
 from .tree import FlatTree
 
 BUILDERS = ("pHBVO", "DBVS", "octree", "balanced")
@@ -331,7 +332,7 @@ def _split_dbvs(lo, hi, box, leaf_size):
     order = np.argsort(ext)[::-1]
     axis = int(order[0])
     k = min(16, max(2, int(round(ext[order[0]] / max(ext[order[1]], ext[order[0]] * 1e-3)))))
-    t = (_centre(lo, hi, axis) - box[MIN, axis]) / max(ext[axis], 1e-300)
+    t = (_centre(lo, hi, axis) - box[MIN, axis]) / max(ext[axis], tol.tiny)
     labels = np.minimum((t * k).astype(np.int64), k - 1).astype(np.uint8)
     if labels.min() != labels.max():
         return labels
@@ -699,7 +700,7 @@ def sah_cost(tree):
     """Surface-area cost of a tree: visits of inner nodes plus items tested, each
     weighted by the probability ``S(node) / S(root)`` of reaching the node."""
     area = surface_area(tree.bounds)
-    p = area / max(area[0], 1e-300)
+    p = area / max(area[0], tol.tiny)
     inner = tree.child_count > 0
     return float((p[inner] * TRAVERSAL_COST).sum() + (p * tree.item_count).sum())
 

@@ -65,6 +65,9 @@ class Tolerance:
     # corner's distance (a box whose nearest point is at the eye still grows finitely).
     guard_tiny: float = 1e-300
     guard_near_w_rel: float = 1e-12
+    # The floor of every other divisor that is a length, an area or a scale: never 0, far
+    # below any that a scene holds, so a degenerate one divides to a huge finite value.
+    tiny: float = 1e-300
 
 
 tol = Tolerance()

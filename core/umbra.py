@@ -70,7 +70,7 @@ def convex_polygons(vertices, faces, keep=PER_MESH):
     cand = (t1 != t2) & ok[t1] & ok[t2]
     e1, e2, t1, t2 = e1[cand], e2[cand], t1[cand], t2[cand]
     coplanar = np.einsum("ij,ij->i", unit[t1], unit[t2]) > COPLANAR_COS
-    off = np.abs(np.einsum("ij,ij->i", unit[t1], v[o[e2]] - v[a[e1]])) <= COPLANAR_REL * max(scale, 1e-300)
+    off = np.abs(np.einsum("ij,ij->i", unit[t1], v[o[e2]] - v[a[e1]])) <= COPLANAR_REL * max(scale, tol.tiny)
     sel = coplanar & off
     e1, e2, t1, t2 = e1[sel], e2[sel], t1[sel], t2[sel]
     # the quad a, o2, b, o1 around the shared diagonal a-b is convex when the other

@@ -23,6 +23,7 @@ import bpy
 import numpy as np
 
 from ..core.lights import Light
+from ..core.tolerance import tol
 
 EEVEE = ("BLENDER_EEVEE", "BLENDER_EEVEE_NEXT")
 WORKBENCH = "BLENDER_WORKBENCH"
@@ -138,7 +139,7 @@ def scene_lights_of(scene):
         light = o.data
         m = np.array(o.matrix_world, dtype=np.float64)
         pos = m[:3, 3]
-        axis = -m[:3, 2] / max(np.linalg.norm(m[:3, 2]), 1e-300)   # lights shine down their -Z
+        axis = -m[:3, 2] / max(np.linalg.norm(m[:3, 2]), tol.tiny)   # lights shine down their -Z
         scale = float(np.abs(np.linalg.norm(m[:3, :3], axis=0)).max())
         reach = light.cutoff_distance if getattr(light, "use_custom_distance", False) else math.inf
         if light.type == "SUN":
