@@ -37,6 +37,15 @@ def notify() -> None:
         f()
 
 
+def on_window_change() -> None:
+    """The window shows another scene or view layer than the last pass's: what the
+    add-on hid everywhere is shown again, and live mode makes a fresh pass
+    (:meth:`.session.Session.left_layer`)."""
+    context = bpy.context
+    if context.scene is not None and context.view_layer is not None and SESSION.left_layer(context):
+        live.changed()
+
+
 @persistent          # kept across file loads, like the add-on itself
 def on_depsgraph_update(scene, depsgraph):
     """Mark what changed: geometry -> re-extract those objects (and instances of
@@ -128,9 +137,13 @@ HANDLERS = (("depsgraph_update_post", on_depsgraph_update), ("frame_change_post"
 def register() -> None:
     for name, f in HANDLERS:
         getattr(bpy.app.handlers, name).append(f)
+    if on_window_change not in localview.WINDOW_HOOKS:
+        localview.WINDOW_HOOKS.append(on_window_change)
 
 
 def unregister() -> None:
+    if on_window_change in localview.WINDOW_HOOKS:
+        localview.WINDOW_HOOKS.remove(on_window_change)
     for name, f in reversed(HANDLERS):
         h = getattr(bpy.app.handlers, name)
         if f in h:

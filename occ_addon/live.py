@@ -168,6 +168,8 @@ def _tick():
         return POLL_S
     if SESSION.busy:                                  # a modal cull or analysis holds the session
         return POLL_S
+    if SESSION.left_layer(context):                   # another layer: what was hidden for the last is shown
+        changed()                                     # ... and a fresh pass decides here
     settings = settings_key(scene.occ)
     if settings != _state["settings"]:                # what may be hidden changed: a fresh pass
         if _state["settings"] is not None:

@@ -102,6 +102,20 @@ class Session:
         another layer's evaluation may have left behind."""
         self.layer = None
 
+    def left_layer(self, context) -> int:
+        """The context shows another scene or view layer than the last pass's: what the
+        add-on hid everywhere (``hide_viewport``, which every layer shares) was hidden for
+        that layer's occluders, and an occluder there may be missing here (a collection
+        excluded in this layer).  Shown again, until a pass here decides (live mode makes
+        one at once, see :func:`.live.changed`); returns how many."""
+        if self.layer is None or (context.scene.name, context.view_layer.name) == self.layer:
+            return 0
+        culled = identity.flags("occ_culled")
+        if not culled.any():
+            return 0
+        self.shown = None
+        return visibility.release(culled)
+
     def candidates(self, context, verify: bool = False) -> Candidates:
         """The candidates of a pass; objects the add-on hid and must give back
         (hidden by the user too, not evaluated and able to change, or, with
@@ -126,6 +140,9 @@ class Session:
         # evaluation writes it back, and the candidates read originals in bulk: once
         # per switch, every one is compared with its evaluated copy (Extractor.fresh_matrices).
         every = layer != self.layer and not alone
+        # ... and what the add-on hides is checked against its data (as on a click): in
+        # another layer an object may be drawn that no edit report reached while it was not
+        verify = verify or layer != self.layer
         self.layer = layer
         cand = self.extractor.candidates(context, verify, every)
         if len(cand.give_back):

@@ -124,12 +124,6 @@ KNOWN_UNFIXED = {
         "hide flags (memfile undo restores Blender data as it was), and with the add-on disabled no "
         "code runs to show them again; enabling the add-on restores them (checked: every enable is "
         "followed by the state check).  Not fixable from the add-on while its hiding is Blender data."),
-    "hair_member_drawn": (
-        "a member of a hair system's instance collection ('HairLib') that is also drawn itself (its "
-        "collection included in a view layer): the add-on hides it (monitor) when its own box is occluded, "
-        "and Blender then leaves it out of the hair instances, which are seen (a member hidden in the "
-        "viewport is no particle instance, as with a collection instance).  Switched off: new view layers "
-        "exclude 'HairLib', no step includes it, a member moved elsewhere leaves it (seed 10 finds it)."),
 }
 
 # Narrower switches for KNOWN_UNFIXED (a situation, not a whole step kind):
@@ -137,7 +131,8 @@ KNOWN_UNFIXED = {
 #       directly (new view layers exclude 'Lib'; a member moved elsewhere leaves 'Lib');
 #   "wire_instanced_member": members of 'Lib' keep a solid display;
 #   "hair_member_drawn": the same as "instanced_member_drawn" for 'HairLib', the
-#       collection a hair system instances.
+#       collection a hair system instances (fixed: what a particle system instances is
+#       never hidden; the switch stays for a replay of the old behaviour).
 
 # What cannot be exercised in background Blender (said in the report, not silently):
 NOT_EXERCISED = {
