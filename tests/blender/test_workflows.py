@@ -11,12 +11,15 @@ commands that replay it with and without the add-on.
 
 import json
 import os
-import signal
 import subprocess
+import sys
 
 import pytest
 
-from .harness import PYTHON, build_zip, needs_bpy
+from .harness import PYTHON, ROOT, build_zip, needs_bpy
+
+sys.path.insert(0, os.path.join(ROOT, "tools"))
+from crash_campaign import signal_name  # noqa: E402  (tools/: the campaign's reading of a crash)
 
 SCRIPT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "workflows.py")
 SEEDS = (1, 2, 3)
@@ -36,22 +39,11 @@ def run(args, work, env=None, plain_check=False):
     p = subprocess.run([PYTHON, SCRIPT, "--work", str(work), "--progress", progress, *args], cwd=str(work),
                        env=env, capture_output=True, text=True, timeout=600)
     line = next((ln for ln in p.stdout.splitlines() if ln.startswith(MARK)), None)
-    if line is None and crash_signal(p.returncode) is not None:
+    if line is None and signal_name(p.returncode) is not None:
         pytest.fail(explain_crash(p, progress, args, work, env, plain_check), pytrace=False)
     assert line is not None, (f"workflows printed no results (rc {p.returncode}):\n"
                               f"{p.stdout[-3000:]}\n{p.stderr[-3000:]}")
     return json.loads(line[len(MARK):]), p
-
-
-def crash_signal(rc):
-    """The signal that ended a process (rc -11 from Python, 139 from a shell), or None."""
-    num = -rc if rc < 0 else rc - 128 if rc > 128 else None
-    if num is None:
-        return None
-    try:
-        return signal.Signals(num).name
-    except ValueError:
-        return f"signal {num}"
 
 
 def explain_crash(p, progress, args, work, env, plain_check):
@@ -63,13 +55,13 @@ def explain_crash(p, progress, args, work, env, plain_check):
     seed, step, kind = last
     view = ["--hide-in", args[args.index("--hide-in") + 1]] if "--hide-in" in args else []
     replay = " ".join(["python tests/blender/workflows.py", "--seed", seed, "--steps", step, *view, "--verbose"])
-    msg = (f"Blender CRASHED ({crash_signal(p.returncode)}, rc {p.returncode}) in seed {seed} at step {step} "
+    msg = (f"Blender CRASHED ({signal_name(p.returncode)}, rc {p.returncode}) in seed {seed} at step {step} "
            f"({kind})\nreplay: {replay}\nwithout the add-on, the same step kinds: {replay} --plain")
     if plain_check and seed != "?":
         q = subprocess.run([PYTHON, SCRIPT, "--work", str(work), "--plain", "--seed", seed, "--steps", step, *view],
                            cwd=str(work), env=env, capture_output=True, text=True, timeout=600)
         msg += ("\nplain Blender on the same steps: "
-                + (f"crashes too (rc {q.returncode})" if crash_signal(q.returncode) else "no crash"))
+                + (f"crashes too (rc {q.returncode})" if signal_name(q.returncode) else "no crash"))
     stack = p.stderr[p.stderr.find("Fatal Python error"):][:2500]
     return msg + "\n" + stack
 

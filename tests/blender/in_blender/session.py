@@ -93,6 +93,14 @@ def hidden_edits():
         promise(f"hidden_edit_{what}_truth")
 
 
+def _shown_after_edit(name, hid):
+    """A Cull after an edit of the hidden "target" (or of what hides it): drawn now."""
+    r, err = cull()
+    check(f"{name}_seen", hid and r == {"FINISHED"} and not hidden_by_addon("target"),
+          (hid, r, hidden_by_addon("target"), err[-500:]))
+    promise(f"{name}_truth")
+
+
 def hidden_faces_edit():
     """An edit of a hidden object's faces alone (no vertex moved, as many faces as
     before) is seen by the next Cull: a second wall "inner", hidden behind the first
@@ -115,10 +123,7 @@ def hidden_faces_edit():
     me.update()
     bpy.data.objects["wall"].location.z = -20.0     # the first wall goes
     update()
-    r, err = cull()
-    check("hidden_faces_edit_seen", hid and r == {"FINISHED"} and not hidden_by_addon("target"),
-          (hid, r, hidden_by_addon("target"), err[-500:]))
-    promise("hidden_faces_edit_truth")
+    _shown_after_edit("hidden_faces_edit", hid)
     # a modifier's setting edited while hidden: an array's second copy now stands in front
     new_scene()
     target = box("target", (3, -1, 0), (4, 1, 1))
@@ -129,10 +134,7 @@ def hidden_faces_edit():
     hid = hidden_by_addon("target")
     mod.count, mod.use_constant_offset, mod.constant_offset_displace = 2, True, (-8.0, 0.0, 0.0)
     update()
-    r, err = cull()
-    check("hidden_modifier_edit_seen", hid and r == {"FINISHED"} and not hidden_by_addon("target"),
-          (hid, r, hidden_by_addon("target"), err[-500:]))
-    promise("hidden_modifier_edit_truth")
+    _shown_after_edit("hidden_modifier_edit", hid)
     # a shape key's value set by hand while hidden: the key moves the box in front
     new_scene()
     target = box("target", (3, -1, 0), (4, 1, 1))
@@ -146,10 +148,7 @@ def hidden_faces_edit():
     hid = hidden_by_addon("target")
     key.value = 1.0
     update()
-    r, err = cull()
-    check("hidden_shape_key_edit_seen", hid and r == {"FINISHED"} and not hidden_by_addon("target"),
-          (hid, r, hidden_by_addon("target"), err[-500:]))
-    promise("hidden_shape_key_edit_truth")
+    _shown_after_edit("hidden_shape_key_edit", hid)
 
 
 def fast_preset_keeps_display_gaps():
