@@ -19,11 +19,10 @@ Analyze counts the same instances as seen wherever they are drawn, and the membe
 of every visible instance as seen (:func:`members_seen`).
 """
 
-import bpy
 import numpy as np
 
 from ..core import Visibility
-from . import identity
+from . import identity, visibility
 from .extract import DRAWN_TYPES, bystanders, is_instancer, kind
 from .identity import ident
 
@@ -76,11 +75,7 @@ def never_hidden(context, objects: list, uids: np.ndarray, collection: np.ndarra
             flagged.append(identity.uids(o.instance_collection.all_objects))
     # ... and what a particle system instances (its object, its collection's members):
     # hiding one takes it out of the particles' instances, which may be seen
-    for p in bpy.data.particles:                       # particle settings: few
-        if p.instance_object is not None:
-            flagged.append(identity.idents([p.instance_object]))
-        if p.instance_collection is not None:
-            flagged.append(identity.uids(p.instance_collection.all_objects))
+    flagged.append(identity.idents(visibility.particle_instanced()))
     out[np.isin(uids, np.concatenate(flagged))] = True
     at = np.flatnonzero(culled & ~out)                 # cached, in bulk: what Blender has no bulk form of
     out[at] = extractor.dynamic_of(objects, uids, at)

@@ -68,7 +68,7 @@ def write(hide, record):
     shown = changed[~hide[changed]]
     if len(shown):
         items = objs.values()                      # one list; ListBase indexing is O(i) per call
-        instanced = particle_instanced()
+        instanced = {o.as_pointer() for o in particle_instanced()}
         for i in shown:                            # O(shown): a tag each, no re-sync each
             o = items[i]
             o.update_tag(refresh=INSTANCED_SHOW_TAG if o.as_pointer() in instanced else SHOW_TAG)
@@ -76,15 +76,15 @@ def write(hide, record):
     first.hide_viewport = bool(hide[changed[0]])   # the RNA update: bases re-synced, relations rebuilt
 
 
-def particle_instanced() -> set:
-    """``as_pointer()`` of every object a particle system instances (its instance object,
-    or its instance collection's objects): particle settings are few."""
-    out = set()
+def particle_instanced() -> list:
+    """Every object a particle system instances (its instance object, or its instance
+    collection's objects): particle settings are few."""
+    out = []
     for p in bpy.data.particles:
         if p.instance_object is not None:
-            out.add(p.instance_object.as_pointer())
+            out.append(p.instance_object)
         if p.instance_collection is not None:
-            out.update(o.as_pointer() for o in p.instance_collection.all_objects)
+            out.extend(p.instance_collection.all_objects)
     return out
 
 
