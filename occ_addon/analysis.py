@@ -109,7 +109,7 @@ def analysis_steps(context, frames: list[int], path: str, rule: str = "seen",
     previous = scene.frame_current
     out = Analysis(frames, path, [], {}, time.perf_counter(), rule, source(context, rule, step))
     seen = out.seen
-    held = held_names = instances = extra = keys = None
+    held = held_names = instances = emitting = extra = keys = None
     every = max(1, len(frames) // 10)         # background mode: about ten progress lines
     try:
         for k, f in enumerate(frames):
@@ -140,6 +140,7 @@ def analysis_steps(context, frames: list[int], path: str, rule: str = "seen",
                 held = SESSION.held
                 held_names = [o.name for o in objects]
                 instances = policy.instancers(objects)
+                emitting = policy.emitters(objects)
                 for n in held_names:
                     seen.setdefault(n, 0)
             if not still or extra is None:      # what Blender draws beside the engine's objects
@@ -149,7 +150,7 @@ def analysis_steps(context, frames: list[int], path: str, rule: str = "seen",
                 vis |= policy.drawn_beyond_depth(view_rule, result.state, scene.occ.cull_raytraced)
             policy.widen_instances(objects, instances, vis)
             shown = [held_names[i] for i in np.flatnonzero(vis)]
-            others = [o.name for o in extra + policy.members_seen(objects, instances, vis)]
+            others = [o.name for o in extra + policy.members_seen(objects, instances, vis, emitting)]
             names = list(dict.fromkeys(shown + others))
             out.per_frame.append({"frame": f, "visible": names})
             for n in others:

@@ -100,9 +100,26 @@ def widen_instances(objects: list, instances: list[int], vis: np.ndarray) -> Non
         vis[i] = wide[c.name_full]
 
 
-def members_seen(objects: list, instances: list[int], vis: np.ndarray) -> list:
+def emitters(objects: list) -> list[int]:
+    """Indices of the objects among ``objects`` whose particle systems instance objects."""
+    return [i for i, o in enumerate(objects)
+            if any(ps.settings.render_type in {"OBJECT", "COLLECTION"} for ps in o.particle_systems)]
+
+
+def members_seen(objects: list, instances: list[int], vis: np.ndarray, emitting: list[int] = ()) -> list:
     """Objects seen beside the engine's visible ones through instances: the members of
-    every visible collection instance (an object is seen where an instance draws it).
+    every visible collection instance (an object is seen where an instance draws it),
+    and what the particles of every visible emitter in ``emitting`` instance (the
+    engine holds those instances as the emitter's geometry).
     The others seen beside them are those Blender draws that the engine does not hold
     (:func:`.extract.bystanders`: never culled, so visible)."""
-    return [m for i in instances if vis[i] for m in objects[i].instance_collection.all_objects]
+    seen = [m for i in instances if vis[i] for m in objects[i].instance_collection.all_objects]
+    for i in emitting:
+        if vis[i]:
+            for ps in objects[i].particle_systems:
+                st = ps.settings
+                if st.render_type == "OBJECT" and st.instance_object is not None:
+                    seen.append(st.instance_object)
+                elif st.render_type == "COLLECTION" and st.instance_collection is not None:
+                    seen.extend(st.instance_collection.all_objects)
+    return seen

@@ -1919,6 +1919,11 @@ def main():
     HIDE_IN["mode"] = args.hide_in
     work = args.work or tempfile.mkdtemp(prefix="occ_workflows_")
     skip = {s for s in args.skip.split(",") if s}
+    if bpy.app.version < (5, 0, 0):
+        KNOWN_UNFIXED["emitter_undo"] = (
+            "Blender 4.2 crashes on its own after an emitter's delete and undo with a second view layer "
+            "shown, whatever else happens (tools/blender42_hair_undo_crash.py, no add-on: 3 of 3 runs); "
+            "the step kind runs on Blender 5.x only")
     out = {"seeds": {}, "not_exercised": NOT_EXERCISED, "known_unfixed": KNOWN_UNFIXED}
     if not (args.validate or args.plain):
         bpy.ops.extensions.package_install_files(filepath=args.zip, repo="user_default", enable_on_install=True)
