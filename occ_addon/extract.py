@@ -973,8 +973,11 @@ def _settings(m) -> tuple:
                 or p.type == "COLLECTION":
             continue
         out.append(_value(getattr(m, p.identifier, None)))
-    if m.type == "NODES":                               # its inputs are ID properties
-        out.extend((k, _value(m[k])) for k in m.keys())
+    if m.type == "NODES":                               # its inputs: ID properties (before 5.2)
+        try:
+            out.extend((k, _value(m[k])) for k in m.keys())
+        except TypeError:                               # (5.2: not ID properties; a geometry-nodes
+            pass                                        # object is dynamic, never hidden, anyway)
     return tuple(out)
 
 
