@@ -205,15 +205,26 @@ def camera_cut(before, after, scene_size):
     cut: what a coherent strategy remembers, and what live mode calls a fresh pass."""
     if before is None:
         return True
-    if np.linalg.norm(after.eye - before.eye) > tol.coherence_move_rel * max(scene_size, tol.tiny):
-        return True
-    r0, r1 = before.view[:3, :3], after.view[:3, :3]
-    # rotation angle of r1 @ r0.T from its trace (rows of a view rotation are orthonormal)
-    cos = np.clip((np.trace(r1 @ r0.T) - 1.0) / 2.0, -1.0, 1.0)
-    if math.degrees(math.acos(cos)) > tol.coherence_turn_deg:
+    move, turn = view_change(before, after)
+    if move > tol.coherence_move_rel * max(scene_size, tol.tiny) or turn > tol.coherence_turn_deg:
         return True
     scale = np.abs(before.projection).max()
     return bool(np.abs(after.projection - before.projection).max() > tol.coherence_projection_rel * scale)
+
+
+def view_change(a, b, frame=True):
+    """Eye distance and turn (degrees) between two cameras: the angle of the rotation
+    from one camera frame to the other (roll included), or with ``frame=False`` only
+    the angle between their view directions."""
+    move = float(np.linalg.norm(a.eye - b.eye))
+    if frame:
+        ra, rb = a.view[:3, :3], b.view[:3, :3]
+        ra = ra / np.linalg.norm(ra, axis=1, keepdims=True)      # rows: the camera's axes
+        rb = rb / np.linalg.norm(rb, axis=1, keepdims=True)
+        cos = float(np.clip((np.trace(ra @ rb.T) - 1.0) / 2.0, -1.0, 1.0))
+    else:
+        cos = float(np.clip(a.direction @ b.direction, -1.0, 1.0))
+    return move, math.degrees(math.acos(cos))
 
 
 def load_cameras(path):

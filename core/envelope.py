@@ -55,7 +55,7 @@ import numpy as np
 
 from . import umbra
 from .bounds import MAX, MIN, corners
-from .camera import Camera, perspective
+from .camera import Camera, perspective, view_change
 from .cull import PassStats, Visibility
 from .errors import OccError
 from .frustum import classify, planes_from_matrix
@@ -104,7 +104,6 @@ class Envelope:
     def holds(self, camera, view):
         """Whether ``view`` (a Camera with the same lens) lies inside this envelope
         around ``camera``."""
-        from .motion import view_change
         move, turn = view_change(camera, view, frame=not self.any_roll)
         return move <= self.distance and turn <= self.angle_deg
 

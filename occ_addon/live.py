@@ -27,7 +27,7 @@ import numpy as np
 
 from ..core import OccError
 from ..core.camera import camera_cut
-from ..core.motion import view_change
+from ..core.motion import MotionTracker
 from . import visibility
 from .cameras import camera_for, find_viewport, region_camera, scene_camera, view_state
 from .props import settings_key
@@ -35,14 +35,15 @@ from .session import POLICY, SESSION
 
 POLL_S = 0.1          # timer period
 DEBOUNCE_S = 0.15     # the view (or the scene) must rest this long before a pass
-REST_LOOK_S = 0.05    # a view unchanged for this long between two looks has stopped moving
 
 # passed: (camera, display) of the last pass at rest, for telling a cut (:func:`_is_cut`)
 # settings: props.settings_key at the last tick (polled: the settings have no update callbacks)
 _state = {"last_view": None, "changed_at": None, "dirty_at": None, "passed": None, "settings": None}
-# the view's motion, measured between successive looks (redraws and ticks)
-_motion = {"view": None, "t": None, "step": (0.0, 0.0), "speeds": [0.0], "turns": [0.0], "leaving": False,
-           "region": None, "view_state": None}
+# the view's motion, measured between successive looks (redraws and ticks): the
+# tracker the motion benchmark replays too (core.lab.motion)
+TRACKER = MotionTracker()
+# leaving: a leave timer is registered; region, view_state: the watched 3D view (track)
+_motion = {"leaving": False, "region": None, "view_state": None}
 
 
 def track(context):
@@ -61,25 +62,13 @@ def _view_changed(space):
 
 
 def observe(camera):
-    """Measure the motion since the last look at the view: the last step and the
-    speeds (of the last three looks, the fastest counts)."""
-    now = time.perf_counter()
-    prev, t = _motion["view"], _motion["t"]
-    if prev is not None and np.array_equal(prev.projection, camera.projection):
-        move, turn = view_change(prev, camera)
-        if not (move or turn) and now - t < REST_LOOK_S:
-            return                                    # another redraw of the same view: no news
-        dt = max(now - t, 1e-3)
-        # a view that held still since the last look has stopped: no step to allow for
-        _motion["step"] = (move, turn)
-        _motion["speeds"] = (_motion["speeds"] + [move / dt])[-3:]
-        _motion["turns"] = (_motion["turns"] + [turn / dt])[-3:]
-    _motion.update(view=camera, t=now)
+    """Measure the motion since the last look at the view (:class:`MotionTracker`)."""
+    TRACKER.observe(camera, time.perf_counter())
 
 
 def _unsafe(camera):
     shown = SESSION.shown
-    return shown is not None and not POLICY.safe(shown[0], shown[1], camera, *_motion["step"])
+    return shown is not None and not TRACKER.safe(POLICY, shown.camera, shown.envelope, camera)
 
 
 def guard():
@@ -122,9 +111,8 @@ def leave(context, camera, display):
         SESSION.shown = None
         visibility.restore()
         return
-    speed, turn = max(_motion["speeds"]), max(_motion["turns"])
     latency = (SESSION.last.ms if SESSION.last is not None else 100.0) / 1e3
-    env = POLICY.envelope(speed, turn, latency, *_motion["step"], SESSION.culler.scene_size)
+    env = TRACKER.envelope(POLICY, latency, SESSION.culler.scene_size)
     try:
         SESSION.cull(context, camera, display, fresh=False, envelope=env, show_only=True)
         track(context)
@@ -262,7 +250,8 @@ def resync():
         _drop_timer()
 
 
-_camera_motion = {"view": None, "step": (0.0, 0.0)}
+# the scene camera's motion, from frame to frame (guard_camera)
+CAMERA_TRACKER = MotionTracker()
 
 
 def guard_camera(scene):
@@ -276,13 +265,13 @@ def guard_camera(scene):
         camera, _ = scene_camera(bpy.context, scene)
     except OccError:
         camera = None
-    prev = _camera_motion["view"]
-    if camera is not None and prev is not None and np.array_equal(prev.projection, camera.projection):
-        _camera_motion["step"] = view_change(prev, camera)
-    _camera_motion["view"] = camera
+    if camera is None:
+        CAMERA_TRACKER.view = None
+    else:
+        CAMERA_TRACKER.observe(camera, time.perf_counter())
     if SESSION.shown is None:        # evaluating the camera ran this handler again, which showed all
         return
     centre, envelope = SESSION.shown
-    if camera is None or not POLICY.safe(centre, envelope, camera, *_camera_motion["step"]):
+    if camera is None or not CAMERA_TRACKER.safe(POLICY, centre, envelope, camera):
         SESSION.shown = None
         visibility.restore()

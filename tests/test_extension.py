@@ -108,7 +108,7 @@ def test_lab_imports_are_recognised():
     assert _imports_lab("occ_addon/session.py", "from ..core.lab import motion")
     assert _imports_lab("occ_addon/session.py", "import core.lab.bench")
     assert not _imports_lab("core/engine.py", "from .motion import LivePolicy\nimport collections")
-    assert not _imports_lab("occ_addon/live.py", "from ..core.motion import view_change")
+    assert not _imports_lab("occ_addon/live.py", "from ..core.motion import MotionTracker")
 
 
 @pytest.mark.skipif(importlib.util.find_spec("bpy") is None, reason="needs bpy (Blender's extension CLI)")

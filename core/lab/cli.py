@@ -169,7 +169,7 @@ def cmd_motion(args):
     from .motion import MOTIONS, format_motion, run_motion
     names = parse_names(args.motions, MOTIONS, "motions")
     resolution = parse_resolution(args.resolution)
-    if not (math.isfinite(args.latency) and 0.0 < args.latency <= 10.0):
+    if args.latency is not None and not (math.isfinite(args.latency) and 0.0 < args.latency <= 10.0):
         raise OccError(f"--latency must be between 0 and 10 seconds, got {args.latency}")
     scene, cameras, title = load_job(args.scene, args.camera, args.frames)
     with Culler(scene, resolution) as culler, \
@@ -179,8 +179,9 @@ def cmd_motion(args):
     if args.json:
         _dump_json({"scene": title, "objects": len(scene), "latency_s": args.latency, "motions": report})
     else:
-        print(format_motion(report, f"== {title}: {len(scene)} objects, a step every 1/30 s, "
-                                    f"passes land {1e3 * args.latency:.0f} ms after they start =="))
+        landing = ("passes land when they finish (measured)" if args.latency is None
+                   else f"FIXED LATENCY: every pass taken to last {1e3 * args.latency:.0f} ms, not measured")
+        print(format_motion(report, f"== {title}: {len(scene)} objects, a look every 1/30 s, {landing} =="))
 
 
 def cmd_hierarchies(args):
@@ -373,9 +374,9 @@ def build_parser():
     m.add_argument("--motions", default="drag,orbit,dolly,walk", help="comma list of drag, orbit, dolly, walk")
     m.add_argument("--resolution", default=res, help=f"query resolution WxH (default {res})")
     m.add_argument("--frames", type=frame_count, help="use only this many frames of the path, evenly spread")
-    m.add_argument("--latency", type=float, default=0.1,
-                   help="seconds from a pass's start to its landing (default 0.1; fixed, so the count "
-                        "never depends on this machine's speed)")
+    m.add_argument("--latency", type=float, default=None,
+                   help="take every pass to last this many seconds instead of its measured time (a fixed "
+                        "latency: counts that do not depend on this machine's speed, but not what a user gets)")
     m.add_argument("--json", action="store_true", help="the report as JSON on stdout")
     m.add_argument("--quiet", "-q", action="store_true", help=QUIET_HELP)
     m.set_defaults(func=cmd_motion)
