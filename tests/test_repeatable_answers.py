@@ -85,7 +85,9 @@ def phase_states(scene, cams, ctx, monkeypatch, costly):
     from core.cull.auto import Auto
     clock = PhaseClock(costly)
     for name in ("_tests", "_frustum_only"):
-        def timed(self, *a, _name=name, _run=getattr(Auto, name), **k):
+        run = getattr(Auto, name)
+
+        def timed(self, *a, _name=name, _run=run, **k):
             clock.phase = _name
             try:
                 return _run(self, *a, **k)

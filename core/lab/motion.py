@@ -9,6 +9,7 @@ the ideal culling held on screen, and the triangles drawn against frustum cullin
 
 import math
 import time
+
 import numpy as np
 
 from ..camera import Camera, look_at
@@ -174,9 +175,9 @@ def format_motion(report, title):
     lines = [title, head, "-" * len(head)]
     for name, r in report.items():
         ratio = r["triangles_mean"] / r["triangles_vfc_mean"] if r["triangles_vfc_mean"] else 1.0
-        lines.append(f"{name:<8} {r['steps']:>6d} {r['steps_drawn']:>6d} {r['passes']:>6d} {r['false_negatives']:>5d} "
-                     f"{r['steps_late']:>5d} {100 * r['held_share']:>7.1f} {r['hidden_mean']:>8.1f} {r['ideal_mean']:>8.1f} "
-                     f"{ratio:>8.2f} {r['pass_ms_median']:>8.1f}")
+        lines.append(f"{name:<8} {r['steps']:>6d} {r['steps_drawn']:>6d} {r['passes']:>6d} "
+                     f"{r['false_negatives']:>5d} {r['steps_late']:>5d} {100 * r['held_share']:>7.1f} "
+                     f"{r['hidden_mean']:>8.1f} {r['ideal_mean']:>8.1f} {ratio:>8.2f} {r['pass_ms_median']:>8.1f}")
     lines.append("drawn: steps Blender redraws (a pass holds its main thread); late: steps drawn outside the "
                  "set's envelope (a first step from rest beyond the rest envelope)")
     lines.append("held %: of the objects the truth does not see, the share hidden on screen, over the steps "
