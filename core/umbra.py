@@ -143,8 +143,7 @@ def hidden_by_polygons(boxes, polys, distance, rot=None, near_eff=0.0):
     good &= h > near_eff                                      # and no eye's near plane cuts it
     centre = polys.mean(axis=1)
     # box beyond the plane: its nearest corner along n is farther than the plane
-    lo = np.einsum("kj,mj->mk", np.maximum(n, 0.0), boxes[:, MIN]) + \
-        np.einsum("kj,mj->mk", np.minimum(n, 0.0), boxes[:, MAX])
+    lo = boxes[:, MIN] @ np.maximum(n, 0.0).T + boxes[:, MAX] @ np.minimum(n, 0.0).T
     beyond = (lo > (h + tol.box_grow_rel * mag)[None]) & good[None]
     cs = corners(boxes)                                        # (m, 8, 3)
     if rot is not None:
@@ -153,13 +152,19 @@ def hidden_by_polygons(boxes, polys, distance, rot=None, near_eff=0.0):
         inside = (br[:, None, 0] >= pr[None, :, 0]) & (br[:, None, 1] >= pr[None, :, 1]) & \
                  (br[:, None, 2] <= pr[None, :, 2]) & (br[:, None, 3] <= pr[None, :, 3])
         beyond &= inside | ~bf[:, None] | ~pf[None, :]
-    bi, pi = np.nonzero(beyond)
+    # polygon-major: the polygons come largest first (convex_polygons), so most boxes are
+    # proved hidden by the first ones and their later pairs are skipped (the answer is an
+    # OR over pairs: the order changes only the work)
+    pi, bi = np.nonzero(beyond.T)
     if not len(bi):
         return out
-    for s in range(0, len(bi), PAIR_CHUNK):
-        b, p = bi[s:s + PAIR_CHUNK], pi[s:s + PAIR_CHUNK]
-        if out[b].all():
-            continue
+    s = 0
+    while s < len(bi):
+        open_ = np.flatnonzero(~out[bi[s:]])[:PAIR_CHUNK] + s     # the next pairs of boxes not yet hidden
+        if not len(open_):
+            break
+        s = int(open_[-1]) + 1
+        b, p = bi[open_], pi[open_]
         x = cs[b][:, :, None, :]                               # (q, 8, 1, 3)
         a0, a1 = e0[p][:, None], e1[p][:, None]                # (q, 1, 4, 3)
         mvec = np.cross(a1 - a0, x - a0)                       # normal of the plane through x and the edge

@@ -227,3 +227,31 @@ def test_envelope_holds_at_the_display_resolution(ctx):
                 assert not (c.renderer.visible_truth(view, display=True) & ~result.visible).any(), env
             hidden += int((~result.visible).sum())
     assert hidden > 0
+
+
+def test_the_polygon_proof_does_not_depend_on_order_or_chunks(ctx, monkeypatch):
+    """The proof is an OR over box-polygon pairs: the pairs it skips (boxes already proved
+    hidden) and its chunks change the work only.  Polygons shuffled and chunks of 7 pairs
+    give the answer of the envelope pass's own inputs."""
+    from core import envelope as envmod
+    from core import umbra
+    calls = []
+
+    def spy(*a, **k):
+        calls.append((a, k))
+        return hidden_by_polygons(*a, **k)
+    monkeypatch.setattr(envmod, "hidden_by_polygons", spy)
+    scene, cams, _ = scenes.random_city(12, 300)
+    with Culler(scene, resolution=(160, 90), ctx=ctx) as c:
+        for cam in cams[:3]:
+            c.cull(cam, envelope=Envelope(1.0, 5.0))
+    monkeypatch.undo()
+    rng = np.random.default_rng(12)
+    proved = 0
+    for (boxes, polys, *rest), k in calls:
+        want = hidden_by_polygons(boxes, polys, *rest, **k)
+        proved += int(want.sum())
+        with monkeypatch.context() as m:
+            m.setattr(umbra, "PAIR_CHUNK", 7)
+            assert np.array_equal(hidden_by_polygons(boxes, polys[rng.permutation(len(polys))], *rest, **k), want)
+    assert calls and proved > 0
