@@ -16,11 +16,13 @@ from numpy.typing import ArrayLike, NDArray
 from .bounds import MAX, MIN
 from .camera import Camera
 from .cull import DEFAULT_STRATEGY, REGISTRY, CullPass, CullResult, PassStats, Visibility, make_strategy
+from .envelope import Envelope, envelope_pass
 from .errors import OccError
 from .hierarchy import build_hierarchy
 from .scene import Scene
 from .settings import CullOptions, check_resolution
-from .units import ChunkCache
+from .subdivision import build_tree
+from .units import ChunkCache, chunked, whole_objects
 
 Resolution = tuple[int, int]
 DEFAULT_RESOLUTION = (640, 360)
@@ -67,10 +69,8 @@ def make_units(scene, builder="tree", chunk_triangles=None, chunk_min_triangles=
     (pHBVO inside meshes when the builder is "tree"); ``cache``: a
     :class:`core.units.ChunkCache` of earlier chunkings to reuse.  A mesh with
     NaN or infinite values is never chunked."""
-    from .units import chunked, whole_objects
     if not chunk_triangles:
         return whole_objects(scene)
-    from .subdivision import build_tree
     leaf = int(chunk_triangles)
     minimum = int(chunk_min_triangles or 4 * leaf)
     inner = "pHBVO" if builder == "tree" else builder
@@ -140,7 +140,6 @@ class Culler:
         else:
             object_tree = None
             if self.hierarchy_builder != "tree" and len(scene):
-                from .subdivision import build_tree
                 ob, ok = scene.bounds, ~scene.invalid
                 # invalid objects: a point at the scene's middle (the refit below gives them no extent)
                 ob[~ok] = 0.5 * (ob[ok].min(axis=(0, 1)) + ob[ok].max(axis=(0, 1))) if ok.any() else 0.0
@@ -311,7 +310,6 @@ class Culler:
         return CullResult(state, stats, cp.om.grid.copy())
 
     def _envelope_cull(self, camera, envelope, lights=None):
-        from .envelope import Envelope, envelope_pass
         if not isinstance(envelope, Envelope):
             envelope = Envelope(*envelope)
         state, stats = envelope_pass(self, camera, envelope, lights=lights)

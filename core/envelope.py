@@ -59,6 +59,7 @@ from .camera import Camera, perspective, view_change
 from .cull import PassStats, Visibility
 from .errors import OccError
 from .frustum import classify, planes_from_matrix
+from .lights import in_world, shadow_boxes
 from .tolerance import tol
 from .umbra import hidden_by_polygons
 
@@ -560,7 +561,6 @@ def envelope_pass(culler, camera, envelope, display=None, lights=None):
     state[scene.invalid] = Visibility.VISIBLE
     stats.queries = int(len(unit_state))
     if lights:
-        from .lights import in_world, shadow_boxes
         hidden = np.flatnonzero(state != Visibility.VISIBLE)
         boxes, owner = shadow_boxes(scene.bounds[hidden], in_world(lights, camera, envelope.angle_deg),
                                     culler.scene_bounds())

@@ -4,13 +4,13 @@ order and unregisters in reverse; no GPU or timer work happens here.
 Modules: :mod:`.session` (the engine's lifecycle and a pass), :mod:`.cameras`,
 :mod:`.extract` (Blender to arrays), :mod:`.policy` (what is never hidden),
 :mod:`.visibility` (the hide record), :mod:`.passes` (what a pass leaves behind),
-:mod:`.analysis`, :mod:`.live`, :mod:`.handlers` (Blender's handlers and the change
-bus), and the faces: :mod:`.operators`, :mod:`.panel`, :mod:`.overlay`, :mod:`.props`.
+:mod:`.analysis`, :mod:`.live`, :mod:`.handlers` (Blender's handlers), :mod:`.bus`
+(the change bus), and the faces: :mod:`.operators`, :mod:`.panel`, :mod:`.overlay`, :mod:`.props`.
 """
 
 import bpy
 
-from . import handlers, live, localview, operators, overlay, panel, props, visibility
+from . import handlers, live, localview, operators, panel, props, visibility
 from .session import SESSION
 
 CLASSES = operators.CLASSES + panel.CLASSES
@@ -23,19 +23,19 @@ def register():
     operators.register_keys()
     localview.subscribe()
     handlers.register()
-    handlers.subscribe(live.changed)                 # live mode re-culls after every change
+    live.register()                                  # live mode listens on the change bus
     if isinstance(bpy.data, bpy.types.BlendData):    # enabled on an open file: show what a record hides
         visibility.restore()
         live.after_load()                            # and live shows off: no timer runs yet
 
 
 def unregister():
-    overlay.uninstall()
+    live.uninstall()
     live.stop_all()
     if isinstance(bpy.data, bpy.types.BlendData):
         visibility.restore()
     SESSION.shutdown()
-    handlers.unsubscribe(live.changed)
+    live.unregister()
     handlers.unregister()
     localview.unsubscribe()
     operators.unregister_keys()

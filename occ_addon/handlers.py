@@ -1,40 +1,19 @@
-"""Blender's application handlers and the add-on's one change bus.
+"""Blender's application handlers.
 
 The handlers are registered explicitly (:func:`register`, in the order of
 :data:`HANDLERS`; :func:`unregister` in reverse).  Every change not our own (an
-edit, a new frame, a setting that changes what may be hidden) is announced on the
-bus (:func:`notify`); live mode subscribes to it (:func:`subscribe`, at the add-on's
-registration).  Undo, redo and file loads drop the session's caches; no file is
-saved with the add-on's hiding in it.
+edit, a new frame, another view layer) is announced on the change bus
+(:mod:`.bus`), where live mode listens; this module knows nothing of live mode.
+Undo, redo and file loads drop the session's caches; no file is saved with the
+add-on's hiding in it.
 """
-
-from collections.abc import Callable
 
 import bpy
 from bpy.app.handlers import persistent
 
-from . import live, localview, visibility
+from . import bus, localview, visibility
 from .identity import ident
 from .session import SESSION
-
-_listeners: list[Callable[[], None]] = []
-
-
-def subscribe(listener: Callable[[], None]) -> None:
-    """Call ``listener`` (no argument) after every change not our own."""
-    if listener not in _listeners:
-        _listeners.append(listener)
-
-
-def unsubscribe(listener: Callable[[], None]) -> None:
-    if listener in _listeners:
-        _listeners.remove(listener)
-
-
-def notify() -> None:
-    """Something changed that may change what is visible (not the view: live mode polls it)."""
-    for f in _listeners:
-        f()
 
 
 def on_window_change() -> None:
@@ -43,7 +22,7 @@ def on_window_change() -> None:
     (:meth:`.session.Session.left_layer`)."""
     context = bpy.context
     if context.scene is not None and context.view_layer is not None and SESSION.left_layer(context):
-        live.changed()
+        bus.notify()
 
 
 @persistent          # kept across file loads, like the add-on itself
@@ -59,8 +38,8 @@ def on_depsgraph_update(scene, depsgraph):
             or localview.layer_switched():
         localview.adopt()           # what joined the view layer is drawn in the add-on's local view
     _mark(depsgraph)
-    live.guard_camera(scene)        # the scene camera moved by an edit: as for a new frame
-    notify()
+    bus.emit("camera", scene)       # the scene camera moved by an edit: as for a new frame
+    bus.notify()
 
 
 @persistent
@@ -71,8 +50,8 @@ def on_frame_change(scene, depsgraph):
     SESSION.extractor.visibility_changed()
     if depsgraph is not None:
         _mark(depsgraph, edits=False)
-    live.guard_camera(scene)
-    notify()
+    bus.emit("camera", scene)
+    bus.notify()
 
 
 def _mark(depsgraph, edits=True):
@@ -98,7 +77,7 @@ def on_load(*_args):
     older versions, or by a crash), and live mode off: nothing runs by itself."""
     SESSION.reset()
     visibility.after_load()
-    live.after_load()
+    bus.emit("loaded")
 
 
 @persistent
@@ -112,7 +91,7 @@ def on_undo(*_args):
         visibility.after_undo()
     finally:
         SESSION.applying = False
-    live.resync()
+    bus.emit("undone")
 
 
 @persistent
@@ -137,13 +116,11 @@ HANDLERS = (("depsgraph_update_post", on_depsgraph_update), ("frame_change_post"
 def register() -> None:
     for name, f in HANDLERS:
         getattr(bpy.app.handlers, name).append(f)
-    if on_window_change not in localview.WINDOW_HOOKS:
-        localview.WINDOW_HOOKS.append(on_window_change)
+    bus.subscribe("window", on_window_change)
 
 
 def unregister() -> None:
-    if on_window_change in localview.WINDOW_HOOKS:
-        localview.WINDOW_HOOKS.remove(on_window_change)
+    bus.unsubscribe("window", on_window_change)
     for name, f in reversed(HANDLERS):
         h = getattr(bpy.app.handlers, name)
         if f in h:

@@ -28,7 +28,7 @@ import numpy as np
 from ..core import OccError
 from ..core.camera import camera_cut
 from ..core.motion import MotionTracker
-from . import visibility
+from . import bus, overlay, visibility
 from .cameras import camera_for, find_viewport, region_camera, scene_camera, view_state
 from .props import settings_key
 from .session import POLICY, SESSION
@@ -209,9 +209,41 @@ def _drop_timer():
         bpy.app.timers.unregister(_tick)
 
 
-def start(context):
-    from . import overlay
+_guard_handle = []
+
+
+def install():
+    """The redraw guard (a draw handler of every 3D view, before the view is drawn) and
+    the overlay, once (GUI only): after every pass that leaves a hidden set with an
+    envelope (a Cull click too: leaving its envelope shows everything)."""
+    if not bpy.app.background and not _guard_handle:
+        _guard_handle.append(bpy.types.SpaceView3D.draw_handler_add(guard, (), "WINDOW", "PRE_VIEW"))
     overlay.install()
+
+
+def uninstall():
+    while _guard_handle:
+        bpy.types.SpaceView3D.draw_handler_remove(_guard_handle.pop(), "WINDOW")
+    overlay.uninstall()
+
+
+def _listens():
+    """What live mode listens to on the change bus (:mod:`.bus`)."""
+    return (("changed", changed), ("camera", guard_camera), ("loaded", after_load), ("undone", resync))
+
+
+def register():
+    for event, listener in _listens():
+        bus.subscribe(event, listener)
+
+
+def unregister():
+    for event, listener in reversed(_listens()):
+        bus.unsubscribe(event, listener)
+
+
+def start(context):
+    install()
     context.scene.occ.live = True
     _state.update(last_view=None, changed_at=time.perf_counter(), dirty_at=None, passed=None,
                   settings=settings_key(context.scene.occ))

@@ -29,6 +29,7 @@ saved with it (:func:`.visibility.lift`).
 import bpy
 import numpy as np
 
+from . import bus
 from .identity import uids
 from .worker import quiet
 
@@ -198,17 +199,12 @@ def layer_switched() -> bool:
     return False
 
 
-# Called after on_window_change's own work (the change bus adds its own: .handlers).
-WINDOW_HOOKS: list = []
-
-
 def on_window_change(*_args) -> None:
     """A window shows another view layer or scene (a message-bus subscription, GUI):
     before it is drawn, its own local view holds every object of it."""
     if _own and layer_switched():
         adopt()
-    for hook in WINDOW_HOOKS:
-        hook()
+    bus.emit("window")
 
 
 _owner = object()

@@ -7,7 +7,7 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, IntProperty, StringProperty
 
 from ..core import OccError
-from . import live, localview, overlay, visibility
+from . import live, localview, visibility
 from .analysis import analysis_steps, link_collection, push_undo, report_path, write_report
 from .cameras import camera_for
 from .session import SESSION
@@ -145,7 +145,7 @@ class OCC_OT_cull(Stepped, bpy.types.Operator):
             SESSION.reread_transforms()
             SESSION.cull(context, camera, display, fresh=True, progress=progress, restart=True, envelope=envelope)
             live.track(context)
-            overlay.install()
+            live.install()
         except Exception as e:  # every failure is a report, never a traceback
             return failed(self, e)
         s = context.scene.occ

@@ -107,12 +107,11 @@ def _draw_pixel():
 
 
 def install():
-    """Add the draw handlers once (GUI only)."""
+    """Add the overlay's draw handlers once (GUI only; live mode's redraw guard is
+    live's own: :func:`.live.install`)."""
     if bpy.app.background or _handles:
         return
-    from .live import guard
     space = bpy.types.SpaceView3D
-    _handles.append(space.draw_handler_add(guard, (), "WINDOW", "PRE_VIEW"))
     _handles.append(space.draw_handler_add(_draw_view, (), "WINDOW", "POST_VIEW"))
     _handles.append(space.draw_handler_add(_draw_pixel, (), "WINDOW", "POST_PIXEL"))
 

@@ -5,6 +5,7 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, Po
 
 from ..core import REGISTRY
 from ..core.settings import MAX_RESOLUTION
+from . import bus
 
 # The add-on's default is the best-culling conservative strategy, not the engine's
 # "auto": auto weighs the engine's own drawing against its tests and may hide nothing
@@ -20,8 +21,7 @@ STRATEGY_ITEMS = [(info.name, info.label + (" (default)" if info.name == ADDON_D
 def _changed(_self, _context):
     """A setting that changes what may be hidden: announced on the change bus (live
     mode re-culls)."""
-    from .handlers import notify
-    notify()
+    bus.notify()
 
 
 class OccSettings(bpy.types.PropertyGroup):

@@ -24,6 +24,7 @@ import numpy as np
 
 from ..core.lights import Light
 from ..core.tolerance import tol
+from .cameras import find_viewport
 
 EEVEE = ("BLENDER_EEVEE", "BLENDER_EEVEE_NEXT")
 WORKBENCH = "BLENDER_WORKBENCH"
@@ -42,7 +43,6 @@ class ViewRule:
 
 
 def _view_shading(context):
-    from .cameras import find_viewport
     found = find_viewport(context)
     return None if found is None else found[0].spaces.active.shading
 

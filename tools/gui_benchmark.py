@@ -75,15 +75,16 @@ def run():
     # work per redraw), interleaved twice, the faster of each (the first redraws after a
     # change of what is drawn build Blender's draw caches)
     overlay = sys.modules[f"{ADDON}.occ_addon.overlay"]
+    live = sys.modules[f"{ADDON}.occ_addon.live"]         # installs the redraw guard and the overlay
     timed = {"redraw_ms_with": [], "redraw_ms_with_overlay": [], "redraw_ms_with_no_handlers": []}
     for _ in range(2):
         s.show_overlay = False
         timed["redraw_ms_with"].append(redraw_ms(win, area, region))
         s.show_overlay = True
         timed["redraw_ms_with_overlay"].append(redraw_ms(win, area, region))
-        overlay.uninstall()
+        live.uninstall()
         timed["redraw_ms_with_no_handlers"].append(redraw_ms(win, area, region))
-        overlay.install()
+        live.install()
     results.update({k: min(v) for k, v in timed.items()})
     results["addon_ms_per_redraw"] = results["redraw_ms_with_overlay"] - results["redraw_ms_with_no_handlers"]
     results["addon_python_ms_per_redraw"] = handlers_python_ms(win, area, region, overlay)
@@ -167,20 +168,20 @@ def handlers_python_ms(win, area, region, overlay):
         return call
 
     kept = [getattr(m, n) for m, n in names]
-    overlay.uninstall()
+    live.uninstall()
     for (m, n), fn in zip(names, kept, strict=True):
         setattr(m, n, timed(n, fn))
-    overlay.install()
+    live.install()
     bpy.context.scene.occ.show_overlay = True
     try:
         redraw_ms(win, area, region)                # the batches made, then timed
         spent.update(dict.fromkeys(spent, 0.0))
         redraw_ms(win, area, region)
     finally:
-        overlay.uninstall()
+        live.uninstall()
         for (m, n), fn in zip(names, kept, strict=True):
             setattr(m, n, fn)
-        overlay.install()
+        live.install()
     out = {n: 1e3 * v / (WARM + REDRAWS) for n, v in spent.items()}
     out["all"] = sum(out.values())
     return out

@@ -130,7 +130,7 @@ def registrations():
     value must be the same after every cycle of a phase."""
     h = bpy.app.handlers
     lists = {n: getattr(h, n) for n in dir(h) if not n.startswith("_") and isinstance(getattr(h, n), list)}
-    live, overlay, session = addon("live"), addon("overlay"), addon("session")
+    live, overlay, session, bus = addon("live"), addon("overlay"), addon("session"), addon("bus")
     worker = session.SESSION.worker if session is not None else None
     jobs = getattr(worker, "_jobs", None)
     return {
@@ -138,7 +138,9 @@ def registrations():
         "addon_handlers": sum(_ours(f) for v in lists.values() for f in v),
         "timers": {name: bool(live is not None and bpy.app.timers.is_registered(getattr(live, name)))
                    for name in ("_tick", "_leave_timer")},
-        "draw_handlers": len(overlay._handles) if overlay is not None else 0,
+        "draw_handlers": (len(overlay._handles) if overlay is not None else 0)
+                         + (len(live._guard_handle) if live is not None else 0),
+        "bus_listeners": sum(len(v) for v in bus._listeners.values()) if bus is not None else 0,
         "engine_alive": bool(worker is not None and worker.alive()),
         "engine_queue": jobs.qsize() if jobs is not None else 0,
         "engine_threads": sum(t.name == "occ-engine" and t.is_alive() for t in threading.enumerate()),

@@ -91,7 +91,7 @@ class Gpu(Strategy):
         """The GPU side for this cp's renderer (made once per renderer), or None."""
         if self.gpu is not None and self.gpu.r is cp.renderer:
             return self.gpu
-        from ..gl.gpucull import for_renderer
+        from ..gl.gpucull import for_renderer  # the GL backend loads with the first renderer (core.gl)
         gpu, self.reason = for_renderer(cp.renderer)
         if gpu is None:
             # not the expected 4.1 fallback: a driver that refuses the shaders, said once
@@ -145,7 +145,7 @@ class Gpu(Strategy):
     @staticmethod
     def _record(cp, words):
         """The states and counters of the pass from the units' words."""
-        from ..gl import layout as G
+        from ..gl import layout as G  # (as above: no GL module before a renderer)
         state = (words & G.STATE).astype(np.uint8)
         cp.state[:] = state
         drawn = (words & (G.DRAWN1 | G.DRAWN2)) != 0

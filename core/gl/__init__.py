@@ -7,7 +7,26 @@ strategy's GPU-resident pass (4.3 path only), :mod:`.layout` its contract with i
 shaders (``core/gl/glsl/``, loaded by :mod:`.shaders`).
 """
 
-from .context import create_context
-from .renderer import GLRenderer, PendingQuery, Renderer
+from ..settings import check_resolution
+from .context import choose_path, create_context
+from .renderer import BaseRenderer, PendingQuery, Renderer
+from .renderer_41 import Renderer41
+from .renderer_43 import Renderer43
+
+
+def GLRenderer(scene, width: int, height: int, ctx=None, units=None, display=None,  # noqa: N802
+               path: str | None = None) -> "BaseRenderer":
+    """The renderer of ``scene`` on ``ctx`` (a new context when None, released with the
+    renderer) for GL ``path`` (default ``OCC_GL``, else the best the context has): a
+    :class:`~core.gl.renderer_43.Renderer43` or :class:`~core.gl.renderer_41.Renderer41`.
+    A factory named as the class it was, so call sites construct it as before."""
+    check_resolution((width, height), display)    # before a context is made
+    own = ctx is None
+    ctx = create_context() if own else ctx
+    cls = {"4.3": Renderer43, "4.1": Renderer41}[choose_path(ctx, path)]
+    r = cls(scene, width, height, ctx=ctx, units=units, display=display)
+    r.own_ctx = own
+    return r
+
 
 __all__ = ["GLRenderer", "PendingQuery", "Renderer", "create_context"]

@@ -18,6 +18,8 @@ context has it, else 4.1.  ``OCC_LIBEGL`` names a specific libEGL on Linux.
 import os
 import sys
 
+from ..errors import OccError
+
 PATHS = {"4.3": 430, "4.1": 410}       # path name -> the GL version it needs
 EGL_PACKAGES = "libegl1 libegl-mesa0 libgl1-mesa-dri"
 
@@ -28,7 +30,6 @@ def requested_path():
     if not want:
         return None
     if want not in PATHS:
-        from ..errors import OccError
         raise OccError(f"OCC_GL must be one of {', '.join(PATHS)} (or unset), got {want!r}")
     return want
 
@@ -47,7 +48,6 @@ def create_context():
 
     EGL on Linux (headless, no display).  ``OCC_GL`` narrows the choice (module doc).
     """
-    from ..errors import OccError
     try:
         import moderngl
     except ImportError:
@@ -68,7 +68,6 @@ def create_context():
 
 def choose_path(ctx, path=None):
     """The path a renderer on ``ctx`` takes: ``path``, else ``OCC_GL``, else the best the context has."""
-    from ..errors import OccError
     path = path or requested_path()
     if path is None:
         return "4.3" if ctx.version_code >= PATHS["4.3"] else "4.1"

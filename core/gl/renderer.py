@@ -52,7 +52,9 @@ import numpy as np
 
 from ..bounds import transform_boxes
 from ..errors import OccError
+from ..occupancy import project_rects
 from ..settings import check_resolution
+from ..units import whole_objects
 from . import shaders
 from .context import choose_path, create_context
 from .layout import BOX_TRIANGLES  # noqa: F401  (re-exported: the renderer's box triangles)
@@ -65,7 +67,7 @@ NDC_CORNERS = np.array([(x, y, z, 1.0) for z in (-1, 1) for y in (-1, 1) for x i
 COUNTER_KEYS = ("gl_calls", "blocking_reads", "query_fragments", "draws", "query_batches")
 T = TypeVar("T")
 
-__all__ = ["BaseRenderer", "GLRenderer", "PendingQuery", "Renderer", "box_vertices"]
+__all__ = ["BaseRenderer", "PendingQuery", "Renderer", "box_vertices"]
 
 
 def _view_extent(clip):
@@ -151,23 +153,6 @@ class Renderer(Protocol):
     def release(self) -> None: ...
 
 
-def GLRenderer(scene, width: int, height: int, ctx=None, units=None, display=None,  # noqa: N802
-               path: str | None = None) -> "BaseRenderer":
-    """The renderer of ``scene`` on ``ctx`` (a new context when None, released with the
-    renderer) for GL ``path`` (default ``OCC_GL``, else the best the context has): a
-    :class:`~core.gl.renderer_43.Renderer43` or :class:`~core.gl.renderer_41.Renderer41`.
-    A factory named as the class it was, so call sites construct it as before."""
-    from .renderer_41 import Renderer41
-    from .renderer_43 import Renderer43
-    check_resolution((width, height), display)    # before a context is made
-    own = ctx is None
-    ctx = create_context() if own else ctx
-    cls = {"4.3": Renderer43, "4.1": Renderer41}[choose_path(ctx, path)]
-    r = cls(scene, width, height, ctx=ctx, units=units, display=display)
-    r.own_ctx = own
-    return r
-
-
 class BaseRenderer:
     """The scene on the GPU: depth drawing at the display resolution, queries and ID
     truth at ``width x height`` (the query resolution).  What both GL paths share;
@@ -199,7 +184,6 @@ class BaseRenderer:
         """The vertex and index buffers (written block by block into buffers of their
         final size: no whole-scene or whole-mesh float64 / int64 copy), each unit's
         indirect command, and the objects' matrices."""
-        from ..units import whole_objects
         n = len(scene)
         self.n = n
         self.units = units if units is not None else whole_objects(scene)
@@ -426,7 +410,6 @@ class BaseRenderer:
 
     def _unit_rects(self, units):
         """Query-pixel rectangles of units' camera-relative boxes, rounded outward."""
-        from ..occupancy import project_rects
         boxes = transform_boxes(self.units.local_bounds[units], self.model[self.units.object[units]])
         return project_rects(boxes - self.eye, self.clip, self.width, self.height)[0]
 

@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from ..gl.renderer import GLRenderer
+from ..gl import GLRenderer
 
 
 def _median_ms(fns, repeat):
