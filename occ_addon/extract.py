@@ -821,6 +821,11 @@ class Extractor:
                                or (k is Kind.INSTANCER and self._instancer_stale(o)))}
         for uid, (v, f) in _instanced_geometry(depsgraph, fresh).items():
             o = fresh[uid]
+            if v is UNREAD[0]:                    # kept visible, never an occluder (core.Scene.invalid)
+                self.cache[uid] = Geometry(("unknown", uid), v, f)
+                self.fps[uid] = fingerprint(o, Kind.INSTANCER, {})
+                self.sources[uid] = instanced_sources(o)
+                continue
             # instancer-local (a move is then a matrix), by the same evaluation as the instances
             inv = _inverse(np.array(o.evaluated_get(depsgraph).matrix_world, dtype=np.float64))
             v = v @ inv[:3, :3].T + inv[:3, 3]
@@ -1038,24 +1043,101 @@ def _instanced_geometry(depsgraph, instancers):
     if not instancers:
         return {}
     parts = {uid: [] for uid in instancers}
+    # No mesh of an instance is read while iterating: its object is a temporary, and
+    # reading its mesh there (to_mesh, or the mesh itself) crashed Blender 4.2 in the
+    # middle of the iteration, 4 runs in 6 of workflow seed 5020 (0 in 8 without the
+    # reads).  An instance of a real object is read once from that object's own
+    # evaluated copy, after the iteration (once however many particles show it);
+    # geometry an instancer made itself (geometry nodes' own meshes) is read from its
+    # evaluated geometry (:func:`_made_geometry`; Blender 4.2 has no such API: left out
+    # there, an occluder fewer, never a false hide: the instancer itself is never hidden).
+    sources = {}                                     # source uid -> (original, [(owner, matrix)])
+    unknown = set()
     for inst in depsgraph.object_instances:
         if not inst.is_instance or inst.parent is None:
             continue
-        owner = ident(inst.parent.original)
+        instancer = inst.parent.original
+        owner = ident(instancer)
         ob = inst.object
         if owner not in parts or ob.type not in GEOMETRY_TYPES or ob.display_type not in SOLID_DISPLAY:
             continue
-        v, f = mesh_arrays(ob)
         m = np.array(inst.matrix_world, dtype=np.float64)
-        parts[owner].append((v @ m[:3, :3].T + m[:3, 3], f))
-    out = {}
+        source = ob.original
+        if source is not None and source != instancer:
+            sources.setdefault(ident(source), (source, []))[1].append((owner, m))
+        elif not MADE_READABLE:
+            unknown.add(owner)                       # geometry it made, not to be read here
+    for source, uses in sources.values():
+        evaluated = source.evaluated_get(depsgraph)
+        if not evaluated.is_evaluated:
+            continue                                 # not in this depsgraph: what it draws is unknown
+        v, f = mesh_arrays(evaluated)
+        for owner, m in uses:
+            parts[owner].append((v @ m[:3, :3].T + m[:3, 3], f))
+    for uid, obj in instancers.items():
+        evaluated = obj.evaluated_get(depsgraph)
+        if MADE_READABLE and evaluated.display_type in SOLID_DISPLAY:
+            parts[uid] += _made_geometry(evaluated)
+    out = {uid: UNREAD for uid in unknown}
     for uid, pieces in parts.items():
+        if uid in out:
+            continue
         base, vs, fs = 0, [], []
         for v, f in pieces:
             vs.append(v)
             fs.append(f.astype(np.int64) + base)
             base += len(v)
         out[uid] = (np.concatenate(vs), np.concatenate(fs)) if pieces else _EMPTY
+    return out
+
+
+MADE_DEPTH = 8          # instances of instances an instancer's own geometry is followed through
+# Whether Blender gives an instancer's own geometry after evaluation (4.3 on); before
+# (4.2), reading those meshes crashed Blender (see _instanced_geometry): such an
+# instancer's geometry is UNREAD (a NaN vertex), which the engine keeps visible and never draws as
+# an occluder (core.Scene.invalid), so it is never hidden nor reported never visible.
+MADE_READABLE = hasattr(bpy.types.Object, "evaluated_geometry")
+UNREAD = (np.full((1, 3), np.nan, dtype=np.float32), np.zeros((1, 3), dtype=np.int32))
+
+
+def _made_geometry(evaluated):
+    """World-space ``[(v, f)]`` of the meshes geometry nodes made and instanced on the
+    evaluated object ``evaluated`` (its instances of other objects and collections are
+    the depsgraph iteration's), read from its evaluated geometry after the evaluation,
+    each mesh once however often it is instanced.  Empty where Blender has no
+    ``Object.evaluated_geometry`` (4.2) or the instances carry no transforms."""
+    if not hasattr(evaluated, "evaluated_geometry"):
+        return []
+    out = []
+    stack = [(evaluated.evaluated_geometry(), np.array(evaluated.matrix_world, dtype=np.float64), 0)]
+    while stack:
+        geometry, world, depth = stack.pop()
+        points = geometry.instances_pointcloud()
+        if points is None or not len(points.points):
+            continue
+        index, transform = points.attributes.get(".reference_index"), points.attributes.get("instance_transform")
+        if index is None or transform is None:
+            continue                                          # nothing says where they stand: left out
+        n = len(points.points)
+        which = np.zeros(n, dtype=np.int32)
+        index.data.foreach_get("value", which)
+        t = np.zeros(n * 16, dtype=np.float32)
+        transform.data.foreach_get("value", t)
+        t = t.reshape(n, 4, 4).transpose(0, 2, 1).astype(np.float64)    # stored by columns
+        for r, ref in enumerate(geometry.instance_references()):
+            if not isinstance(ref, bpy.types.GeometrySet):
+                continue                                      # an object or a collection: iterated
+            at = np.flatnonzero(which == r)
+            if not len(at):
+                continue
+            mesh = ref.mesh
+            v, f = _read_mesh(mesh) if mesh is not None else _EMPTY
+            for k in at.tolist():
+                m = world @ t[k]
+                if len(f):
+                    out.append((v @ m[:3, :3].T + m[:3, 3], f))
+                if depth < MADE_DEPTH:
+                    stack.append((ref, m, depth + 1))
     return out
 
 

@@ -74,9 +74,23 @@ def workflows(tmp_path_factory):
     return run(["--zip", str(zip_path), "--seeds", ",".join(map(str, SEEDS)), "--steps", str(STEPS)], work, env)
 
 
+def _bpy_version():
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        return tuple(int(x) for x in version("bpy").split(".")[:2])
+    except PackageNotFoundError:                  # no bpy: every test here is skipped anyway
+        return (99, 0)
+
+
 VIEW_SEEDS = (35, 5020)    # with "Hide In: This View": 35 found a view-layer switch and cached
                            # geometry of view-hidden objects wrong before they were fixed; 23 did
                            # too, but its steps since issue 30 crash Blender itself (README Limits)
+if _bpy_version() < (5, 0):
+    # Blender 4.2 segfaults inside its own depsgraph instance iterator at step 137 of
+    # 5020 in about 1 run of 9 (the crash line is the `for inst in
+    # depsgraph.object_instances` of the add-on, or of this harness's own truth when it
+    # comes first; README Limits).  5020 runs on Blender 5.
+    VIEW_SEEDS = (35,)
 
 
 @pytest.fixture(scope="module")

@@ -700,6 +700,11 @@ def truth_visible(w):
             if inst.is_instance and (owner_obj.instance_type in SOURCE_HIDES_INSTANCES
                                      or hair_collection_member(owner_obj, ob.original)):
                 seen_as.append(ob.original.name)       # hiding the source would hide this instance
+            if inst.is_instance and ob.original == owner_obj and not hasattr(bpy.types.Object, "evaluated_geometry"):
+                # Blender 4.2: reading a mesh geometry nodes made, while iterating, crashed
+                # it now and then (seed 5020); the add-on leaves those meshes out there too
+                # (its instancer is kept visible and occludes nothing), so the truth does
+                continue
             mesh = ob.to_mesh()
             if mesh is None:
                 ob.to_mesh_clear()
