@@ -1075,9 +1075,14 @@ def _instanced_geometry(depsgraph, instancers):
         for owner, m in uses:
             parts[owner].append((v @ m[:3, :3].T + m[:3, 3], f))
     for uid, obj in instancers.items():
+        if not MADE_READABLE or obj.type == "EMPTY":   # an empty makes no geometry (5.2 refuses to say)
+            continue
         evaluated = obj.evaluated_get(depsgraph)
-        if MADE_READABLE and evaluated.display_type in SOLID_DISPLAY:
-            parts[uid] += _made_geometry(evaluated)
+        if evaluated.display_type in SOLID_DISPLAY:
+            try:
+                parts[uid] += _made_geometry(evaluated)
+            except (TypeError, RuntimeError):          # Blender cannot give it: unread, kept visible
+                unknown.add(uid)
     out = {uid: UNREAD for uid in unknown}
     for uid, pieces in parts.items():
         if uid in out:
