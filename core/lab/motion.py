@@ -179,7 +179,7 @@ def format_motion(report, title):
                      f"{r['false_negatives']:>5d} {r['steps_late']:>5d} {100 * r['held_share']:>7.1f} "
                      f"{r['hidden_mean']:>8.1f} {r['ideal_mean']:>8.1f} {ratio:>8.2f} {r['pass_ms_median']:>8.1f}")
     lines.append("drawn: steps Blender redraws (a pass holds its main thread); late: steps drawn outside the "
-                 "set's envelope (a first step from rest beyond the rest envelope)")
+                 "set's envelope (a motion's first step beyond the rest envelope, a pass slower than the last)")
     lines.append("held %: of the objects the truth does not see, the share hidden on screen, over the steps "
                  "drawn; tris/vfc: triangles drawn against Blender's frustum culling alone")
     return "\n".join(lines)
