@@ -113,26 +113,27 @@ def replay(culler, views, policy=None, latency_s=None):
         return ~r.visible, (latency_s if latency_s is not None else ms / 1e3)
 
     pass_ms, rows = [], []
-    hidden, took = run(views[0], policy.rest(culler.scene_size))    # the view at rest: hidden before it moves
-    shown = (views[0], policy.rest(culler.scene_size))
+    rest = policy.rest(culler.scene_size)
+    hidden, took = run(views[0], rest)           # the view at rest: hidden before it moves
+    shown = (views[0], rest)                     # the view and envelope the hidden set holds for
     now, k = 0.0, 0
     while k < len(views):
         view = views[k]
         tracker.observe(view, now)
         truth = culler.truth(view)
         drawn = frustum_mask(view, bounds)
-        on_screen = hidden if shown is not None else np.zeros(len(truth), dtype=bool)
         # drawn outside the set's envelope: the guard runs before a redraw but cannot change
-        # what that redraw draws, so a first step from rest bigger than the rest envelope shows
-        # the set one frame late (the only place a false negative may come from)
-        late = shown is not None and not shown[1].holds(shown[0], view)
-        rows.append({"step": k, "late": late, "false_negatives": int((truth & on_screen).sum()),
-                     "hidden": int(on_screen.sum()), "held": int((on_screen & ~truth).sum()),
-                     "ideal": int((~truth).sum()), "culling": bool(on_screen.any()),
-                     "triangles": int(tris[drawn & ~on_screen].sum()), "triangles_vfc": int(tris[drawn].sum())})
+        # what that redraw draws (a motion's first step beyond the rest envelope, or a pass
+        # slower than the last, whose time sized its envelope): the only steps where a
+        # false negative may come from
+        late = not shown[1].holds(shown[0], view)
+        rows.append({"step": k, "late": late, "false_negatives": int((truth & hidden).sum()),
+                     "hidden": int(hidden.sum()), "held": int((hidden & ~truth).sum()),
+                     "ideal": int((~truth).sum()), "culling": bool(hidden.any()),
+                     "triangles": int(tris[drawn & ~hidden].sum()), "triangles_vfc": int(tris[drawn].sum())})
         # after this redraw: the guard saw a view about to leave the envelope
-        if shown is not None and not tracker.safe(policy, shown[0], shown[1], view):
-            envelope = tracker.envelope(policy, pass_ms[-1] / 1e3, culler.scene_size)
+        if not tracker.safe(policy, shown[0], shown[1], view):
+            envelope = tracker.envelope(policy, took, culler.scene_size)    # live: the last pass's time
             culled, took = run(view, envelope)
             hidden = hidden & culled                      # a pass during motion hides nothing new
             shown = (view, envelope)
