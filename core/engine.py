@@ -129,6 +129,7 @@ class Culler:
     def _build(self, scene, ctx, previous=None):
         t = time.perf_counter()
         self.scene = scene
+        self.envelope_occluders = None     # what the next envelope pass draws (None: every object)
         self.units = make_units(scene, self.hierarchy_builder, *self.chunking, cache=self.chunk_cache)
         self.scene_size = _scene_size(scene.bounds)
         self._warn_invalid()
@@ -228,6 +229,7 @@ class Culler:
         """A fresh pass is asked (a click, a camera cut, a scene edit): the strategy drops
         what it learnt that could cost accuracy (:meth:`core.cull.Strategy.forget`), or,
         with ``everything``, all of it (the next pass is a new engine's first)."""
+        self.envelope_occluders = None
         if everything:
             self.strategy.reset()
         else:
@@ -248,6 +250,8 @@ class Culler:
         # never drawn (see unit_bounds); identity keeps NaN out of the GPU's arrays
         self.renderer.set_matrices(idx, np.where(bad[:, None, None], np.eye(4), m))
         self.strategy.moved(idx)          # what was visible before the move proves nothing now
+        if self.envelope_occluders is not None:
+            self.envelope_occluders[idx] = True     # a moved object may stand in front now
         if self.hierarchy is not None:
             self.hierarchy.refit(self.unit_bounds())
 
@@ -290,6 +294,8 @@ class Culler:
         when no envelope is given)."""
         n = len(self.scene)
         if envelope is not None or lights:
+            if fresh:
+                self.envelope_occluders = None
             return self._envelope_cull(camera, (0.0, 0.0) if envelope is None else envelope, lights)
         if fresh:
             self.strategy.reset()
@@ -312,7 +318,9 @@ class Culler:
     def _envelope_cull(self, camera, envelope, lights=None):
         if not isinstance(envelope, Envelope):
             envelope = Envelope(*envelope)
-        state, stats = envelope_pass(self, camera, envelope, lights=lights)
+        state, stats = envelope_pass(self, camera, envelope, lights=lights, occluders=self.envelope_occluders)
+        # the next envelope pass draws as occluders only what this one did not prove hidden
+        self.envelope_occluders = state != Visibility.OCCLUDED
         self._count(state, stats)
         return CullResult(state, stats, np.zeros((0, 0), bool))
 

@@ -259,18 +259,20 @@ def _jumps(z, ok, tan_px, distance, w_tol):
     return out
 
 
-def extended_depth(ids, depth, camera, envelope, near_eff=0.0):
+def extended_depth(depth, camera, envelope, near_eff=0.0):
     """Per pixel, the farthest depth behind which every ray from the envelope is
     blocked, ``(s, s) float64`` view-space distance along the axis (``inf``: open).
 
-    ids, depth: the ID and window-depth images from :meth:`GLRenderer.ids_and_depth`
-    of ``camera`` (the envelope's square view).  ``near_eff``: surfaces nearer than
-    this cover nothing (an eye of the envelope may clip them with its near plane)."""
+    depth: the window-depth image of :meth:`GLRenderer.envelope_depth` from ``camera``
+    (the envelope's square view; 1 = nothing drawn).  ``near_eff``: surfaces nearer
+    than this cover nothing (an eye of the envelope may clip them with its near plane).
+    The reference of :mod:`core.gl.gpuenvelope`, which computes the same in the same
+    precision and order."""
     near, far, tan_half = _lens(camera)
-    rows, cols = ids.shape
+    rows, cols = depth.shape
     s = min(rows, cols)
     d = depth.astype(np.float64)                       # float64 here: 1/z steps are compared below
-    ok = (ids >= 0) & (d < 1.0)
+    ok = d < 1.0
     ndc = 2.0 * d - 1.0
     with np.errstate(divide="ignore", invalid="ignore"):
         z = np.where(ok, 2.0 * near * far / (far + near - ndc * (far - near)), np.inf)
@@ -281,7 +283,7 @@ def extended_depth(ids, depth, camera, envelope, near_eff=0.0):
     dt = 2.0 * tan_half / rows                          # square pixels in tangent units
     cy = (np.arange(rows) + 0.5) * dt - tan_half
     cx = (np.arange(cols) + 0.5) * dt - 0.5 * cols * dt
-    t = np.hypot(cx[None, :], cy[:, None]).astype(np.float32)
+    t = np.sqrt(cx[None, :] * cx[None, :] + cy[:, None] * cy[:, None]).astype(np.float32)
     tan_px = (dt / (1.0 + t * t)).astype(np.float32)   # angle of one pixel there, radians (at most)
     brk = ~ok
     if envelope.distance > 0.0:
@@ -477,7 +479,7 @@ class _Tester:
     extended depth image and the big polygons (built once a pass, asked twice: the
     objects' units, then the shadows of those found hidden)."""
 
-    def __init__(self, culler, camera, envelope, height, stats):
+    def __init__(self, culler, camera, envelope, height, stats, occluders=None):
         self.culler, self.camera, self.envelope = culler, camera, envelope
         self.eye = camera.eye
         self.view = self.ext = self.levels = None
@@ -502,12 +504,20 @@ class _Tester:
         out_units, _ = classify(planes_from_matrix(self.view.render.relative_view_projection()), rel)
         shown = np.zeros(len(scene), dtype=bool)
         shown[culler.units.object[~out_units]] = True
+        if occluders is not None:
+            shown &= occluders
         objects = np.flatnonzero(shown & ~scene.invalid)
+        stats.envelope_occluders = int(len(objects))
         w, h = self.view.size
-        ids, depth = culler.renderer.ids_and_depth(self.view.render, (w, h), objects)
-        stats.gl_calls = culler.renderer.counters["gl_calls"]
-        stats.blocking_reads = culler.renderer.counters["blocking_reads"]
-        self.ext = extended_depth(ids, depth, self.view.render, envelope, self.near_eff)
+        renderer = culler.renderer
+        tex = renderer.envelope_depth(self.view.render, (w, h), objects)
+        gpu = renderer.gpu_envelope()
+        if gpu is not None:
+            self.ext = gpu.extended_depth(tex, _lens(self.view.render), envelope, self.near_eff, HALF_SIZES)
+        else:
+            self.ext = extended_depth(renderer.read_texture_depth(tex), self.view.render, envelope, self.near_eff)
+        stats.gl_calls = renderer.counters["gl_calls"]
+        stats.blocking_reads = renderer.counters["blocking_reads"]
         (x0, y0), (x1, y1) = self.view.lo, self.view.hi
         self.levels = _pyramid(self.ext[y0:y1 + 1, x0:x1 + 1])   # the cull frustum's: rectangles read no margin
         stats.query_rect_pixels = int(w * h)
@@ -541,18 +551,26 @@ class _Tester:
         return state
 
 
-def envelope_pass(culler, camera, envelope, display=None, lights=None):
+def envelope_pass(culler, camera, envelope, display=None, lights=None, occluders=None):
     """States ``(n,) uint8`` and stats of the objects of ``culler``'s scene for every
     view of ``envelope`` around ``camera`` (see the module doc).  ``lights``
     (:class:`core.lights.Light`): an object stays VISIBLE while its shadow from one
     of them may fall on something seen (its shadow volume's box is tested as an
-    object's box is; :func:`core.lights.shadow_boxes`)."""
+    object's box is; :func:`core.lights.shadow_boxes`).
+
+    ``occluders``: ``(n,) bool``, the objects drawn into the envelope's image (default
+    every one; the engine passes what its last envelope pass did not prove hidden).
+    Any subset is sound: the proofs use only surfaces that were drawn, and every drawn
+    surface is real; an object left out only lets what stands behind it show, so the
+    pass hides less, never more.  An object proven hidden from every view of the last
+    envelope adds no first-hit pixel from a view inside it, so leaving it out costs
+    nothing there and saves most of the draw (the city: 0.32 s of 1.1 s)."""
     t0 = time.perf_counter()
     scene = culler.scene
     n = len(scene)
     stats = PassStats()
     height = (display or culler.display or culler.resolution)[1]
-    tester = _Tester(culler, camera, envelope, height, stats)
+    tester = _Tester(culler, camera, envelope, height, stats, occluders)
     valid_units = ~scene.invalid[culler.units.object]
     unit_state = tester.states(culler.unit_bounds())
     unit_state[~valid_units] = Visibility.VISIBLE

@@ -8,15 +8,18 @@ Modules: :mod:`.session` (the engine's lifecycle and a pass), :mod:`.cameras`,
 (the change bus), and the faces: :mod:`.operators`, :mod:`.panel`, :mod:`.overlay`, :mod:`.props`.
 """
 
+import sys
+
 import bpy
 
-from . import handlers, live, localview, operators, panel, props, visibility
+from . import handlers, live, localview, operators, panel, props, visibility, worker
 from .session import SESSION
 
 CLASSES = operators.CLASSES + panel.CLASSES
 
 
 def register():
+    worker.guard_operator_calls(sys.modules["bpy.ops"])   # another add-on's operators wait for the engine
     props.register()
     for cls in CLASSES:
         bpy.utils.register_class(cls)
@@ -42,3 +45,4 @@ def unregister():
     for cls in reversed(CLASSES):
         bpy.utils.unregister_class(cls)
     props.unregister()
+    worker.unguard_operator_calls()

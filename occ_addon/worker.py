@@ -112,13 +112,15 @@ class EngineThread:
                 return
             fn, args, kwargs, out = job
             try:
-                value = fn(*args, **kwargs)
+                ok, value = True, fn(*args, **kwargs)
             except BaseException as e:  # handed back to the caller, raised there
-                out._set(False, e)
-            else:
-                out._set(True, value)
-            finally:
-                _GC.ran()
+                ok, value = False, e
+            del fn, args, kwargs, job
+            _GC.ran()
+            # the result last: once a waiter sees it, this thread only goes back to the
+            # queue's wait (see guard_operator_calls)
+            out._set(ok, value)
+            del out, value
 
     def alive(self):
         return self._thread is not None and self._thread.is_alive()
@@ -228,3 +230,53 @@ def quiet():
     Cull built the engine; the core dump in ``BPY_context_member_get``)."""
     for thread in list(_THREADS):
         thread.wait_idle()
+
+
+class _OperatorGuard:
+    """Every operator a Python script calls (``bpy.ops``: another add-on's timer, a user
+    script, this add-on) first waits until the engine thread is idle.
+
+    Blender 4.2 and 5.0 read a ``temp_override``'s dictionary without holding Python's
+    lock inside an operator; any other Python thread running Python then crashes Blender
+    (``tools/override_thread_crash.py``: plain bpy and a plain ``threading.Thread``,
+    every run crashes within the first calls on 4.2 and 5.0.1; 5.2 runs them all).  The
+    engine thread runs Python while it builds or culls, and another add-on's operator
+    cannot be held back otherwise (``tools/override_stress.py``), so the call Blender's
+    ``bpy.ops`` makes (``bpy.ops._op_call``) is wrapped: the wait costs nothing while the
+    engine is idle, and blocks the caller until the engine's job ends while it works.
+    Installed at registration, taken out at unregistration (or, where something wrapped
+    it since, left as a pass-through).  Blender 5.2 has no such call (its operators are
+    functions made in C) and needs none: nothing is wrapped there."""
+
+    def __init__(self, ops_module):
+        self.module = ops_module
+        self.inner = ops_module._op_call
+        self.active = True
+
+    def __call__(self, *args):
+        if self.active:
+            quiet()
+        return self.inner(*args)
+
+
+_GUARD = None
+
+
+def guard_operator_calls(ops_module):
+    """Wrap ``ops_module._op_call`` (``sys.modules["bpy.ops"]``) once: see :class:`_OperatorGuard`."""
+    global _GUARD
+    if _GUARD is not None or not callable(vars(ops_module).get("_op_call")):
+        return                     # Blender 5.2 makes each operator a function of its own: no such call
+    _GUARD = _OperatorGuard(ops_module)
+    ops_module._op_call = _GUARD
+
+
+def unguard_operator_calls():
+    """Take the wrapper out (or turn it into a pass-through where another wrapped it since)."""
+    global _GUARD
+    guard, _GUARD = _GUARD, None
+    if guard is None:
+        return
+    guard.active = False
+    if guard.module._op_call is guard:
+        guard.module._op_call = guard.inner

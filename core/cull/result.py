@@ -61,6 +61,7 @@ class PassStats:
     envelope_distance: float | None = None
     envelope_angle_deg: float | None = None
     envelope_any_roll: bool | None = None
+    envelope_occluders: int | None = None     # objects drawn into the envelope's image
     # the answer
     objects: int = 0
     visible: int = 0

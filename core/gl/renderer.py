@@ -55,7 +55,7 @@ from ..errors import OccError
 from ..occupancy import project_rects
 from ..settings import check_resolution
 from ..units import whole_objects
-from . import shaders
+from . import gpuenvelope, shaders
 from .context import choose_path, create_context
 from .layout import BOX_TRIANGLES  # noqa: F401  (re-exported: the renderer's box triangles)
 from .upload import box_vertices, upload_blocks
@@ -148,7 +148,9 @@ class Renderer(Protocol):
     def finish(self) -> None: ...
     def read_depth(self, display: bool = False) -> np.ndarray: ...
     def object_ids(self, camera, objects=None, display: bool = False) -> np.ndarray: ...
-    def ids_and_depth(self, camera, size, objects=None) -> tuple: ...
+    def envelope_depth(self, camera, size, objects=None): ...
+    def read_texture_depth(self, tex) -> np.ndarray: ...
+    def gpu_envelope(self): ...
     def visible_truth(self, camera, display: bool = False) -> np.ndarray: ...
     def release(self) -> None: ...
 
@@ -255,6 +257,7 @@ class BaseRenderer:
             self.display_tex = self.depth_tex
             self.fbo = ctx.framebuffer(depth_attachment=self.depth_tex)
         self.id_fbos = {}
+        self.depth_fbos = {}          # (w, h) -> a framebuffer with a depth texture only (the envelope's)
 
     def _init_frame_state(self):
         self.eye = np.zeros(3)
@@ -495,15 +498,34 @@ class BaseRenderer:
         fbo = self._id_pass(camera, self.display if display else (self.width, self.height), objects)
         return self._read_ids(fbo)
 
-    def ids_and_depth(self, camera, size, objects=None) -> tuple:
-        """ID buffer and window depth from ``camera`` at ``size = (w, h)``: ``(h, w)
-        int64`` (-1 = none) and ``(h, w) float32`` in [0, 1] (1 = nothing drawn), row 0
-        at the bottom.  The envelope pass (:mod:`core.envelope`) erodes these."""
-        fbo = self._id_pass(camera, size, objects)
-        ids = self._read_ids(fbo)
-        raw = fbo.read(components=1, attachment=-1, dtype="f4", alignment=1)
+    def envelope_depth(self, camera, size, objects=None):
+        """The depth of ``objects`` (default all) from ``camera`` at ``size = (w, h)``,
+        drawn into a depth texture of its own (one per size, kept): the envelope pass's
+        image (:mod:`core.envelope`), a pixel covered where its depth is below 1 (the
+        clear).  Returns the texture (``compare_func`` off: shaders fetch depths)."""
+        self.begin_frame(camera)
+        w, h = (int(size[0]), int(size[1]))
+        fbo = self.depth_fbos.get((w, h))
+        if fbo is None:
+            tex = self.ctx.depth_texture((w, h))
+            tex.compare_func = ""
+            fbo = self.depth_fbos[(w, h)] = self.ctx.framebuffer(depth_attachment=tex)
+        self._draw_into(fbo, objects, ids=False)
+        return fbo.depth_attachment
+
+    def gpu_envelope(self):
+        """The envelope's image work on this renderer's GPU
+        (:class:`~core.gl.gpuenvelope.GpuEnvelope`), or None (the 4.1 path, ``OCC_ENVELOPE``,
+        a software rasteriser, or shaders the driver refuses): then
+        :func:`core.envelope.extended_depth` does it in numpy."""
+        return gpuenvelope.for_renderer(self)
+
+    def read_texture_depth(self, tex) -> np.ndarray:
+        """A depth texture's window depths, ``(h, w) float32`` in [0, 1], row 0 at the bottom."""
+        w, h = tex.size
+        data = tex.read(alignment=1)
         self.count_gl(1, reads=1)
-        return ids, np.frombuffer(raw, dtype=np.float32).reshape(ids.shape)
+        return np.frombuffer(data, dtype=np.float32).reshape(h, w)
 
     def _id_pass(self, camera, size, objects):
         """Draw ``objects`` (default all) with their ids from ``camera`` into an
@@ -515,6 +537,11 @@ class BaseRenderer:
             fbo = self.ctx.framebuffer(color_attachments=[self.ctx.texture((w, h), 1, dtype="u4")],
                                        depth_attachment=self.ctx.depth_renderbuffer((w, h)))
             self.id_fbos[(w, h)] = fbo
+        self._draw_into(fbo, objects, ids=True)
+        return fbo
+
+    def _draw_into(self, fbo, objects, ids):
+        """Clear ``fbo`` and draw ``objects`` (default all) into it, test ``<``, both faces."""
         fbo.clear(depth=1.0)
         self._state.clear()                                # the clear re-bound a framebuffer
         self.use_target(fbo, "<", False)
@@ -524,8 +551,7 @@ class BaseRenderer:
             keep[np.asarray(objects, dtype=np.int64)] = True
             units = units[keep[self.units.object]]
         if len(units):
-            self._draw_units(units, ids=True)
-        return fbo
+            self._draw_units(units, ids=ids)
 
     def _read_ids(self, fbo):
         w, h = fbo.size
@@ -559,7 +585,7 @@ class BaseRenderer:
                 *self.box_progs.values(), self.fbo, self.query_fbo, self.depth_tex, *self._path_objects()]
         if self.reduces:
             objs += [self.reduce_vao, self.reduce_prog, self.reduce_fbo, self.display_tex]
-        for fbo in self.id_fbos.values():
+        for fbo in [*self.id_fbos.values(), *self.depth_fbos.values()]:
             objs += [fbo, *fbo.color_attachments, fbo.depth_attachment]
         # Unbind our framebuffer first: moderngl re-binds "the current one" after
         # creating the next, and a deleted name there is GL_INVALID_OPERATION.

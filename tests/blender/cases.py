@@ -39,7 +39,7 @@ CASES = (policy.user_hidden_objects, policy.dynamic_objects, cameras.camera_as_r
          localview.toggle_waits_for_engine,
          localview.failed_pass_keeps_selection)
 # Cases whose failure was a crash of Blender: each runs only when named (a process of its own).
-ALONE = (analysis.undo_after_collect, session.hair_undo_two_layers)
+ALONE = (analysis.undo_after_collect, session.hair_undo_two_layers, session.foreign_overrides_during_a_job)
 
 
 def main():

@@ -86,4 +86,6 @@ CHECKS = {
 ALONE = {"undo_after_collect": ["undo_after_collect_no_dangling", "undo_after_collect_keeps_last_edit",
                                 "redo_after_collect_no_dangling"],
          "hair_undo_two_layers": ["hair_undo_cull_truth", "hair_undo_cull_after_undo_truth",
-                                  "hair_undo_two_layers_no_crash", "hair_undo_two_layers_truth"]}
+                                  "hair_undo_two_layers_no_crash", "hair_undo_two_layers_truth"],
+         "foreign_overrides_during_a_job": ["foreign_override_no_crash", "foreign_override_guard_where_needed",
+                                            "foreign_override_waits_for_the_job"]}

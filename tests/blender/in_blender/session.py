@@ -3,6 +3,7 @@ edits seen (reported or not), modal steps, a click's fresh answer, query and dis
 resolutions."""
 
 import os
+import sys
 
 import bpy
 import numpy as np
@@ -502,3 +503,45 @@ def hair_undo_two_layers():
     check("hair_undo_two_layers_no_crash", steps[0][1] and steps[1][1] == steps[2][1] == steps[3][1] == {"FINISHED"},
           steps)
     promise("hair_undo_two_layers_truth")
+
+
+def foreign_overrides_during_a_job():
+    """Another add-on's operators, called through ``temp_override`` while the engine
+    thread runs Python: Blender 4.2 and 5.0 crash at once without the add-on's guard
+    (they read the override's dictionary without the GIL; ``tools/override_thread_crash.py``
+    shows it with a plain thread, no add-on); each call now waits for the engine's job.
+    Blender 5.2 makes operators functions of their own and needs no guard."""
+    import time
+
+    new_scene()
+    for i in range(20):
+        box(f"b{i}", (2 + i, -1, 0), (2.5 + i, 1, 2))
+    update()
+    cull()                                             # the engine thread exists
+    worker = addon("worker")
+    ops = sys.modules["bpy.ops"]
+    wrapped = "_op_call" in vars(ops)
+    guarded = isinstance(vars(ops).get("_op_call"), getattr(worker, "_OperatorGuard", ()))
+    session = addon("session").SESSION
+
+    def busy(seconds):
+        """Python on the engine thread: allocations and reference counts, as a build makes."""
+        end = time.perf_counter() + seconds
+        while time.perf_counter() < end:
+            junk = [{"k": i, "v": [i] * 8} for i in range(500)]
+            del junk
+        return True
+
+    win = bpy.context.window_manager.windows[0]
+    waited, calls = [], 0
+    for k in range(12):
+        job = session.worker.submit(busy, 0.15)
+        ob = bpy.data.objects[f"b{k % 20}"]
+        with bpy.context.temp_override(window=win, selected_objects=[ob], selected_editable_objects=[ob],
+                                       active_object=ob, object=ob):
+            (bpy.ops.object.duplicate, bpy.ops.object.shade_smooth, bpy.ops.object.select_all)[k % 3]()
+        calls += 1
+        waited.append(job.done())
+    check("foreign_override_no_crash", calls == 12, calls)
+    check("foreign_override_guard_where_needed", guarded == wrapped, (wrapped, guarded))
+    check("foreign_override_waits_for_the_job", all(waited) or not wrapped, waited)
