@@ -233,29 +233,33 @@ def _jumps(z, ok, tan_px, distance, w_tol):
     an eye ``D`` away that slips between two surfaces ``dz`` apart at distance ``r``
     drifts ``D dz / r^2`` radians across them, under half a pixel here (both rules
     judge from pixel centres: the module doc's sampling limit)."""
-    w = np.where(ok, 1.0 / np.where(ok, z, 1.0), np.nan).astype(np.float32)
+    with np.errstate(divide="ignore"):
+        w = np.where(ok, 1.0 / np.where(ok, z, 1.0), np.nan).astype(np.float32)
     out = np.zeros(z.shape, dtype=bool)
     for axis in (0, 1):
-        a = np.moveaxis(w, axis, 0)
+        a = np.swapaxes(w, 0, axis)
+        okx = np.swapaxes(ok, 0, axis)
+        both = okx[1:] & okx[:-1]                  # a pair with an empty (or too near) pixel: a jump
         # between pixel k and k + 1; float32: ~1e-7 relative, far below w_tol
-        step = a[1:] - a[:-1]
-        padded = np.pad(step, ((1, 1), (0, 0)), constant_values=np.nan)
+        padded = np.full((a.shape[0] + 1,) + a.shape[1:], np.nan, dtype=np.float32)
+        step = padded[1:-1]
+        np.subtract(a[1:], a[:-1], out=step)
         before, after = padded[:-2], padded[2:]               # the steps from k - 1 and to k + 2
         with np.errstate(invalid="ignore"):
             sloped = (step >= np.fmin(before, after) - w_tol) & (step <= np.fmax(before, after) + w_tol)
-        # the rest (few: edges, empty pixels) may still pass for a slope by their drift
-        kk, jj = np.nonzero(~sloped)
-        zn = np.moveaxis(z, axis, 0)
-        px = np.moveaxis(tan_px, axis, 0)
+        # the rest of the pairs of two surfaces (few: edges) may still pass for a slope by their drift
+        jump = ~both
+        kk, jj = np.nonzero(both & ~sloped)
+        zn = np.swapaxes(z, 0, axis)
+        px = np.swapaxes(tan_px, 0, axis)
         z0, z1 = zn[kk, jj], zn[kk + 1, jj]
         near = np.minimum(z0, z1)
         ang = np.minimum(px[kk, jj], px[kk + 1, jj])
-        with np.errstate(invalid="ignore"):
-            small = np.abs(z1 - z0) <= 0.5 * ang * near * near / max(distance, tol.tiny)
-        jump = ~small                                            # inf - inf (empty pixels) is NaN: a jump
-        o = np.moveaxis(out, axis, 0)
-        o[kk[jump], jj[jump]] = True
-        o[kk[jump] + 1, jj[jump]] = True
+        small = np.abs(z1 - z0) <= 0.5 * ang * near * near / max(distance, tol.tiny)
+        jump[kk[~small], jj[~small]] = True
+        o = np.swapaxes(out, 0, axis)
+        o[:-1] |= jump
+        o[1:] |= jump
     return out
 
 
