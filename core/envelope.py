@@ -296,20 +296,21 @@ def extended_depth(depth, camera, envelope, near_eff=0.0):
         brk = brk | _jumps(z, ok, tan_px, envelope.distance, w_tol)
     guard = 1.0 + tol.near_guard_rel
     ext = np.full(z.shape, np.inf)
-    b = brk.astype(np.uint8)
     zlo = np.where(ok, -z, -np.inf).astype(np.float32)  # max of -z: the nearest depth
-    zhi = np.where(ok, z, np.inf).astype(np.float32)
+    # the farthest depth, +inf at a break: a window's max is +inf exactly when it holds one
+    # (past the border too: unknown there); a pixel is covered only from a window without
+    zhi = np.where(brk, np.inf, z).astype(np.float32)
     open_ = np.ones(z.shape, dtype=bool)
     for h in HALF_SIZES:                               # each window from the one before
         if h >= s:
             break
-        b = _grow(b, h, np.uint8(1))                   # past the border: unknown, a break
         zlo = _grow(zlo, h, np.inf)
         zhi = _grow(zhi, h, np.inf)
-        free = open_ & (b == 0)
+        free = open_ & (zhi != np.inf)
         if not free.any():
             break                                      # windows only grow: no pixel can be covered now
-        cand = np.flatnonzero((free & (-zlo > envelope.distance * guard)).ravel())
+        # -zlo > D guard, without a negated copy (negation is exact)
+        cand = np.flatnonzero((free & (zlo < -np.float32(envelope.distance * guard))).ravel())
         if not len(cand):
             continue
         nearest = -zlo.ravel()[cand]
