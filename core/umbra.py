@@ -165,13 +165,19 @@ def hidden_by_polygons(boxes, polys, distance, rot=None, near_eff=0.0):
             break
         s = int(open_[-1]) + 1
         b, p = bi[open_], pi[open_]
-        x = cs[b][:, :, None, :]                               # (q, 8, 1, 3)
-        a0, a1 = e0[p][:, None], e1[p][:, None]                # (q, 1, 4, 3)
-        mvec = np.cross(a1 - a0, x - a0)                       # normal of the plane through x and the edge
-        mlen = np.linalg.norm(mvec, axis=-1)
-        side = np.einsum("qcej,qcej->qce", mvec, centre[p][:, None, None] - a0)
-        eye = np.einsum("qcej,qcej->qce", mvec, -a0)          # the eye (origin) against that plane
-        degenerate = np.all(a1 == a0, axis=-1)                 # a triangle's repeated corner
+        # per pair: the box's corners x (q, 8, 1) against the polygon's edges a0 -> a1
+        # (q, 1, 4), component by component (np.cross's own arithmetic, without its copies)
+        x = [cs[b][:, :, None, j] for j in range(3)]
+        a0 = [e0[p][:, None, :, j] for j in range(3)]
+        ed = [e1[p][:, None, :, j] - a0[j] for j in range(3)]
+        dx = [x[j] - a0[j] for j in range(3)]
+        # the normal of the plane through x and the edge: edge x (x - a0)
+        m = [ed[1] * dx[2] - ed[2] * dx[1], ed[2] * dx[0] - ed[0] * dx[2], ed[0] * dx[1] - ed[1] * dx[0]]
+        mlen = np.sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2])
+        c = centre[p][:, None, None, :]
+        side = sum(m[j] * (c[..., j] - a0[j]) for j in range(3))
+        eye = -sum(m[j] * a0[j] for j in range(3))            # the eye (origin) against that plane
+        degenerate = (ed[0] == 0.0) & (ed[1] == 0.0) & (ed[2] == 0.0)   # a triangle's repeated corner
         with np.errstate(invalid="ignore", divide="ignore"):
             dist = np.where(side > 0.0, eye, -eye) / mlen
         okp = degenerate | ((mlen > 0.0) & (side != 0.0) & (dist >= margin[p][:, None, None]))
