@@ -24,10 +24,11 @@ overridden; ``ed.undo_push``; ``wm.save_as_mainfile(copy=True)``.  Then the Cull
 step (``occ.cull``) and every other cycle ``occ.restore``.
 
 What it covers: the operators run on Blender's main thread while the engine thread
-runs Python (the build, a cull), the case of Blender's crash that ``worker.quiet``
-avoids for the add-on's own operators (README Limits: a save during a build).  The
-add-on cannot hold back another add-on's timer: a crash here would be Blender's (or
-the add-on's thread), and no crash in N calls is evidence, not proof.  It does not
+runs Python (the build, a cull): Blender 4.2 and 5.0 read a ``temp_override``'s
+dictionary without Python's lock there and crash when another Python thread runs
+(``tools/override_thread_crash.py``, no add-on).  The add-on's guard on ``bpy.ops``
+(``worker._OperatorGuard``) makes every such call wait for the engine's job, so the
+``during`` counts are 0; no crash in N calls is evidence, not proof.  It does not
 cover a real window's event loop (timers and modal handlers interleaved by Blender,
 redraws, draw handlers): no Blender binary or X server here.  Prints, per operator,
 calls, calls made while a job ran (``during``: not done before the call and not
