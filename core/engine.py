@@ -322,7 +322,7 @@ class Culler:
         # the next envelope pass draws as occluders only what this one did not prove hidden
         self.envelope_occluders = state != Visibility.OCCLUDED
         self._count(state, stats)
-        return CullResult(state, stats, np.zeros((0, 0), bool))
+        return CullResult(state, stats, np.zeros((0, 0), bool), envelope)
 
     def scene_bounds(self) -> NDArray[np.float64]:
         """``(2, 3)``: the box of every valid object (where any shadow can fall)."""

@@ -56,8 +56,4 @@ class LastPass:
 def shown_by(result: CullResult, camera: Camera) -> Shown | None:
     """The view and envelope a pass's hidden set holds for, or None when the pass
     was made for no envelope (it holds for its own view only)."""
-    stats = result.stats
-    if stats.envelope_distance is None:
-        return None
-    any_roll = True if stats.envelope_any_roll is None else stats.envelope_any_roll
-    return Shown(camera, Envelope(stats.envelope_distance, stats.envelope_angle_deg, any_roll))
+    return None if result.envelope is None else Shown(camera, result.envelope)

@@ -255,3 +255,13 @@ def test_the_polygon_proof_does_not_depend_on_order_or_chunks(ctx, monkeypatch):
             m.setattr(umbra, "PAIR_CHUNK", 7)
             assert np.array_equal(hidden_by_polygons(boxes, polys[rng.permutation(len(polys))], *rest, **k), want)
     assert calls and proved > 0
+
+
+def test_a_result_carries_the_envelope_it_holds_for(ctx):
+    scene, cams, _ = scenes.random_city(2, 60)
+    with Culler(scene, resolution=(64, 36), ctx=ctx) as c:
+        assert c.cull(cams[0]).envelope is None                    # a point pass: its own view only
+        env = Envelope(0.5, 5.0, any_roll=False)
+        assert c.cull(cams[0], envelope=env).envelope == env
+        assert c.cull(cams[0], envelope=(0.5, 5.0)).envelope == Envelope(0.5, 5.0)
+        assert c.cull(cams[0], lights=[]).envelope is None        # no lights, no envelope: a point pass

@@ -7,6 +7,7 @@ VISIBLE, OCCLUDED (a query proved it hidden) and VIEW_CULLED (outside the frustu
 
 from dataclasses import dataclass, fields
 from enum import IntEnum
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -81,11 +82,14 @@ STAT_KEYS = tuple(f.name for f in fields(PassStats))[:tuple(f.name for f in fiel
 
 @dataclass
 class CullResult:
-    """Three states per object, the counters of the pass and its occupancy map."""
+    """Three states per object, the counters of the pass and its occupancy map;
+    ``envelope``: the :class:`core.envelope.Envelope` its hidden set holds for (None: a
+    point pass, which holds for its own view only)."""
 
     state: NDArray[np.uint8]
     stats: PassStats
     occupancy: NDArray[np.bool_]
+    envelope: Any = None
 
     @property
     def visible(self) -> NDArray[np.bool_]:
