@@ -18,11 +18,22 @@ policy, with the same tracker, is :mod:`core.lab.motion` (``python -m core motio
 """
 
 from dataclasses import dataclass
+from enum import Enum
 
 import numpy as np
 
 from .camera import view_change
 from .envelope import Envelope
+
+
+class AtRest(Enum):
+    """An envelope named before its scene is known: :meth:`LivePolicy.rest` sizes it from
+    the engine's scene once that is built (a Cull click from the viewport, live mode)."""
+
+    ENVELOPE = "rest"
+
+
+AT_REST = AtRest.ENVELOPE
 
 REST_LOOK_S = 0.05           # a view unchanged for this long between two looks has stopped moving
 MAX_ANGLE_DEG = 30.0         # a wider envelope hides little; a faster turn shows all until it slows

@@ -27,7 +27,7 @@ import numpy as np
 
 from ..core import OccError
 from ..core.camera import camera_cut
-from ..core.motion import MotionTracker
+from ..core.motion import AT_REST, MotionTracker
 from . import bus, overlay, visibility
 from .cameras import camera_for, find_viewport, region_camera, scene_camera, view_state
 from .props import settings_key
@@ -180,7 +180,7 @@ def _tick():
         fresh = _state["dirty_at"] is not None or _is_cut(_state["passed"], camera, display)
         _state.update(changed_at=None, dirty_at=None)
         try:
-            SESSION.cull(context, camera, display, fresh=fresh, envelope="rest")
+            SESSION.cull(context, camera, display, fresh=fresh, envelope=AT_REST)
             track(context)
             _state["passed"] = (camera, display)
             _state["dirty_at"] = None                 # our own pass's updates are not a change

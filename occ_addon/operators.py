@@ -7,6 +7,7 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, IntProperty, StringProperty
 
 from ..core import OccError
+from ..core.motion import AT_REST
 from . import live, localview, visibility
 from .analysis import analysis_steps, link_collection, push_undo, report_path, write_report
 from .cameras import camera_for
@@ -141,7 +142,7 @@ class OCC_OT_cull(Stepped, bpy.types.Operator):
             # too while live: playback and edits move it); live mode (or, without it,
             # showing everything) takes over when the view leaves it
             s = context.scene.occ
-            envelope = "rest" if s.source == "VIEWPORT" or s.live else None
+            envelope = AT_REST if s.source == "VIEWPORT" or s.live else None
             SESSION.reread_transforms()
             SESSION.cull(context, camera, display, fresh=True, progress=progress, restart=True, envelope=envelope)
             live.track(context)

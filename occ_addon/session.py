@@ -18,7 +18,7 @@ import numpy as np
 
 from ..core import Camera, Culler, CullResult, OccError, Visibility
 from ..core.envelope import Envelope
-from ..core.motion import LivePolicy
+from ..core.motion import AT_REST, AtRest, LivePolicy
 from ..core.settings import MAX_RESOLUTION, preset, query_resolution
 from ..core.units import ChunkCache
 from . import identity, localview, policy, shading, visibility
@@ -227,7 +227,7 @@ class Session:
 
     def compute(self, context, camera: Camera, display: Size, fresh: bool = True,
                 progress: Callable | None = None, restart: bool = False,
-                envelope: Envelope | str | None = None, lights: list | None = None) -> tuple[CullResult, list]:
+                envelope: Envelope | AtRest | None = None, lights: list | None = None) -> tuple[CullResult, list]:
         """Visibility from ``camera`` at ``display`` resolution, without hiding anything.
         ``fresh``: the strategy forgets what earlier passes taught it that would cost
         accuracy (a Cull click, a camera cut, analyze, a scene change); only a live
@@ -235,12 +235,12 @@ class Session:
         is a new engine's first pass, whatever came before (a Cull click, an analysis's
         first frame: the same click gives the same answer).  ``progress``: called with
         the steps' :class:`.worker.Progress`.  ``envelope``: hide only what stays hidden
-        while the view moves that far (:mod:`..core.envelope`; "rest": live mode's
+        while the view moves that far (:mod:`..core.envelope`; ``AT_REST``: live mode's
         envelope at rest).  Returns ``(result, the engine's objects)``."""
         return drive(self.compute_steps(context, camera, display, fresh, restart, envelope, lights), progress)
 
     def compute_steps(self, context, camera: Camera, display: Size, fresh: bool = True, restart: bool = False,
-                      envelope: Envelope | str | None = None, lights: list | None = None,
+                      envelope: Envelope | AtRest | None = None, lights: list | None = None,
                       strategy: str | None = None, reuse: bool = False) -> Generator:
         """:meth:`compute` in steps (see :meth:`engine_steps`, also for ``reuse``);
         ``strategy``: this pass's, instead of the scene's setting."""
@@ -250,7 +250,7 @@ class Session:
         culler, objects = yield from self.engine_steps(context, res, strategy or context.scene.occ.strategy,
                                                        verify=fresh or restart, display=shown, reuse=reuse)
         culler.set_options(options)
-        if envelope == "rest":
+        if envelope is AT_REST:
             envelope = POLICY.rest(culler.scene_size)
         lights = lights or None
         if restart:
@@ -285,7 +285,7 @@ class Session:
             picked[0].select_set(False, view_layer=picked[1])
 
     def cull(self, context, camera: Camera, display: Size, fresh: bool = False, progress: Callable | None = None,
-             restart: bool = False, envelope: Envelope | str | None = None,
+             restart: bool = False, envelope: Envelope | AtRest | None = None,
              show_only: bool = False) -> tuple[CullResult, list]:
         """One pass: cull from ``camera`` at ``display`` resolution and apply it.
 

@@ -71,7 +71,9 @@ def main(argv=None):
     sess = session.SESSION
     ctx = bpy.context
     envelope = args.envelope
-    if envelope not in (None, "rest"):
+    if envelope == "rest":
+        envelope = core.motion.AT_REST
+    elif envelope is not None:
         envelope = core.envelope.Envelope.parse(envelope)
     if args.strategy:
         ctx.scene.occ.strategy = args.strategy
@@ -102,7 +104,7 @@ def main(argv=None):
     med = np.median(rows, axis=0)
     n = len(scene) if args.objects is None else min(args.objects, len(scene))
     out = {"scene": args.scene, "strategy": ctx.scene.occ.strategy, "after_edit": args.after_edit,
-           "envelope": None if envelope is None else str(envelope),
+           "envelope": args.envelope,
            "objects": n, "triangles": int(scene.triangle_counts[:n].sum()),
            "display": DISPLAY, "blender": bpy.app.version_string, "first_pass_ms": first,
            "passes": len(rows), "pass_ms_median": med[0], "pass_ms_p95": float(np.percentile(rows[:, 0], 95)),

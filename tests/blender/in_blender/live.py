@@ -120,7 +120,7 @@ def camera_moves_between_ticks():
         scene = build()
         scene.occ.live = guarded                          # the flag only: headless there is no timer
         camera, display = cameras.scene_camera(bpy.context)
-        session.SESSION.cull(bpy.context, camera, display, fresh=True, restart=True, envelope="rest")
+        session.SESSION.cull(bpy.context, camera, display, fresh=True, restart=True, envelope=session.AT_REST)
         hid_any = bool(hidden_by_addon_any())
         bad = []
         for f in range(2, 42):
@@ -131,7 +131,7 @@ def camera_moves_between_ticks():
                 bad.append((f, wrong))
             if guarded and f % 5 == 0:                     # the live timer's pass
                 camera, display = cameras.scene_camera(bpy.context)
-                session.SESSION.cull(bpy.context, camera, display, envelope="rest")
+                session.SESSION.cull(bpy.context, camera, display, envelope=session.AT_REST)
         scene.occ.live = False
         bpy.ops.occ.restore()
         if guarded:
