@@ -222,6 +222,16 @@ def _grow(a, h, fill):
     return _shift_max(_shift_max(a, h, 0, fill), h, 1, fill)
 
 
+NEAREST_GUARD = 1.0 + tol.near_guard_rel   # a window's nearest depth must pass D this many times
+
+
+def slope_tolerance(near, far):
+    """How far two ``1 / z`` steps may differ and still be one slope: 1/z is known to a few
+    steps of the 24-bit depth grid, ``(far - near) / (near far 2^24)`` each (the numpy
+    image's rule and the compute passes')."""
+    return tol.depth_guard_steps * (far - near) / (near * far * 2.0 ** tol.depth_bits)
+
+
 def _jumps(z, ok, tan_px, distance, w_tol):
     """Pixels beside a depth jump that no continuous surface makes.
 
@@ -291,10 +301,8 @@ def extended_depth(depth, camera, envelope, near_eff=0.0):
     tan_px = (dt / (1.0 + t * t)).astype(np.float32)   # angle of one pixel there, radians (at most)
     brk = ~ok
     if envelope.distance > 0.0:
-        # 1/z is known to a few steps of the 24-bit depth grid: (far - near) / (near far 2^24) each
-        w_tol = tol.depth_guard_steps * (far - near) / (near * far * 2.0 ** tol.depth_bits)
-        brk = brk | _jumps(z, ok, tan_px, envelope.distance, w_tol)
-    guard = 1.0 + tol.near_guard_rel
+        brk = brk | _jumps(z, ok, tan_px, envelope.distance, slope_tolerance(near, far))
+    guard = NEAREST_GUARD
     ext = np.full(z.shape, np.inf)
     zlo = np.where(ok, -z, -np.inf).astype(np.float32)  # max of -z: the nearest depth
     # the farthest depth, +inf at a break: a window's max is +inf exactly when it holds one
@@ -518,7 +526,8 @@ class _Tester:
         tex = renderer.envelope_depth(self.view.render, (w, h), objects)
         gpu = renderer.gpu_envelope()
         if gpu is not None:
-            self.ext = gpu.extended_depth(tex, _lens(self.view.render), envelope, self.near_eff, HALF_SIZES)
+            self.ext = gpu.extended_depth(tex, _lens(self.view.render), envelope, self.near_eff, HALF_SIZES,
+                                          slope_tolerance, NEAREST_GUARD)
         else:
             self.ext = extended_depth(renderer.read_texture_depth(tex), self.view.render, envelope, self.near_eff)
         stats.gl_calls = renderer.counters["gl_calls"]

@@ -167,9 +167,10 @@ def hidden_by_polygons(boxes, polys, distance, rot=None, near_eff=0.0):
         b, p = bi[open_], pi[open_]
         # per pair: the box's corners x (q, 8, 1) against the polygon's edges a0 -> a1
         # (q, 1, 4), component by component (np.cross's own arithmetic, without its copies)
-        x = [cs[b][:, :, None, j] for j in range(3)]
-        a0 = [e0[p][:, None, :, j] for j in range(3)]
-        ed = [e1[p][:, None, :, j] - a0[j] for j in range(3)]
+        xb, a0p, a1p = cs[b], e0[p], e1[p]                    # each gathered once
+        x = [xb[:, :, None, j] for j in range(3)]
+        a0 = [a0p[:, None, :, j] for j in range(3)]
+        ed = [a1p[:, None, :, j] - a0[j] for j in range(3)]
         dx = [x[j] - a0[j] for j in range(3)]
         # the normal of the plane through x and the edge: edge x (x - a0)
         m = [ed[1] * dx[2] - ed[2] * dx[1], ed[2] * dx[0] - ed[0] * dx[2], ed[0] * dx[1] - ed[1] * dx[0]]

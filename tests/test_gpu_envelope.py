@@ -5,7 +5,16 @@ import numpy as np
 import pytest
 
 from core import Culler, OccError
-from core.envelope import HALF_SIZES, Envelope, _lens, envelope_camera, extended_depth, sample_views
+from core.envelope import (
+    HALF_SIZES,
+    NEAREST_GUARD,
+    Envelope,
+    _lens,
+    envelope_camera,
+    extended_depth,
+    sample_views,
+    slope_tolerance,
+)
 from core.gl import gpuenvelope
 from tests import scenes
 
@@ -62,7 +71,8 @@ def test_the_gpu_image_is_the_reference_bit_for_bit(ctx, monkeypatch, seed):
                     continue
                 tex = c.renderer.envelope_depth(view.render, view.size)
                 want = extended_depth(_fetched(ctx, tex), view.render, env, near_eff)
-                got = g.extended_depth(tex, _lens(view.render), env, near_eff, HALF_SIZES)
+                got = g.extended_depth(tex, _lens(view.render), env, near_eff, HALF_SIZES, slope_tolerance,
+                                       NEAREST_GUARD)
                 assert got.shape == want.shape
                 same = (got == want) | (np.isinf(got) & np.isinf(want))
                 assert same.all(), (seed, env, int((~same).sum()))

@@ -90,9 +90,10 @@ class GpuEnvelope:
             self.size = (w, h)
         return self.buffers
 
-    def extended_depth(self, tex, lens, envelope, near_eff, half_sizes):
+    def extended_depth(self, tex, lens, envelope, near_eff, half_sizes, slope_tolerance, nearest_guard):
         """The extended depth of the depth texture ``tex`` (the envelope's square view,
-        ``lens = (near, far, tan_half)`` of its camera; window ``half_sizes`` in order):
+        ``lens = (near, far, tan_half)`` of its camera; window ``half_sizes`` in order;
+        ``slope_tolerance(near, far)`` and ``nearest_guard``: the reference's rules):
         ``(h, w) float64``, ``inf`` open; the reference's
         :func:`core.envelope.extended_depth` (module doc)."""
         r, ctx = self.r, self.ctx
@@ -107,18 +108,17 @@ class GpuEnvelope:
         for k, v in {**common, "u_c1": 2.0 * near * far, "u_c2": far + near, "u_c3": far - near,
                      "u_near_eff": float(near_eff), "u_dmax": max(distance, tol.tiny),
                      "u_dt32": float(np.float32(dt)), "u_jumps": int(distance > 0.0),
-                     "u_wtol": float(np.float32(tol.depth_guard_steps * (far - near)
-                                                / (near * far * 2.0 ** tol.depth_bits)))}.items():
+                     "u_wtol": float(np.float32(slope_tolerance(near, far)))}.items():
             _set(bp, k, v)
         groups = (-(-w // LOCAL), -(-h // LOCAL))
         tex.use(DEPTH_UNIT)
         a.bind_to_storage_buffer(BINDING["OUT_BINDING"])
         bp.run(*groups)
         ctx.memory_barrier(ALL_BARRIERS)
-        ext.write(np.full(w * h, np.inf, dtype=np.float32).tobytes())
+        ext.clear(chunk=np.float32(np.inf).tobytes())                 # every pixel open
         calls = 18
         gp = self.grow
-        for k, v in {**common, "u_dguard": float(np.float32(distance * (1.0 + tol.near_guard_rel))),
+        for k, v in {**common, "u_dguard": float(np.float32(distance * nearest_guard)),
                      "u_d": float(np.float32(distance)), "u_d2": float(np.float32(distance ** 2)),
                      "u_slack": float(np.float32(1.0 + 1e-5)), "u_dt32": float(np.float32(dt))}.items():
             _set(gp, k, v)
