@@ -1,20 +1,23 @@
 """Live culling while the view moves: the policy that sizes a pass's envelope and
-says when the displayed set must go.
+says when the displayed set must go, and the loop that decides when a pass runs.
 
 A pass hides a set that holds for an envelope around the view it was made from
 (:mod:`core.envelope`).  The policy sizes the envelope from the measured motion: the
 eye's speed and the turn rate, times the time until the pass lands plus how long it
 should last after, plus a margin of a few steps of motion.  Before each redraw the
 view is checked against the displayed set's envelope, with room for the next step:
-a view about to leave it shows everything first (showing is urgent), and a new pass
-starts from where the view is; its set is shown when it lands, if the view is still
-inside its envelope.  At rest the envelope is small (:attr:`LivePolicy.rest_rel`,
-:attr:`LivePolicy.rest_deg`): the first steps of a new motion stay in it, and the
-check before the next redraw catches the rest.
+a view about to leave it shows everything first (showing is urgent).  Passes run
+beside the interface (live mode's engine thread) and never hold it: while the view
+moves, the next pass starts from where the view is once the displayed set would not
+last until a pass started now lands; its set is shown when it lands, only if the view
+is still inside its envelope (:class:`LiveLoop`).  At rest the envelope is small
+(:attr:`LivePolicy.rest_rel`, :attr:`LivePolicy.rest_deg`): the first steps of a new
+motion stay in it, and the check before the next redraw catches the rest.
 
 The motion is measured by :class:`MotionTracker`, between successive looks at the
-view (live mode's redraws and ticks); the benchmark that replays motions under this
-policy, with the same tracker, is :mod:`core.lab.motion` (``python -m core motion SCENE``).
+view (live mode's redraws and ticks).  :class:`LiveLoop` is the one copy of those
+decisions: live mode (``occ_addon/live.py``) runs it, and so does the benchmark that
+replays motions (:mod:`core.lab.motion`, ``python -m core motion SCENE``).
 """
 
 from dataclasses import dataclass
@@ -37,13 +40,17 @@ AT_REST = AtRest.ENVELOPE
 
 REST_LOOK_S = 0.05           # a view unchanged for this long between two looks has stopped moving
 MAX_ANGLE_DEG = 30.0         # a wider envelope hides little; a faster turn shows all until it slows
+FIRST_LATENCY_S = 0.1        # a pass's time before any was measured
 
 
 @dataclass(frozen=True)
 class LivePolicy:
     """How big an envelope a pass takes and when the displayed set must go."""
 
-    hold_s: float = 0.5          # the envelope lasts this long after the pass lands, at the measured speed
+    # the envelope lasts this many pass times after the pass lands, at the measured speed
+    # (the next pass starts once the displayed set would not outlast one: it lands in time)
+    hold_passes: float = 1.0
+    hold_min_s: float = 0.1      # and at least this long
     margin_steps: float = 2.0    # and this many steps of the last motion beyond that
     # the envelope at rest: the first step of a motion must stay inside it (the guard cannot
     # change the redraw it runs before).  0.6 % of the scene and 10 degrees hold an orbit at
@@ -55,11 +62,17 @@ class LivePolicy:
     def envelope(self, speed, turn_deg_s, latency_s, step_move, step_turn_deg, scene_size):
         """The envelope of a pass that lands ``latency_s`` from now, the view moving at
         ``speed`` (scene units per second) and turning ``turn_deg_s``."""
-        horizon = latency_s + self.hold_s
+        horizon = latency_s + max(self.hold_passes * latency_s, self.hold_min_s)
         d = max(speed * horizon + self.margin_steps * step_move, self.rest_rel * scene_size)
         a = max(turn_deg_s * horizon + self.margin_steps * step_turn_deg, self.rest_deg)
         # the turn measured is the frame's (roll included): a narrower view than any roll
         return Envelope(d, min(a, MAX_ANGLE_DEG), any_roll=False)
+
+    def reachable(self, turn_deg_s, latency_s, step_turn_deg):
+        """Whether a pass that lands ``latency_s`` from now can hold when it lands: the turn
+        until then, and the next step, within :data:`MAX_ANGLE_DEG` (a faster turn shows
+        everything until it slows; a pass started then would only be dropped)."""
+        return turn_deg_s * latency_s + self.margin_steps * step_turn_deg <= MAX_ANGLE_DEG
 
     def rest(self, scene_size):
         """The envelope of a pass made at rest: what the first steps of a motion need
@@ -69,11 +82,16 @@ class LivePolicy:
     def safe(self, centre, envelope, view, step_move, step_turn_deg):
         """Whether ``view`` and the next step (as large as ``margin_steps`` of the last)
         stay inside ``envelope`` around ``centre``."""
+        return self.lasts(centre, envelope, view, 0.0, 0.0, 0.0, step_move, step_turn_deg)
+
+    def lasts(self, centre, envelope, view, seconds, speed, turn_deg_s, step_move, step_turn_deg):
+        """Whether ``view``, moving on at ``speed`` and ``turn_deg_s`` for ``seconds``, and
+        then the next step, stays inside ``envelope`` around ``centre``."""
         if not np.array_equal(centre.projection, view.projection):
             return False                                          # another lens: the envelope says nothing
         move, turn = view_change(centre, view, frame=not envelope.any_roll)
-        return (move + self.margin_steps * step_move <= envelope.distance
-                and turn + self.margin_steps * step_turn_deg <= envelope.angle_deg)
+        return (move + speed * seconds + self.margin_steps * step_move <= envelope.distance
+                and turn + turn_deg_s * seconds + self.margin_steps * step_turn_deg <= envelope.angle_deg)
 
 
 class MotionTracker:
@@ -113,3 +131,79 @@ class MotionTracker:
     def safe(self, policy, centre, envelope, view):
         """Whether ``view`` and the next step stay inside ``envelope`` around ``centre``."""
         return policy.safe(centre, envelope, view, *self.step)
+
+    def lasts(self, policy, centre, envelope, view, seconds):
+        """Whether the view, moving on as measured for ``seconds``, then the next step,
+        stays inside ``envelope`` around ``centre``."""
+        return policy.lasts(centre, envelope, view, seconds, max(self.speeds), max(self.turns), *self.step)
+
+
+@dataclass(frozen=True)
+class Flight:
+    """A pass in flight: the view it is made from, its envelope (or :data:`AT_REST`) and
+    when it started (the loop's clock)."""
+
+    view: object
+    envelope: object
+    started: float
+
+
+class LiveLoop:
+    """Live mode's decisions while the view moves, without Blender (live mode and the
+    motion benchmark both run them):
+
+    - :meth:`look` at the view at every redraw and tick (the motion is measured);
+    - :meth:`holds`: whether the displayed set (``shown``: the camera and envelope it
+      was made for, or None when nothing is hidden) holds for the view and its next
+      step; when not, everything is shown before the next redraw;
+    - :meth:`due`: while the view moves, whether a pass should start now: none is in
+      flight, the displayed set would not last until a pass started now lands, and the
+      turn until then leaves such a pass a chance to hold (:meth:`LivePolicy.reachable`);
+      :meth:`start` sizes its envelope (the measured motion over the pass's time);
+    - :meth:`land`: the pass in flight finished; its set is shown only if the view is
+      still inside its envelope (with room for the next step).  A pass's time (start to
+      landing, the slowest of the last few) sizes the next envelope.
+    """
+
+    LATENCIES = 3
+
+    def __init__(self, policy=None):
+        self.policy = policy or LivePolicy()
+        self.tracker = MotionTracker()
+        self.flight: Flight | None = None
+        self.latencies: list[float] = []
+
+    def look(self, view, now):
+        self.tracker.observe(view, now)
+
+    def holds(self, shown, view):
+        return shown is None or self.tracker.safe(self.policy, shown[0], shown[1], view)
+
+    def latency(self):
+        """The time a pass started now will take to land: the slowest of the last few."""
+        return max(self.latencies) if self.latencies else FIRST_LATENCY_S
+
+    def due(self, shown, view):
+        t = self.tracker
+        if self.flight is not None or not self.policy.reachable(max(t.turns), self.latency(), t.step[1]):
+            return False
+        return shown is None or not t.lasts(self.policy, shown[0], shown[1], view, self.latency())
+
+    def start(self, view, now, scene_size=None, envelope=None):
+        """A pass starts from ``view``: its envelope, the measured motion's over the pass's
+        time (``envelope`` given, e.g. :data:`AT_REST`: that one)."""
+        if envelope is None:
+            envelope = self.tracker.envelope(self.policy, self.latency(), scene_size)
+        self.flight = Flight(view, envelope, now)
+        return envelope
+
+    def land(self, shown, view, now):
+        """The pass in flight finished at ``now``; ``shown``: the camera and envelope its set
+        holds for.  Whether its set may be shown for ``view``."""
+        self.latencies = (self.latencies + [max(now - self.flight.started, 0.0)])[-self.LATENCIES:]
+        self.flight = None
+        return self.holds(shown, view)
+
+    def drop(self):
+        """The pass in flight is void (the scene changed under it): nothing lands."""
+        self.flight = None

@@ -1,8 +1,8 @@
 """The motion benchmark: replays motions under the live policy (:mod:`core.motion`).
 
 ``python -m core motion SCENE`` replays each motion (:data:`MOTIONS`) at 30 Hz as live
-mode runs it (:func:`replay`: its tracker and policy, passes that land when they
-finish) and counts, at every step drawn, the objects the object-ID truth sees that the
+mode runs it (:func:`replay`: its decisions, :class:`core.motion.LiveLoop`, with passes
+that land when they finish) and counts, at every step drawn, the objects the object-ID truth sees that the
 displayed set hides (visible-but-hidden object-steps; the target is 0), the share of
 the ideal culling held on screen, and the triangles drawn against frustum culling alone.
 """
@@ -14,7 +14,7 @@ import numpy as np
 
 from ..camera import Camera, look_at
 from ..frustum import classify, planes_from_matrix
-from ..motion import LivePolicy, MotionTracker
+from ..motion import LiveLoop
 
 STEP_S = 1.0 / 30.0          # a redraw at 30 Hz
 STEPS_PER_FRAME = 4          # a sample path replayed as a drag: this many steps between its frames
@@ -86,61 +86,60 @@ def frustum_mask(camera, bounds):
 
 
 def replay(culler, views, policy=None, latency_s=None):
-    """Replay ``views`` (a look every :data:`STEP_S` of wall time) as live mode runs:
-    :class:`core.motion.MotionTracker` measures the motion at every look, a hidden set
-    holds for its envelope (:meth:`core.motion.LivePolicy.safe`), and a view about to
-    leave it makes a pass during motion that shows what it finds visible and hides
-    nothing new.  Before the motion a pass at rest (its small envelope) hides.
+    """Replay ``views`` (a look every :data:`STEP_S` of wall time) as live mode runs them,
+    through its own decisions (:class:`core.motion.LiveLoop`): a pass at rest hides before
+    the motion; at every step a pass in flight that has finished lands (its set is shown
+    if the view is still inside its envelope), the step is drawn and counted, a displayed
+    set the next step would leave is shown first, and a pass starts from the view once
+    the displayed set would not last until it lands.
 
-    A pass holds Blender's main thread until it lands (live mode runs it in a timer):
-    it lasts its measured time, or ``latency_s`` when given (a fixed latency, so the
-    counts do not depend on this machine's speed); the views the user moves through
-    meanwhile are never drawn, and the next redraw is the view at the time it lands.
-    The time is the engine's pass only: the add-on's reads and Blender's update after
-    a hide come on top in Blender.
+    Passes run beside the interface (live mode's engine thread): every step is drawn, and
+    a pass lands at the first step after its measured time (or ``latency_s`` when given:
+    a fixed latency, so the counts do not depend on this machine's speed).  The time is
+    the engine's pass only: the add-on's reads before it and Blender's update after a
+    hide hold Blender's main thread on top, in Blender.
 
     Returns per drawn step rows and the pass times (ms)."""
-    policy = policy or LivePolicy()
-    tracker = MotionTracker()
+    loop = LiveLoop(policy)
     bounds = culler.scene.bounds
     tris = np.asarray(culler.scene.triangle_counts, dtype=np.int64)
+    nothing = np.zeros(len(bounds), dtype=bool)
 
     def run(view, envelope):
         t = time.perf_counter()
         r = culler.cull(view, envelope=envelope)
         ms = 1e3 * (time.perf_counter() - t)
         pass_ms.append(ms)
-        return ~r.visible, (latency_s if latency_s is not None else ms / 1e3)
+        return ~r.visible, (view, r.envelope), (latency_s if latency_s is not None else ms / 1e3)
 
     pass_ms, rows = [], []
-    rest = policy.rest(culler.scene_size)
-    hidden, took = run(views[0], rest)           # the view at rest: hidden before it moves
-    shown = (views[0], rest)                     # the view and envelope the hidden set holds for
-    now, k = 0.0, 0
-    while k < len(views):
-        view = views[k]
-        tracker.observe(view, now)
+    loop.look(views[0], 0.0)
+    loop.start(views[0], 0.0, envelope=loop.policy.rest(culler.scene_size))
+    hidden, shown, took = run(views[0], loop.flight.envelope)       # the view at rest: hidden before it moves
+    loop.land(shown, views[0], took)
+    flight = None                        # (hidden, shown, when it lands) of the pass in flight
+    for k, view in enumerate(views):
+        now = k * STEP_S
+        loop.look(view, now)
+        if flight is not None and now >= flight[2] - 1e-9:
+            if loop.land(flight[1], view, now):
+                hidden, shown = flight[0], flight[1]
+            flight = None
         truth = culler.truth(view)
         drawn = frustum_mask(view, bounds)
-        # drawn outside the set's envelope: the guard runs before a redraw but cannot change
-        # what that redraw draws (a motion's first step beyond the rest envelope, or a pass
-        # slower than the last, whose time sized its envelope): the only steps where a
-        # false negative may come from
-        late = not shown[1].holds(shown[0], view)
+        # drawn outside the set's envelope: the check before a redraw cannot change what that
+        # redraw draws (a motion's first step beyond the rest envelope, a step larger than the
+        # margin allows): the only steps where a false negative may come from
+        late = shown is not None and not shown[1].holds(shown[0], view)
         rows.append({"step": k, "late": late, "false_negatives": int((truth & hidden).sum()),
                      "hidden": int(hidden.sum()), "held": int((hidden & ~truth).sum()),
                      "ideal": int((~truth).sum()), "culling": bool(hidden.any()),
                      "triangles": int(tris[drawn & ~hidden].sum()), "triangles_vfc": int(tris[drawn].sum())})
-        # after this redraw: the guard saw a view about to leave the envelope
-        if not tracker.safe(policy, shown[0], shown[1], view):
-            envelope = tracker.envelope(policy, took, culler.scene_size)    # live: the last pass's time
-            culled, took = run(view, envelope)
-            hidden = hidden & culled                      # a pass during motion hides nothing new
-            shown = (view, envelope)
-            now += max(took, STEP_S)                      # the main thread is held until it lands
-        else:
-            now += STEP_S
-        k = max(k + 1, int(now / STEP_S + 1e-9))
+        if not loop.holds(shown, view):                     # the next step leaves it: show all first
+            hidden, shown = nothing, None
+        if loop.due(shown, view):
+            h, s, took = run(view, loop.start(view, now, culler.scene_size))
+            flight = (h, s, now + max(took, STEP_S))
     return rows, pass_ms
 
 
@@ -179,8 +178,8 @@ def format_motion(report, title):
         lines.append(f"{name:<8} {r['steps']:>6d} {r['steps_drawn']:>6d} {r['passes']:>6d} "
                      f"{r['false_negatives']:>5d} {r['steps_late']:>5d} {100 * r['held_share']:>7.1f} "
                      f"{r['hidden_mean']:>8.1f} {r['ideal_mean']:>8.1f} {ratio:>8.2f} {r['pass_ms_median']:>8.1f}")
-    lines.append("drawn: steps Blender redraws (a pass holds its main thread); late: steps drawn outside the "
-                 "set's envelope (a motion's first step beyond the rest envelope, a pass slower than the last)")
+    lines.append("drawn: steps redrawn (passes run beside the interface); late: steps drawn outside the "
+                 "set's envelope (a motion's first step beyond the rest envelope, a step beyond the margin)")
     lines.append("held %: of the objects the truth does not see, the share hidden on screen, over the steps "
                  "drawn; tris/vfc: triangles drawn against Blender's frustum culling alone")
     return "\n".join(lines)

@@ -1,0 +1,83 @@
+"""Live mode's loop (core.motion.LiveLoop) without Blender or GL: when the displayed set
+must go, when a pass is due, and whether a pass that lands may be shown."""
+
+import numpy as np
+
+from core.camera import Camera
+from core.envelope import Envelope
+from core.motion import FIRST_LATENCY_S, MAX_ANGLE_DEG, LiveLoop, LivePolicy
+
+
+def walk(x, yaw_deg=0.0, fov=60.0):
+    """A camera at (x, 0, 1) looking along +x turned ``yaw_deg`` about z."""
+    a = np.radians(yaw_deg)
+    return Camera.look_at((x, 0.0, 1.0), (x + np.cos(a), np.sin(a), 1.0), fov_y_deg=fov)
+
+
+def moving(loop, speed, turn_deg_s=0.0, steps=4, dt=1.0 / 30.0):
+    """Look at a view moving at ``speed`` units/s and turning ``turn_deg_s``; the last view."""
+    for k in range(steps):
+        view = walk(speed * k * dt, turn_deg_s * k * dt)
+        loop.look(view, k * dt)
+    return view
+
+
+def test_the_displayed_set_holds_only_inside_its_envelope_with_room_for_the_next_step():
+    loop = LiveLoop()
+    view = moving(loop, speed=3.0)                              # a step of 0.1 units
+    shown = (walk(0.0), Envelope(1.0, 5.0, any_roll=False))
+    assert loop.holds(None, view)                               # nothing hidden: nothing to show
+    assert loop.holds(shown, view)                              # 0.3 moved + 2 steps of 0.1 <= 1
+    assert not loop.holds((walk(-0.6), shown[1]), view)          # 0.9 + 0.2 > 1
+    other_lens = (Camera.look_at((0.0, 0.0, 1.0), (1.0, 0.0, 1.0), fov_y_deg=40.0), shown[1])
+    assert not loop.holds(other_lens, view)                     # another lens: the envelope says nothing
+
+
+def test_a_pass_is_due_once_the_displayed_set_would_not_last_until_it_lands():
+    loop = LiveLoop()
+    view = moving(loop, speed=3.0)
+    assert loop.latency() == FIRST_LATENCY_S
+    wide = (walk(0.0), Envelope(2.0, 5.0, any_roll=False))      # 0.3 + 3 x 0.1 + 0.2 <= 2: lasts
+    narrow = (walk(0.0), Envelope(0.75, 5.0, any_roll=False))   # holds now (0.5), not in 0.1 s (0.8)
+    assert loop.holds(narrow, view)
+    assert not loop.due(wide, view)
+    assert loop.due(narrow, view)
+    assert loop.due(None, view)                                  # nothing hidden: a pass may hide
+    loop.start(view, 0.1, scene_size=100.0)
+    assert not loop.due(None, view)                              # one pass in flight at a time
+    loop.drop()
+    assert loop.due(None, view)
+    # a slower pass: the same set no longer lasts until one started now lands
+    loop.latencies = [1.0]
+    assert loop.due(wide, view)
+
+
+def test_a_turn_too_fast_for_any_envelope_starts_no_pass():
+    loop = LiveLoop()
+    # 120 degrees a second: in 0.3 s of pass the turn alone is 36 degrees, beyond MAX_ANGLE_DEG
+    view = moving(loop, speed=0.0, turn_deg_s=120.0)
+    loop.latencies = [0.3]
+    assert 120.0 * 0.3 > MAX_ANGLE_DEG
+    assert not loop.due(None, view)
+    loop.latencies = [0.05]                                      # a fast pass can hold that turn
+    assert loop.due(None, view)
+
+
+def test_a_pass_lands_only_where_the_view_stayed_inside_its_envelope():
+    loop = LiveLoop()
+    view = moving(loop, speed=3.0)
+    env = loop.start(view, 1.0, scene_size=100.0)
+    assert loop.flight.envelope == env and not env.any_roll
+    # the envelope covers the motion over the pass's time and then the hold, at least
+    horizon = FIRST_LATENCY_S + max(LivePolicy().hold_passes * FIRST_LATENCY_S, LivePolicy().hold_min_s)
+    assert env.distance >= 3.0 * horizon
+    assert loop.land((view, env), view, 1.25)                    # nothing moved since the start
+    assert loop.flight is None and loop.latencies == [0.25]
+    loop.start(view, 2.0, scene_size=100.0)
+    far = walk(view.eye[0] + 10 * env.distance)
+    assert not loop.land((view, env), far, 2.5)                  # the view left it: not shown
+    assert loop.latencies == [0.25, 0.5]
+    for t in (0.1, 0.1, 0.1):
+        loop.start(view, 3.0, scene_size=100.0)
+        loop.land((view, env), view, 3.0 + t)
+    assert np.isclose(loop.latency(), 0.1)                       # the slowest of the last three
