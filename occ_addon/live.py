@@ -4,46 +4,76 @@ or anything else changed (the change bus of :mod:`.handlers`: edits, frames,
 "never cull"; :func:`changed` is subscribed to it when the add-on registers), or a
 setting that changes what may be hidden (polled, :func:`..props.settings_key`).  GUI only.
 
-While the view moves: every hidden set holds for an envelope around the view it
-was made from (:mod:`..core.envelope`; a pass at rest takes a small one).  Before
-every redraw of the culled viewport (:func:`guard`, a draw handler) and at every
-tick, the view is checked against it with room for the next step of the measured
-motion; a view about to leave it makes a pass during motion at once
-(:func:`leave`): it shows what that pass finds visible and hides nothing new, and
-its envelope is sized from the motion (:class:`..core.motion.LivePolicy`).  Hiding
-waits for rest.  Without live mode (a Cull click), leaving shows everything.
+Passes run beside the interface: a tick reads what the pass needs and hands the cull
+to the engine thread (:meth:`.session.Session.begin`); a later tick lands it
+(:meth:`.session.Session.finish`) only if nothing changed meanwhile (the change bus,
+the settings, the view layer, the objects, what the view draws) and the view is
+still inside the envelope its set holds for.  Otherwise it is dropped, and hides nothing.
+
+While the view moves: every hidden set holds for an envelope around the view it was
+made from (:mod:`..core.envelope`; a pass at rest takes a small one).  Before every
+redraw of the culled viewport (:func:`guard`, a draw handler) and at every tick, the
+view is checked against it with room for the next step of the measured motion; a
+view about to leave it shows everything at once (:func:`leave`).  A pass during
+motion starts from the current view once the displayed set would not last until a
+pass started now lands; its envelope is sized from the motion and the passes' time
+(:class:`..core.motion.LiveLoop`, the one copy of these decisions, which the motion
+benchmark replays).  Without live mode (a Cull click), leaving shows everything too.
 
 No Blender object is held between ticks (undo and file loads replace them):
 the tick reads ``bpy.context.scene`` each time, and ``scene.occ.live`` is the
 one truth.  After an undo or redo the timer follows the restored flag
 (:func:`resync`); a file always opens with live mode off (:func:`after_load`).
+Headless Blender runs no timers: a script drives :func:`_tick` and lands the pass in
+flight with :func:`settle`.
 """
 
 import time
 import traceback
+from dataclasses import dataclass
 
 import bpy
 import numpy as np
 
 from ..core import OccError
 from ..core.camera import camera_cut
-from ..core.motion import AT_REST, MotionTracker
+from ..core.motion import AT_REST, LiveLoop, MotionTracker
 from . import bus, overlay, visibility
 from .cameras import camera_for, find_viewport, region_camera, scene_camera, view_state
+from .passes import Shown
 from .props import settings_key
 from .session import POLICY, SESSION
 
-POLL_S = 0.1          # timer period
-DEBOUNCE_S = 0.15     # the view (or the scene) must rest this long before a pass
+POLL_S = 0.1          # timer period at rest
+FLIGHT_POLL_S = 0.02  # ... while the view moves or a pass is in flight (its landing is polled)
+DEBOUNCE_S = 0.15     # the view (or the scene) must rest this long before a pass at rest
 
 # passed: (camera, display) of the last pass at rest, for telling a cut (:func:`_is_cut`)
 # settings: props.settings_key at the last tick (polled: the settings have no update callbacks)
-_state = {"last_view": None, "changed_at": None, "dirty_at": None, "passed": None, "settings": None}
-# the view's motion, measured between successive looks (redraws and ticks): the
-# tracker the motion benchmark replays too (core.lab.motion)
-TRACKER = MotionTracker()
+# changes: how many changes the bus announced (a pass in flight lands only if none came)
+_state = {"last_view": None, "changed_at": None, "dirty_at": None, "passed": None, "settings": None,
+          "changes": 0, "moving": False}
+# live mode's decisions while the view moves (core.motion.LiveLoop: the motion benchmark
+# replays the same); its tracker measures the view's motion between looks (redraws, ticks)
+LOOP = LiveLoop(POLICY)
 # leaving: a leave timer is registered; region, view_state: the watched 3D view (track)
 _motion = {"leaving": False, "region": None, "view_state": None}
+
+
+@dataclass(frozen=True)
+class Flight:
+    """What a pass in flight was begun under: it lands only if all of it still holds.
+    changes: the bus's count; settings: :func:`..props.settings_key`; view_state: the
+    watched view's :func:`.cameras.view_state` (None: the scene camera); rest: a pass at
+    rest (it may start fresh and marks the view as passed, :func:`_is_cut`)."""
+
+    changes: int
+    settings: tuple
+    view_state: object
+    rest: bool
+
+
+_flight: list[Flight] = []      # the pass in flight's (at most one)
 
 
 def track(context):
@@ -62,13 +92,12 @@ def _view_changed(space):
 
 
 def observe(camera):
-    """Measure the motion since the last look at the view (:class:`MotionTracker`)."""
-    TRACKER.observe(camera, time.perf_counter())
+    """Measure the motion since the last look at the view (:class:`..core.motion.MotionTracker`)."""
+    LOOP.look(camera, time.perf_counter())
 
 
 def _unsafe(camera):
-    shown = SESSION.shown
-    return shown is not None and not TRACKER.safe(POLICY, shown.camera, shown.envelope, camera)
+    return not LOOP.holds(SESSION.shown, camera)
 
 
 def guard():
@@ -92,9 +121,7 @@ def guard():
 
 def _leave_timer():
     try:
-        context = bpy.context
-        camera, display = camera_for(context)
-        leave(context, camera, display)
+        leave()
     except Exception:  # a timer must not raise: show everything instead
         traceback.print_exc()
         SESSION.shown = None
@@ -104,28 +131,18 @@ def _leave_timer():
     return None
 
 
-def leave(context, camera, display):
-    """The view is leaving the hidden set's envelope: live, a pass during motion (it
-    shows, it hides nothing new); otherwise show everything."""
-    if context.scene is None or not context.scene.occ.live or SESSION.busy or SESSION.culler is None:
-        SESSION.shown = None
-        visibility.restore()
-        return
-    latency = (SESSION.last.ms if SESSION.last is not None else 100.0) / 1e3
-    env = TRACKER.envelope(POLICY, latency, SESSION.culler.scene_size)
-    try:
-        SESSION.cull(context, camera, display, fresh=False, envelope=env, show_only=True)
-        track(context)
-        _state["dirty_at"] = None                     # our own pass's updates are not a change
-    except OccError as e:
-        print(f"occlusion culling: {e}")
-        SESSION.shown = None
-        visibility.restore()
+def leave(*_args):
+    """The view is leaving the hidden set's envelope: everything is shown (at once: a
+    pass takes longer than a redraw).  Live, the next tick starts a pass from the view
+    where it is."""
+    SESSION.shown = None
+    visibility.restore()
 
 
 def changed():
     """Something other than the view changed: re-cull once it rests (a listener of
-    the change bus, :mod:`.handlers`)."""
+    the change bus, :mod:`.handlers`); a pass in flight will not land."""
+    _state["changes"] += 1
     if _state["dirty_at"] is None:
         _state["dirty_at"] = time.perf_counter()
 
@@ -139,6 +156,75 @@ def _is_cut(passed, camera, display):
     before, shown = passed
     size = SESSION.culler.scene_size if SESSION.culler is not None else 0.0
     return tuple(shown) != tuple(display) or camera_cut(before, camera, size)
+
+
+def _watched_state(context):
+    found = find_viewport(context) if context.scene.occ.source == "VIEWPORT" else None
+    return None if found is None else view_state(found[0].spaces.active)
+
+
+def _begin(context, camera, display, now, fresh, rest):
+    """Start a pass beside the interface: at rest (the rest envelope, hiding what it may)
+    or during motion (the envelope :class:`..core.motion.LiveLoop` sizes)."""
+    dirty = _state["dirty_at"]
+    envelope = LOOP.start(camera, now, SESSION.culler.scene_size if SESSION.culler is not None else None,
+                          envelope=AT_REST if rest else None)
+    try:
+        SESSION.begin(context, camera, display, fresh=fresh, envelope=envelope, beside=True)
+    except BaseException:
+        LOOP.drop()
+        raise
+    # the pass's own reads and update are not a change
+    _state["dirty_at"] = dirty
+    _flight[:] = [Flight(_state["changes"], settings_key(context.scene.occ), _watched_state(context), rest)]
+
+
+def _land(context, camera, display, now):
+    """A pass in flight that finished lands (its set applied) or is dropped: see the
+    module's doc.  Returns whether one landed."""
+    pending = SESSION.pending
+    if pending is None or not _flight:
+        if LOOP.flight is not None:                   # dropped by another pass (a Cull click, a reset)
+            LOOP.drop()
+        _flight.clear()
+        return False
+    if not pending.job.done():
+        return False
+    flight = _flight.pop()
+    try:
+        result = pending.job.result()
+    except Exception as e:  # noqa: BLE001 -- handed to finish below, which raises it here
+        result, failed = None, e
+    else:
+        failed = None
+    still = (failed is None and flight.changes == _state["changes"] and pending.display == tuple(display)
+             and flight.settings == settings_key(context.scene.occ) and SESSION.current(context, pending)
+             and flight.view_state == _watched_state(context))
+    shown = Shown(pending.camera, result.envelope) if failed is None and result.envelope is not None else None
+    lands = LOOP.land(shown, camera, now) and shown is not None
+    if failed is not None:
+        SESSION.finish(context, pending)              # raises the engine's error (the tick reports it)
+    if not (still and lands):
+        SESSION.discard()
+        return False
+    SESSION.finish(context, pending)
+    track(context)
+    if flight.rest:
+        _state["passed"] = (pending.camera, pending.display)
+    return True
+
+
+def settle():
+    """Wait for the pass in flight and land it (or drop it) as the next tick would:
+    scripts and tests (headless Blender runs no timers); what a tick raises, raised."""
+    pending = SESSION.pending
+    if pending is None:
+        return False
+    pending.job.wait()
+    context = bpy.context
+    camera, display = camera_for(context)
+    observe(camera)
+    return _land(context, camera, display, time.perf_counter())
 
 
 def _tick():
@@ -166,37 +252,52 @@ def _tick():
     key = np.concatenate([camera.view.ravel(), camera.projection.ravel(), display])
     now = time.perf_counter()
     observe(camera)
-    found = find_viewport(context) if scene.occ.source == "VIEWPORT" else None
-    if found is not None and _view_changed(found[0].spaces.active) and SESSION.shown is not None:
-        _state["dirty_at"] = now                      # it draws other objects now: a fresh pass next
-        leave(context, camera, display)
-    elif _unsafe(camera):                             # the redraw guard missed it: leave now
-        leave(context, camera, display)
-    if _state["last_view"] is None or not np.array_equal(key, _state["last_view"]):
-        _state["last_view"], _state["changed_at"] = key, now
-        return POLL_S
-    rested = [t for t in (_state["changed_at"], _state["dirty_at"]) if t is not None]
-    if rested and now - max(rested) >= DEBOUNCE_S:
-        fresh = _state["dirty_at"] is not None or _is_cut(_state["passed"], camera, display)
-        _state.update(changed_at=None, dirty_at=None)
-        try:
-            SESSION.cull(context, camera, display, fresh=fresh, envelope=AT_REST)
-            track(context)
-            _state["passed"] = (camera, display)
-            _state["dirty_at"] = None                 # our own pass's updates are not a change
-        except OccError as e:  # the user's to fix (an empty scene, a panoramic camera): show all, keep going
-            print(f"occlusion culling: {e}")
-            _state["passed"] = None
-            SESSION.shown = None
-            visibility.restore()
-        except Exception:  # a timer must not raise: our bug, live mode stops and shows everything
-            traceback.print_exc()
-            print("occlusion culling stopped (details above)")
-            SESSION.reset()
-            visibility.restore()
-            stop(context)
-            return None
-    return POLL_S
+    try:
+        _land(context, camera, display, now)
+        found = find_viewport(context) if scene.occ.source == "VIEWPORT" else None
+        if found is not None and _view_changed(found[0].spaces.active) and SESSION.shown is not None:
+            _state["dirty_at"] = now                  # it draws other objects now: a fresh pass next
+            leave()
+        elif _unsafe(camera):                         # the redraw guard missed it: leave now
+            leave()
+        moved = _state["last_view"] is None or not np.array_equal(key, _state["last_view"])
+        _state["moving"] = moved
+        if moved:
+            _state["last_view"], _state["changed_at"] = key, now
+            # during motion: a pass from here once the displayed set would not last until
+            # it lands (no scene change pending: that is a fresh pass's, at rest)
+            if (SESSION.pending is None and SESSION.culler is not None and _state["passed"] is not None
+                    and _state["dirty_at"] is None and LOOP.due(SESSION.shown, camera)):
+                _begin(context, camera, display, now, fresh=False, rest=False)
+            return _period()
+        rested = [t for t in (_state["changed_at"], _state["dirty_at"]) if t is not None]
+        if rested and now - max(rested) >= DEBOUNCE_S and SESSION.pending is None:
+            fresh = _state["dirty_at"] is not None or _is_cut(_state["passed"], camera, display)
+            _state.update(changed_at=None, dirty_at=None)
+            _begin(context, camera, display, now, fresh=fresh, rest=True)
+    except OccError as e:  # the user's to fix (an empty scene, a panoramic camera): show all, keep going
+        print(f"occlusion culling: {e}")
+        _state["passed"] = None
+        _flight.clear()
+        SESSION.discard()
+        LOOP.drop()
+        SESSION.shown = None
+        visibility.restore()
+    except Exception:  # a timer must not raise: our bug, live mode stops and shows everything
+        traceback.print_exc()
+        print("occlusion culling stopped (details above)")
+        _flight.clear()
+        SESSION.reset()
+        LOOP.drop()
+        visibility.restore()
+        stop(context)
+        return None
+    return _period()
+
+
+def _period():
+    """The next tick: soon while a pass is in flight or the view moves, else at rest's pace."""
+    return FLIGHT_POLL_S if SESSION.pending is not None or _state["moving"] else POLL_S
 
 
 def _ensure_timer():
@@ -246,14 +347,18 @@ def start(context):
     install()
     context.scene.occ.live = True
     _state.update(last_view=None, changed_at=time.perf_counter(), dirty_at=None, passed=None,
-                  settings=settings_key(context.scene.occ))
+                  settings=settings_key(context.scene.occ), moving=False)
     _ensure_timer()
 
 
 def stop(context):
     context.scene.occ.live = False
     _drop_timer()
-    _state.update(last_view=None, changed_at=None, dirty_at=None, passed=None)
+    _state.update(last_view=None, changed_at=None, dirty_at=None, passed=None, moving=False)
+    if _flight:                                      # live's pass in flight lands nowhere
+        _flight.clear()
+        SESSION.discard()
+    LOOP.drop()
 
 
 def stop_all():

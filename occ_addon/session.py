@@ -25,7 +25,7 @@ from . import identity, localview, policy, shading, visibility
 from .cameras import hide_view
 from .extract import Candidates, Extractor, Kind
 from .passes import LastPass, Shown, shown_by
-from .worker import EngineThread, drive
+from .worker import EngineThread, Job, drive
 
 # Meshes of 4 x this many triangles or more are cut into chunks of about this
 # many (never a user's mesh: index ranges inside the engine's copy): a heavy
@@ -54,6 +54,39 @@ class Held:
     collection: np.ndarray
 
 
+@dataclass(frozen=True, eq=False)
+class Pending:
+    """A pass begun (:meth:`Session.begin`) whose cull runs on the engine thread.
+
+    job: the cull's :class:`.worker.Job`; objects, held: the engine's objects and what
+    it was built for at the start; camera, display: what the pass culls for; view:
+    where it hides (:func:`.cameras.hide_view`, None: everywhere); rule: the shading
+    rule (:func:`.shading.rule`); show_only: it hides nothing new; version: the
+    session's at the start; layer: ``(scene, view layer)`` names; uids: ``(n,) int64``
+    the session ids of every object then (:func:`.identity.uids`); started: its clock
+    (``time.perf_counter``); blender_s: the seconds of Blender's update it took so far.
+    """
+
+    job: Job
+    objects: list
+    held: Held
+    camera: Camera
+    display: Size
+    view: tuple | None
+    rule: object
+    show_only: bool
+    version: int
+    layer: tuple
+    uids: np.ndarray
+    started: float
+    blender_s: float
+
+
+def layer_of(context) -> tuple:
+    """``(scene, view layer)`` names of the context: a pass's layer."""
+    return (context.scene.name, context.view_layer.name)
+
+
 class Session:
     def __init__(self):
         self.extractor = Extractor()
@@ -72,10 +105,12 @@ class Session:
         self.read: Candidates | None = None   # the last pass's candidates (see engine_steps' reuse)
         self.enter_while: tuple | None = None  # (window, area) the pass will put in its own local view
         self.picked = None                     # (object, view layer) selected for that entry (_meanwhile)
+        self.pending: Pending | None = None    # the pass in flight (begin .. finish)
 
     def reset(self) -> None:
         """Forget everything (a file was loaded, an undo or redo, or the add-on goes away):
         Blender may hand back the same session ids with other contents."""
+        self.discard()
         self.release()
         self.extractor = Extractor()
         self.held = None
@@ -132,7 +167,7 @@ class Session:
         once made a Cull click the trigger of a Blender crash (a hair system's instance
         object tagged after an emitter's delete and undo, with a second view layer:
         ``../shared/repro/blender_hair_undo_two_layers.py``)."""
-        layer = (context.scene.name, context.view_layer.name)
+        layer = layer_of(context)
         # (with one scene of one view layer no object can have moved elsewhere)
         alone = len(bpy.data.scenes) == 1 and len(context.scene.view_layers) == 1
         # Another view layer than the last pass's: an object moved while it was not in
@@ -222,6 +257,7 @@ class Session:
         """The slow part of a first pass (reading geometry, building the engine) in
         steps, hiding nothing: a modal operator runs it, then :meth:`cull` (which then
         finds the engine built, or rebuilds what changed in between)."""
+        self.discard()
         _, res, shown = self._sizes(context, display)
         yield from self.engine_steps(context, res, context.scene.occ.strategy, verify=fresh, display=shown)
 
@@ -244,6 +280,17 @@ class Session:
                       strategy: str | None = None, reuse: bool = False) -> Generator:
         """:meth:`compute` in steps (see :meth:`engine_steps`, also for ``reuse``);
         ``strategy``: this pass's, instead of the scene's setting."""
+        job, objects = yield from self._submit_steps(context, camera, display, fresh, restart, envelope, lights,
+                                                     strategy, reuse)
+        self._meanwhile()
+        return job.result(), objects
+
+    def _submit_steps(self, context, camera: Camera, display: Size, fresh: bool, restart: bool,
+                      envelope: Envelope | AtRest | None, lights: list | None,
+                      strategy: str | None = None, reuse: bool = False) -> Generator:
+        """The engine for the pass (:meth:`engine_steps`) and its cull handed to the engine
+        thread: ``(the cull's Job, the engine's objects)``."""
+        self.discard()                        # one pass at a time on the engine
         options, res, shown = self._sizes(context, display)
         # a fresh pass (a click, analyze, a scene change) also checks what the add-on
         # hides against its data: edits to hidden objects are never reported
@@ -257,9 +304,7 @@ class Session:
             culler.forget(everything=True)
         elif fresh:
             culler.forget()
-        job = self.worker.submit(culler.cull, camera, envelope=envelope, lights=lights)
-        self._meanwhile()
-        return job.result(), objects
+        return self.worker.submit(culler.cull, camera, envelope=envelope, lights=lights), objects
 
     def _meanwhile(self) -> None:
         """While the engine thread builds or culls (a pass that will enter the add-on's own
@@ -282,21 +327,35 @@ class Session:
         """Deselect what :meth:`_meanwhile` selected (its evaluation joins the pass's last update)."""
         picked, self.picked = self.picked, None
         if picked is not None:
-            picked[0].select_set(False, view_layer=picked[1])
+            try:
+                picked[0].select_set(False, view_layer=picked[1])
+            except ReferenceError:            # undone or deleted since: nothing of ours is selected
+                pass
 
     def cull(self, context, camera: Camera, display: Size, fresh: bool = False, progress: Callable | None = None,
              restart: bool = False, envelope: Envelope | AtRest | None = None,
              show_only: bool = False) -> tuple[CullResult, list]:
-        """One pass: cull from ``camera`` at ``display`` resolution and apply it.
+        """One pass: cull from ``camera`` at ``display`` resolution and apply it
+        (:meth:`begin`, then :meth:`finish` once the engine's work is done).
 
         ``envelope``: the pass hides only what stays hidden for every view of it
         (:attr:`shown` then holds the view and the envelope the hidden set is good
-        for: live mode checks every redraw against it).  ``show_only``: a pass
-        during motion: it shows what it finds visible and hides nothing new (what
-        stays hidden is hidden in this pass too, so it holds for its envelope)."""
-        # the records are read once a pass (see identity.one_pass)
-        with identity.one_pass():
-            settings = context.scene.occ
+        for: live mode checks every redraw against it).  ``show_only``: it shows what
+        it finds visible and hides nothing new (what stays hidden is hidden in this
+        pass too, so it holds for its envelope)."""
+        return self.finish(context, self.begin(context, camera, display, fresh, progress, restart, envelope,
+                                               show_only))
+
+    def begin(self, context, camera: Camera, display: Size, fresh: bool = False, progress: Callable | None = None,
+              restart: bool = False, envelope: Envelope | AtRest | None = None, show_only: bool = False,
+              beside: bool = False) -> "Pending":
+        """The first half of :meth:`cull`: the pass's reads from Blender and the engine
+        (built or updated here, waiting), then its cull handed to the engine thread.
+        Returns the :class:`Pending` pass (also :attr:`pending`) that :meth:`finish`
+        applies, or :meth:`discard` drops.  ``beside``: the interface goes on while the
+        engine culls (live mode): nothing is selected meanwhile for an entry into the
+        add-on's local view (the user would see it, and act on it)."""
+        with identity.one_pass():             # the records are read once a pass
             t = time.perf_counter()
             visibility.reconcile()                 # what the user showed is the user's
             t_update = time.perf_counter()
@@ -307,26 +366,68 @@ class Session:
             # a pass after one that hid nothing (live mode over an open view) likely hides
             # nothing either: no selection for an entry that will not come (its deselection
             # would cost the pass a base update)
-            self.enter_while = view if self.last is None or self.last.hidden.any() else None
+            ahead = not beside and (self.last is None or self.last.hidden.any())
+            self.enter_while = view if ahead else None
             try:
-                result, objects = self.compute(context, camera, display, fresh, progress, restart, envelope,
-                                               view_rule.lights)
-                state, held = result.state, self.held
-                culled = state != Visibility.VISIBLE
-                protected = policy.never_hidden(context, objects, held.uids, held.collection, culled,
-                                                self.extractor)
-                protected |= policy.drawn_beyond_depth(view_rule, state, settings.cull_raytraced)
+                job, objects = drive(self._submit_steps(context, camera, display, fresh, restart, envelope,
+                                                        view_rule.lights), progress)
+                self._meanwhile()
             except BaseException:
                 self._unpick()                     # the pass failed: the selection as it was
                 raise
             finally:
                 self.enter_while = None
-            settings.last_rule = view_rule.why
+            self.pending = Pending(job, objects, self.held, camera, tuple(display), view, view_rule, show_only,
+                                   self.version, layer_of(context), identity.uids().copy(), t, blender_s)
+            return self.pending
+
+    def current(self, context, pending: "Pending") -> bool:
+        """Whether ``pending`` can still be applied: it is the pass in flight, the session
+        and its engine are the ones it began with, the window shows the same view layer
+        and the same objects are there.  (What changed in them since is the caller's to
+        know: live mode listens to the change bus.)"""
+        try:
+            return (pending is self.pending and pending.version == self.version and pending.held is self.held
+                    and self.culler is not None and pending.layer == layer_of(context)
+                    and np.array_equal(pending.uids, identity.uids()))
+        except ReferenceError:
+            return False
+
+    def discard(self) -> None:
+        """Drop the pass in flight, if any: its engine work is waited for (the engine is
+        consistent again) and what it selected is deselected; nothing is applied."""
+        pending, self.pending = self.pending, None
+        if pending is not None:
+            try:
+                pending.job.wait()
+            finally:
+                self._unpick()
+
+    def finish(self, context, pending: "Pending") -> tuple[CullResult, list]:
+        """The second half of :meth:`cull`: waits for the engine's answer and applies it
+        (what may be hidden is :mod:`.policy`'s), then Blender's update."""
+        if pending is not self.pending:
+            raise RuntimeError("occlusion culling: a pass finished that is not the one in flight")
+        self.pending = None
+        with identity.one_pass():
+            settings = context.scene.occ
+            held, objects, view, blender_s = pending.held, pending.objects, pending.view, pending.blender_s
+            try:
+                result = pending.job.result()
+                state = result.state
+                culled = state != Visibility.VISIBLE
+                protected = policy.never_hidden(context, objects, held.uids, held.collection, culled,
+                                                self.extractor)
+                protected |= policy.drawn_beyond_depth(pending.rule, state, settings.cull_raytraced)
+            except BaseException:
+                self._unpick()                     # the pass failed: the selection as it was
+                raise
+            settings.last_rule = pending.rule.why
             hide = np.isin(identity.uids(), held.uids[culled & ~protected])
             before = visibility.COUNT["changed"]
             self.applying = True
             try:
-                if show_only:
+                if pending.show_only:
                     visibility.release(~hide)
                 else:
                     if view is None:                   # hidden everywhere: not evaluated from now on
@@ -346,10 +447,11 @@ class Session:
             finally:
                 self.applying = False
             changed = visibility.COUNT["changed"] - before
+            # the pass's time, from its first read until it landed (Blender's update included)
             self.last = LastPass(state, protected, self.culler.scene.bounds, result.occupancy, result.stats,
-                                 1e3 * (time.perf_counter() - t), 1e3 * blender_s, changed)
+                                 1e3 * (time.perf_counter() - pending.started), 1e3 * blender_s, changed)
             self.last.publish(settings, self.culler.scene.triangle_counts)
-            self.shown = shown_by(result, camera)
+            self.shown = shown_by(result, pending.camera)
             self.version += 1
             return result, objects
 

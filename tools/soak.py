@@ -311,6 +311,7 @@ class Soak:
         before = session.version
         for _ in range(4):
             live._tick()
+            live.settle()
             if session.version != before:
                 return True
         return False

@@ -67,7 +67,7 @@ CHECKS = {
         "live_survives_undo",
         "live_reload_flag_matches_timer",
         "camera_moves_guarded_no_visible_hidden", "camera_moves_unguarded_would_hide_visible",
-        "live_cut_is_the_engines_camera_cut",
+        "live_cut_is_the_engines_camera_cut", "live_passes_land_only_unchanged",
     ],
     "analysis": [
         "analyze_counts_hidden", "never_visible_exact", "analyze_unsaved_path_in_cwd",

@@ -1560,6 +1560,7 @@ def drive_live():
             if bpy.app.timers.is_registered(live._tick):
                 bpy.app.timers.unregister(live._tick)
             break
+        live.settle()                 # the pass begun lands as the next tick would
 
 
 def check_live_state():

@@ -24,8 +24,10 @@ from .common import (
 
 
 def ticks(live, n=2):
+    """``n`` live ticks, each pass begun landed as the next tick would (headless: no timers)."""
     for _ in range(n):
         live._tick()
+        live.settle()
 
 
 def live_follows_changes():
@@ -161,3 +163,60 @@ def live_cut_is_the_engines_camera_cut():
            "display": live._is_cut((base, display), base, (640, 360))}
     check("live_cut_is_the_engines_camera_cut",
           got == {"none": True, "turn_2": False, "turn_5": True, "lens": True, "display": True}, got)
+
+
+def passes_land_only_unchanged():
+    """A live pass runs beside the interface (begun in one tick, landed in a later one):
+    it lands only if nothing changed meanwhile.  An occluder moved away, the hidden
+    object deleted, or an undo between the two: the pass hides nothing and nothing
+    fails; the next pass decides.  Landed as it was begun, the same pass hides (the
+    check can fail)."""
+    live, session = addon("live"), addon("session")
+
+    def begun():
+        new_scene()
+        box("target", (3, -1, 0), (4, 1, 1))
+        update()
+        live.DEBOUNCE_S = 0.0
+        live.start(bpy.context)
+        for _ in range(3):                               # the view recorded, then a pass at rest begun
+            if live._tick() is None or session.SESSION.pending is not None:
+                break
+        return session.SESSION.pending is not None and not hidden_by_addon_any()
+
+    got = {}
+    got["begun"] = begun()
+    got["landed"] = (live.settle(), hidden_by_addon("target"))
+    live.stop(bpy.context)
+    bpy.ops.occ.restore()
+
+    got["moved_begun"] = begun()
+    bpy.data.objects["wall"].location.z = -20.0          # the occluder moves away meanwhile
+    update()
+    got["moved"] = (live.settle(), hidden_by_addon_any(), hidden_but_seen())
+    ticks(live)
+    got["moved_next"] = (drawn("target"), hidden_but_seen())
+    live.stop(bpy.context)
+
+    got["deleted_begun"] = begun()
+    bpy.data.objects.remove(bpy.data.objects["target"], do_unlink=True)
+    got["deleted"] = (live.settle(), hidden_by_addon_any())
+    ticks(live)
+    live.stop(bpy.context)
+
+    got["undone_begun"] = begun()
+    bpy.ops.ed.undo_push(message="before")
+    bpy.data.objects["wall"].location.y = 20.0
+    bpy.ops.ed.undo_push(message="moved")
+    err = io.StringIO()
+    with redirect_stderr(err):
+        bpy.ops.ed.undo()
+        got["undone"] = (live.settle(), session.SESSION.pending is None)
+        ticks(live)
+    got["undone_next"] = ("Error" not in err.getvalue(), hidden_but_seen())
+    live.stop(bpy.context)
+    bpy.ops.occ.restore()
+    want = {"begun": True, "landed": (True, True), "moved_begun": True, "moved": (False, [], []),
+            "moved_next": (True, []), "deleted_begun": True, "deleted": (False, []),
+            "undone_begun": True, "undone": (False, True), "undone_next": (True, [])}
+    check("live_passes_land_only_unchanged", got == want, got)

@@ -494,6 +494,7 @@ def hair_undo_two_layers():
     update()
     for _ in range(2):
         live._tick()
+        live.settle()
     live.stop(bpy.context)
     steps.append(("live", bpy.context.scene.occ.live))
     bpy.context.scene.frame_set(55)                              # every view layer's depsgraph

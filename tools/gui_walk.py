@@ -1,0 +1,145 @@
+"""Live mode while the user walks, in a real Blender window (Debian's Blender 3.4 under Xvfb):
+
+    .venv/bin/python tools/gui_walk.py [SCENE] [--seconds 20]    (a sample name, -small for its small variant)
+
+runs Blender in an Xvfb window with this checkout as a legacy add-on (as ``tests/gui``
+does), loads the sample scene, and walks the viewport along the scene's camera path at a
+constant pace of wall time (a timer sets the view at every event-loop turn), once with
+live mode off and once with it on.  Counts the frames Blender drew (a draw handler of the
+3D view), the objects drawn per frame and the live passes that landed, and prints one
+JSON object.  A pass that held Blender's main thread shows as fewer frames with live on.
+
+Inside Blender (``--python tools/gui_walk.py -- OUT_JSON SCENE SECONDS``) it is the walk itself.
+"""
+
+import os
+import sys
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ADDON = "occlusion_culled_viewport"
+
+
+def outside(argv):
+    """Set up a Blender profile with the add-on, run the walk in a window, print its figures."""
+    import argparse
+    import pathlib
+    import tempfile
+
+    sys.path.insert(0, ROOT)
+    from tests.gui.window import blender_env, run_in_window
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("scene", nargs="?", default="city-small")
+    ap.add_argument("--seconds", type=float, default=20.0, help="of walking, each of live off and on")
+    args = ap.parse_args(argv)
+    with tempfile.TemporaryDirectory() as work:
+        work = pathlib.Path(work)
+        env = blender_env(work)
+        out = work / "walk.json"
+        rc, log = run_in_window(env, os.path.abspath(__file__), [str(out), args.scene, str(args.seconds)],
+                                screen="1280x720")
+        if not out.exists():
+            print(f"no results (rc {rc}):\n{log[-3000:]}", file=sys.stderr)
+            return 1
+        print(out.read_text())
+    return 0
+
+
+def inside(out_path, scene_name, seconds):
+    import bpy
+    import mathutils
+    import numpy as np
+
+    sys.path.insert(0, os.path.join(ROOT, "tools"))
+    from blender_scene import build_scene, drive_in_window, view3d
+
+    results = {"scene": scene_name, "seconds": seconds, "blender": bpy.app.version_string}
+
+    def run():
+        bpy.ops.preferences.addon_enable(module=ADDON)
+        core = sys.modules[f"{ADDON}.core"]
+        live = sys.modules[f"{ADDON}.occ_addon.live"]
+        sess = sys.modules[f"{ADDON}.occ_addon.session"].SESSION
+        import sample_scenes
+        name, small = (scene_name[:-6], True) if scene_name.endswith("-small") else (scene_name, False)
+        scene = core.load_scene(str(sample_scenes.scene_path(name, small=small)))
+        frames = sample_scenes.default_camera_path(name, small=small)["frames"]
+        build_scene(scene)
+        results.update(objects=len(scene), triangles=int(scene.triangle_counts.sum()))
+        win, area, region = view3d()
+        space = area.spaces.active
+        space.overlay.show_floor = False
+        space.shading.type = "SOLID"
+        rv3d = space.region_3d
+        rv3d.view_perspective = "PERSP"
+        space.clip_start, space.clip_end = 0.1, 600.0
+        ctx = {"window": win, "area": area, "region": region}
+        objs = bpy.data.objects
+        drawn = []
+
+        def count():
+            if bpy.context.region_data is rv3d:
+                drawn.append(sum(1 for o in objs if not o.hide_viewport and not o.occ_culled))
+
+        def view_at(u):
+            """The path's view at ``u`` in [0, 1] (linear between its frames)."""
+            x = u * (len(frames) - 1)
+            k = min(int(x), len(frames) - 2)
+            w = x - k
+            a, b = frames[k], frames[k + 1]
+            mix = [[(1 - w) * p + w * q for p, q in zip(a[key], b[key], strict=True)]
+                   for key in ("eye", "target", "up")]
+            return core.Camera.look_at(*mix).view
+
+        def walk(on):
+            handle = bpy.types.SpaceView3D.draw_handler_add(count, (), "WINDOW", "POST_PIXEL")
+            drawn.clear()
+            rv3d.view_matrix = mathutils.Matrix(view_at(0.0).tolist())
+            before = sess.version
+            if on:
+                with bpy.context.temp_override(**ctx):
+                    live.start(bpy.context)
+                t = time.perf_counter()
+                while time.perf_counter() - t < 2.0 or sess.pending is not None:   # the pass at rest
+                    yield
+            drawn.clear()
+            start = time.perf_counter()
+            landed_at_start = sess.version
+            state = {"done": False}
+
+            def step():
+                u = (time.perf_counter() - start) / seconds
+                if u >= 1.0:
+                    state["done"] = True
+                    return None
+                rv3d.view_matrix = mathutils.Matrix(view_at(u).tolist())
+                area.tag_redraw()
+                return 0.0
+
+            bpy.app.timers.register(step, first_interval=0.0)
+            while not state["done"]:
+                yield
+            took = time.perf_counter() - start
+            bpy.types.SpaceView3D.draw_handler_remove(handle, "WINDOW")
+            if on:
+                with bpy.context.temp_override(**ctx):
+                    live.stop(bpy.context)
+                    bpy.ops.occ.restore()
+            return {"frames": len(drawn), "fps": len(drawn) / took,
+                    "objects_drawn_mean": float(np.mean(drawn)) if drawn else None,
+                    "passes_landed_walking": sess.version - landed_at_start,
+                    "passes_landed": sess.version - before}
+
+        results["live_off"] = yield from walk(False)
+        results["live_on"] = yield from walk(True)
+
+    drive_in_window(run, results, out_path, 0.05)
+
+
+if __name__ == "__main__":
+    if "--" in sys.argv and "bpy" in sys.modules:
+        a = sys.argv[sys.argv.index("--") + 1:]
+        inside(a[0], a[1], float(a[2]))
+    else:
+        sys.exit(outside(sys.argv[1:]))
