@@ -74,6 +74,10 @@ class Flight:
 
 
 _flight: list[Flight] = []      # the pass in flight's (at most one)
+# what became of live's passes since the add-on loaded (read by tools/gui_walk.py):
+# begun; landed; dropped_left: the view had left its envelope when it finished;
+# dropped_WHAT: WHAT changed under it (:func:`_changed_under`)
+COUNTS = {"begun": 0, "landed": 0, "dropped_left": 0}
 
 
 def track(context):
@@ -133,10 +137,10 @@ def _leave_timer():
 
 def leave(*_args):
     """The view is leaving the hidden set's envelope: everything is shown (at once: a
-    pass takes longer than a redraw).  Live, the next tick starts a pass from the view
-    where it is."""
-    SESSION.shown = None
-    visibility.restore()
+    pass takes longer than a redraw), as the add-on's own change (it is no edit: a pass
+    in flight may still land, and no motion pass waits for rest).  Live, the next tick
+    starts a pass from the view where it is."""
+    SESSION.show_all(bpy.context)
 
 
 def changed():
@@ -177,6 +181,7 @@ def _begin(context, camera, display, now, fresh, rest):
     # the pass's own reads and update are not a change
     _state["dirty_at"] = dirty
     _flight[:] = [Flight(_state["changes"], settings_key(context.scene.occ), _watched_state(context), rest)]
+    COUNTS["begun"] += 1
 
 
 def _land(context, camera, display, now):
@@ -191,27 +196,41 @@ def _land(context, camera, display, now):
     if not pending.job.done():
         return False
     flight = _flight.pop()
+    context.view_layer.update()                       # edits still pending reach the bus now
     try:
         result = pending.job.result()
     except Exception as e:  # noqa: BLE001 -- handed to finish below, which raises it here
         result, failed = None, e
     else:
         failed = None
-    still = (failed is None and flight.changes == _state["changes"] and pending.display == tuple(display)
-             and flight.settings == settings_key(context.scene.occ) and SESSION.current(context, pending)
-             and flight.view_state == _watched_state(context))
+    why = _changed_under(context, display, flight, pending) if failed is None else "failed"
     shown = Shown(pending.camera, result.envelope) if failed is None and result.envelope is not None else None
     lands = LOOP.land(shown, camera, now) and shown is not None
     if failed is not None:
         SESSION.finish(context, pending)              # raises the engine's error (the tick reports it)
-    if not (still and lands):
+    if why is not None or not lands:
+        key = f"dropped_{why or 'left'}"
+        COUNTS[key] = COUNTS.get(key, 0) + 1
         SESSION.discard()
         return False
     SESSION.finish(context, pending)
+    COUNTS["landed"] += 1
     track(context)
     if flight.rest:
         _state["passed"] = (pending.camera, pending.display)
     return True
+
+
+def _changed_under(context, display, flight, pending):
+    """What changed since ``pending`` began, that its set may no longer hold for (None:
+    nothing): the change bus, the display size, the settings, the session (its engine, the
+    view layer, the objects) or what the watched view draws."""
+    checks = (("bus", lambda: flight.changes == _state["changes"]),
+              ("display", lambda: pending.display == tuple(display)),
+              ("settings", lambda: flight.settings == settings_key(context.scene.occ)),
+              ("session", lambda: SESSION.current(context, pending)),
+              ("view", lambda: flight.view_state == _watched_state(context)))
+    return next((name for name, holds in checks if not holds()), None)
 
 
 def settle():

@@ -149,10 +149,8 @@ class OCC_OT_cull(Stepped, bpy.types.Operator):
             live.install()
         except Exception as e:  # every failure is a report, never a traceback
             return failed(self, e)
-        s = context.scene.occ
         warn(self)
-        self.report({"INFO"}, f"{s.last_occluded} occluded, {s.last_outside} outside the view, "
-                              f"of {s.last_tested} ({s.last_ms:.0f} ms)")
+        self.report({"INFO"}, SESSION.last.summary())
         return {"FINISHED"}
 
 

@@ -99,11 +99,9 @@ def _draw_pixel():
             tiles.draw(shader)
         gpu.state.blend_set("NONE")
         top = 30 + h
-    s = scene.occ
     blf.size(0, 13)
     blf.position(0, 20, top, 0)
-    blf.draw(0, f"occluded {s.last_occluded}  outside {s.last_outside}  of {s.last_tested}  "
-                f"hidden {s.last_triangles_hidden:,} tris  {s.last_ms:.1f} ms")
+    blf.draw(0, SESSION.last.summary())
 
 
 def install():

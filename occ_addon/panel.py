@@ -2,6 +2,8 @@
 
 import bpy
 
+from .session import SESSION
+
 
 class OCC_PT_panel(bpy.types.Panel):
     bl_label = "Occlusion Culling"
@@ -31,12 +33,16 @@ class OCC_PT_panel(bpy.types.Panel):
         layout.operator("occ.analyze", icon="RENDER_ANIMATION")
         res = layout.box()
         res.label(text="Last pass")
-        if s.last_rule:
-            res.label(text=s.last_rule, icon="LIGHT")
-        for label, value in (("Tested", f"{s.last_tested:,}"), ("Occluded", f"{s.last_occluded:,}"),
-                             ("Outside view", f"{s.last_outside:,}"),
-                             ("Tris hidden", f"{s.last_triangles_hidden:,}"),
-                             ("Time", f"{s.last_ms:.1f} ms")):
+        last = SESSION.last          # the session's, not the scene's: a pass writes no figures there
+        if last is None:
+            res.label(text="None since the file opened or the last undo")
+            return
+        if last.rule:
+            res.label(text=last.rule, icon="LIGHT")
+        for label, value in (("Tested", f"{last.tested:,}"), ("Occluded", f"{last.occluded:,}"),
+                             ("Outside view", f"{last.outside:,}"),
+                             ("Tris hidden", f"{last.triangles_hidden:,}"),
+                             ("Time", f"{last.ms:.1f} ms")):
             split = res.split(factor=0.55)
             split.label(text=label)
             split.label(text=value)

@@ -27,7 +27,13 @@ class LastPass:
     occupancy map ``(rows, cols) bool`` or None; stats: the engine's figures
     (:attr:`..core.CullResult.stats`); ms: the whole pass, Blender's update included;
     blender_ms: of it, Blender's own updates (the edits pending before the pass, and
-    the hiding's); changed: how many objects' hiding the pass changed.
+    the hiding's); changed: how many objects' hiding the pass changed; triangles_hidden:
+    of the objects it hid; rule: what the view draws and the rule it set
+    (:class:`.policy.ShadingRule`).
+
+    The panel and the overlay show these figures from here, not from ``scene.occ``: a
+    pass writes nothing to the scene but its hiding (a property written tags the scene,
+    and the update it causes, after the pass, would read as the user's change).
     """
 
     state: np.ndarray
@@ -38,19 +44,30 @@ class LastPass:
     ms: float
     blender_ms: float = 0.0
     changed: int = 0
+    triangles_hidden: int = 0
+    rule: str = ""
 
     @property
     def hidden(self) -> np.ndarray:
         """``(k,) bool``: what the pass hid (or, during motion, kept hidden)."""
         return (self.state != Visibility.VISIBLE) & ~self.protected
 
-    def publish(self, settings, triangle_counts: np.ndarray) -> None:
-        """The figures the panel shows, on ``scene.occ``."""
-        settings.last_tested = len(self.state)
-        settings.last_occluded = int((self.state == Visibility.OCCLUDED).sum())
-        settings.last_outside = int((self.state == Visibility.VIEW_CULLED).sum())
-        settings.last_triangles_hidden = int(triangle_counts[self.hidden].sum())
-        settings.last_ms = self.ms
+    @property
+    def tested(self) -> int:
+        return len(self.state)
+
+    @property
+    def occluded(self) -> int:
+        return int((self.state == Visibility.OCCLUDED).sum())
+
+    @property
+    def outside(self) -> int:
+        return int((self.state == Visibility.VIEW_CULLED).sum())
+
+    def summary(self) -> str:
+        """One line of the figures (the overlay's, a Cull click's report)."""
+        return (f"{self.occluded:,} occluded, {self.outside:,} outside the view, of {self.tested:,}; "
+                f"{self.triangles_hidden:,} triangles hidden ({self.ms:.0f} ms)")
 
 
 def shown_by(result: CullResult, camera: Camera) -> Shown | None:

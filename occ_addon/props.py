@@ -1,7 +1,7 @@
 """Settings on ``scene.occ``, the per-object "never cull" flag and the hide records."""
 
 import bpy
-from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
+from bpy.props import BoolProperty, EnumProperty, IntProperty, PointerProperty
 
 from ..core import REGISTRY
 from ..core.settings import MAX_RESOLUTION
@@ -63,13 +63,7 @@ class OccSettings(bpy.types.PropertyGroup):
                     "their reflections and the light they give may then vanish")
     show_overlay: BoolProperty(name="Overlay", default=True,
                                description="Draw the culled boxes and the figures of the last pass")
-    # the last pass, shown in the panel
-    last_tested: IntProperty(name="Tested", default=0)
-    last_occluded: IntProperty(name="Occluded", default=0)
-    last_outside: IntProperty(name="Outside", default=0)
-    last_triangles_hidden: IntProperty(name="Triangles Hidden", default=0)
-    last_ms: FloatProperty(name="Milliseconds", default=0.0)
-    last_rule: StringProperty(name="Rule", default="", description="What the view draws and the rule it sets")
+    # (the last pass's figures are the session's, passes.LastPass: a pass writes none here)
 
 
 CLASSES = (OccSettings,)

@@ -393,6 +393,24 @@ class Session:
         except ReferenceError:
             return False
 
+    def show_all(self, context) -> int:
+        """Show everything the add-on hid, as its own change (live mode, when the view
+        leaves the hidden set's envelope): edits still pending are evaluated first, as
+        the user's (the handlers announce them); then the shows and Blender's update
+        under :attr:`applying`, which the handlers ignore (no engine re-read of the
+        objects shown, no change on the bus).  Call from a timer, never from a handler
+        (an update inside an update).  Returns how many were shown."""
+        self.shown = None
+        context.view_layer.update()
+        self.applying = True
+        try:
+            n = visibility.restore()
+            if n:
+                context.view_layer.update()
+        finally:
+            self.applying = False
+        return n
+
     def discard(self) -> None:
         """Drop the pass in flight, if any: its engine work is waited for (the engine is
         consistent again) and what it selected is deselected; nothing is applied."""
@@ -422,7 +440,6 @@ class Session:
             except BaseException:
                 self._unpick()                     # the pass failed: the selection as it was
                 raise
-            settings.last_rule = pending.rule.why
             hide = np.isin(identity.uids(), held.uids[culled & ~protected])
             before = visibility.COUNT["changed"]
             self.applying = True
@@ -448,9 +465,10 @@ class Session:
                 self.applying = False
             changed = visibility.COUNT["changed"] - before
             # the pass's time, from its first read until it landed (Blender's update included)
+            hidden = culled & ~protected
             self.last = LastPass(state, protected, self.culler.scene.bounds, result.occupancy, result.stats,
-                                 1e3 * (time.perf_counter() - pending.started), 1e3 * blender_s, changed)
-            self.last.publish(settings, self.culler.scene.triangle_counts)
+                                 1e3 * (time.perf_counter() - pending.started), 1e3 * blender_s, changed,
+                                 int(self.culler.scene.triangle_counts[hidden].sum()), pending.rule.why)
             self.shown = shown_by(result, pending.camera)
             self.version += 1
             return result, objects

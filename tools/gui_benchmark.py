@@ -68,8 +68,9 @@ def run():
         r = bpy.ops.occ.cull()
         results["first_cull_ms"] = 1e3 * (time.perf_counter() - t)
     s = bpy.context.scene.occ
-    results.update(cull_result=list(r), tested=s.last_tested, occluded=s.last_occluded,
-                   outside=s.last_outside, triangles_hidden=s.last_triangles_hidden)
+    last = sys.modules[f"{ADDON}.occ_addon.session"].SESSION.last
+    results.update(cull_result=list(r), tested=last.tested, occluded=last.occluded,
+                   outside=last.outside, triangles_hidden=last.triangles_hidden)
     # the culled view without the overlay, with it, and without any of the add-on's draw
     # handlers (the redraw guard, the overlay of culled boxes and the figures: its own
     # work per redraw), interleaved twice, the faster of each (the first redraws after a
@@ -230,12 +231,11 @@ def modal_operators(win, area, region, sess, frames):
     t = time.perf_counter()
     while sess.busy and time.perf_counter() - t < 120:
         yield
-    s = bpy.context.scene.occ
     results["modal_cull"] = {"finished": sess.busy is None and sess.culler is not None,
-                             "occluded": s.last_occluded, "outside": s.last_outside}
+                             "occluded": sess.last.occluded, "outside": sess.last.outside}
     with bpy.context.temp_override(**ctx):
         bpy.ops.occ.cull()                            # the same view at once: the same answer
-    results["sync_cull"] = {"occluded": s.last_occluded, "outside": s.last_outside}
+    results["sync_cull"] = {"occluded": sess.last.occluded, "outside": sess.last.outside}
     # analyze from a scene camera, stopped by Esc after a few frames
     scene = bpy.context.scene
     cam = bpy.data.objects.new("occ_cam", bpy.data.cameras.new("occ_cam"))

@@ -1,15 +1,15 @@
 """Live mode while the user walks, in a real Blender window (Debian's Blender 3.4 under Xvfb):
 
-    .venv/bin/python tools/gui_walk.py [SCENE] [--seconds 20]    (a sample name, -small for its small variant)
+    .venv/bin/python tools/gui_walk.py [SCENE] [--seconds 20] [--speed 1.4]   (-small: the small variant)
 
 runs Blender in an Xvfb window with this checkout as a legacy add-on (as ``tests/gui``
 does), loads the sample scene, and walks the viewport along the scene's camera path at a
-constant pace of wall time (a timer sets the view at every event-loop turn), once with
+constant pace of wall time (``--speed`` scene units a second; a timer sets the view at every event-loop turn), once with
 live mode off and once with it on.  Counts the frames Blender drew (a draw handler of the
 3D view), the objects drawn per frame and the live passes that landed, and prints one
 JSON object.  A pass that held Blender's main thread shows as fewer frames with live on.
 
-Inside Blender (``--python tools/gui_walk.py -- OUT_JSON SCENE SECONDS``) it is the walk itself.
+Inside Blender (``--python tools/gui_walk.py -- OUT_JSON SCENE SECONDS SPEED``) it is the walk itself.
 """
 
 import os
@@ -32,13 +32,15 @@ def outside(argv):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("scene", nargs="?", default="city-small")
     ap.add_argument("--seconds", type=float, default=20.0, help="of walking, each of live off and on")
+    ap.add_argument("--speed", type=float, default=1.4,
+                    help="scene units a second of wall time along the path (1.4: a walk in metres)")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as work:
         work = pathlib.Path(work)
         env = blender_env(work)
         out = work / "walk.json"
-        rc, log = run_in_window(env, os.path.abspath(__file__), [str(out), args.scene, str(args.seconds)],
-                                screen="1280x720")
+        argv = [str(out), args.scene, str(args.seconds), str(args.speed)]
+        rc, log = run_in_window(env, os.path.abspath(__file__), argv, screen="1280x720")
         if not out.exists():
             print(f"no results (rc {rc}):\n{log[-3000:]}", file=sys.stderr)
             return 1
@@ -46,7 +48,7 @@ def outside(argv):
     return 0
 
 
-def inside(out_path, scene_name, seconds):
+def inside(out_path, scene_name, seconds, speed):
     import bpy
     import mathutils
     import numpy as np
@@ -54,7 +56,7 @@ def inside(out_path, scene_name, seconds):
     sys.path.insert(0, os.path.join(ROOT, "tools"))
     from blender_scene import build_scene, drive_in_window, view3d
 
-    results = {"scene": scene_name, "seconds": seconds, "blender": bpy.app.version_string}
+    results = {"scene": scene_name, "seconds": seconds, "speed": speed, "blender": bpy.app.version_string}
 
     def run():
         bpy.ops.preferences.addon_enable(module=ADDON)
@@ -65,8 +67,11 @@ def inside(out_path, scene_name, seconds):
         name, small = (scene_name[:-6], True) if scene_name.endswith("-small") else (scene_name, False)
         scene = core.load_scene(str(sample_scenes.scene_path(name, small=small)))
         frames = sample_scenes.default_camera_path(name, small=small)["frames"]
+        eyes = np.array([f["eye"] for f in frames], dtype=float)
+        length = float(np.linalg.norm(np.diff(eyes, axis=0), axis=1).sum())
+        seconds_walked = min(seconds, length / speed)
         build_scene(scene)
-        results.update(objects=len(scene), triangles=int(scene.triangle_counts.sum()))
+        results.update(objects=len(scene), triangles=int(scene.triangle_counts.sum()), path_length=length)
         win, area, region = view3d()
         space = area.spaces.active
         space.overlay.show_floor = False
@@ -79,8 +84,8 @@ def inside(out_path, scene_name, seconds):
         drawn = []
 
         def count():
-            if bpy.context.region_data is rv3d:
-                drawn.append(sum(1 for o in objs if not o.hide_viewport and not o.occ_culled))
+            if bpy.context.region_data == rv3d:
+                drawn.append(sum(1 for o in objs if o.visible_in_viewport_get(space)))
 
         def view_at(u):
             """The path's view at ``u`` in [0, 1] (linear between its frames)."""
@@ -101,16 +106,18 @@ def inside(out_path, scene_name, seconds):
                 with bpy.context.temp_override(**ctx):
                     live.start(bpy.context)
                 t = time.perf_counter()
-                while time.perf_counter() - t < 2.0 or sess.pending is not None:   # the pass at rest
+                while sess.version == before and time.perf_counter() - t < 300.0:   # the first pass, at rest
                     yield
             drawn.clear()
             start = time.perf_counter()
             landed_at_start = sess.version
+            counts_at_start = dict(live.COUNTS)
             state = {"done": False}
 
             def step():
-                u = (time.perf_counter() - start) / seconds
-                if u >= 1.0:
+                walked = time.perf_counter() - start
+                u = min(walked * speed / length, 1.0)
+                if walked >= seconds_walked:
                     state["done"] = True
                     return None
                 rv3d.view_matrix = mathutils.Matrix(view_at(u).tolist())
@@ -129,7 +136,8 @@ def inside(out_path, scene_name, seconds):
             return {"frames": len(drawn), "fps": len(drawn) / took,
                     "objects_drawn_mean": float(np.mean(drawn)) if drawn else None,
                     "passes_landed_walking": sess.version - landed_at_start,
-                    "passes_landed": sess.version - before}
+                    "passes_landed": sess.version - before,
+                    "live_passes_walking": {k: v - counts_at_start.get(k, 0) for k, v in live.COUNTS.items()}}
 
         results["live_off"] = yield from walk(False)
         results["live_on"] = yield from walk(True)
@@ -140,6 +148,6 @@ def inside(out_path, scene_name, seconds):
 if __name__ == "__main__":
     if "--" in sys.argv and "bpy" in sys.modules:
         a = sys.argv[sys.argv.index("--") + 1:]
-        inside(a[0], a[1], float(a[2]))
+        inside(a[0], a[1], float(a[2]), float(a[3]))
     else:
         sys.exit(outside(sys.argv[1:]))

@@ -115,9 +115,10 @@ def main():
     render.resolution_x = 320
     bpy.ops.occ.cull()
     check("camera_untouched", bpy.data.objects["cam"].visible_get())
-    s = bpy.context.scene.occ
-    check("panel_figures", s.last_tested >= 6 and s.last_occluded >= 2 and s.last_ms > 0,
-          (s.last_tested, s.last_occluded, s.last_outside, s.last_ms))
+    last = session.last
+    check("panel_figures", last.tested >= 6 and last.occluded >= 2 and last.ms > 0
+          and not any(k.startswith("last_") for k in bpy.context.scene.occ.keys()),
+          (last.tested, last.occluded, last.outside, last.ms, list(bpy.context.scene.occ.keys())))
 
     # --- restore brings back exactly the prior state ----------------------------
     bpy.ops.occ.restore()

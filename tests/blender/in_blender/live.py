@@ -187,6 +187,19 @@ def passes_land_only_unchanged():
     got = {}
     got["begun"] = begun()
     got["landed"] = (live.settle(), hidden_by_addon("target"))
+    # a landed pass left nothing for Blender's next update to report (a figure written to
+    # the scene would: a window evaluates it after the pass, and the bus would call it
+    # the user's change, dropping the next pass in flight); nor does a Cull click
+    changes = live._state["changes"]
+    bpy.context.view_layer.update()
+    bpy.ops.occ.cull()
+    bpy.context.view_layer.update()
+    got["quiet"] = live._state["changes"] - changes
+    # leaving the envelope shows everything as the add-on's own change: no edit announced
+    # (a pass in flight may land; motion passes do not wait for rest)
+    live.leave()
+    bpy.context.view_layer.update()
+    got["left_quiet"] = (live._state["changes"] - changes, hidden_by_addon_any(), live._state["dirty_at"])
     live.stop(bpy.context)
     bpy.ops.occ.restore()
 
@@ -216,7 +229,7 @@ def passes_land_only_unchanged():
     got["undone_next"] = ("Error" not in err.getvalue(), hidden_but_seen())
     live.stop(bpy.context)
     bpy.ops.occ.restore()
-    want = {"begun": True, "landed": (True, True), "moved_begun": True, "moved": (False, [], []),
+    want = {"begun": True, "landed": (True, True), "quiet": 0, "left_quiet": (0, [], None), "moved_begun": True, "moved": (False, [], []),
             "moved_next": (True, []), "deleted_begun": True, "deleted": (False, []),
             "undone_begun": True, "undone": (False, True), "undone_next": (True, [])}
     check("live_passes_land_only_unchanged", got == want, got)
