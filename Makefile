@@ -50,8 +50,12 @@ $(VENV42)/.installed-42: pyproject.toml
 test-bpy42: $(VENV42)/.installed-42
 	$(VENV42)/bin/python -m pytest -q tests/blender
 
+# The type checker on the public seams (mypy, installed here on first use; not in CI's venvs).
+TYPED := core/engine.py core/cull/ core/envelope.py core/gl/renderer.py occ_addon/session.py
 lint: $(STAMP)
-	$(VPY) -m ruff check core occ_addon tests sample_scenes
+	$(VPY) -m ruff check core occ_addon tests tools sample_scenes
+	$(VPY) -m mypy --version >/dev/null 2>&1 || $(VPY) -m pip install -q 'mypy==1.13.0'
+	$(VPY) -m mypy $(TYPED)
 
 # The extension zips into dist/, one per platform: needs only python3 with pip (no venv);
 # built and validated by Blender's own CLI when $(BLENDER) or `blender` on PATH exists.

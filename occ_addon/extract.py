@@ -475,15 +475,21 @@ def bystanders(view_layer, held: np.ndarray) -> list:
             if (o.type in DRAWN_TYPES or is_instancer(o)) and o.visible_get()]
 
 
+class NoView(Enum):
+    """:func:`drawn`'s ``space`` for no 3D view at all: the view layer's own visibility."""
+
+    BASE = "base"
+
+
 def drawn(view_layer, uids_all: np.ndarray, space=None) -> np.ndarray:
     """``(n,) bool`` over ``view_layer.objects``: what Blender draws in 3D view ``space``
-    (None: the context's 3D view, if any; "BASE": no view, the view layer's eye,
+    (None: the context's 3D view, if any; :attr:`NoView.BASE`: no view, the view layer's eye,
     collection and monitor flags), as ``visible_get(viewport=space)`` tells one object at
     a time, in bulk: ``context.visible_objects`` in that view's context (one list, a
     fraction of a ``visible_get`` per object)."""
     context = bpy.context
     found = None
-    if space == "BASE":                              # no view: the view layer's own visibility
+    if space is NoView.BASE:                         # no view: the view layer's own visibility
         shown = None
         if context.view_layer == view_layer:
             if context.area is None:
@@ -550,7 +556,7 @@ class Candidates:
         # or the view hides is not looked at one by one)
         shown = drawn(view_layer, uids_all, space)
         # hidden in one view only, what the user shows is what the view layer shows
-        base = drawn(view_layer, uids_all, "BASE") if (culled_all & ~stale_all).any() else None
+        base = drawn(view_layer, uids_all, NoView.BASE) if (culled_all & ~stale_all).any() else None
         items = layer.values()                        # one list; indexing the collection is O(i)
         sel = np.flatnonzero(shown | culled_all)
         codes = info.codes_of(uids_all[sel])

@@ -73,7 +73,7 @@ class Pending:
     camera: Camera
     display: Size
     view: tuple | None
-    rule: object
+    rule: shading.ViewRule
     show_only: bool
     version: int
     layer: tuple
@@ -232,6 +232,7 @@ class Session:
                              np.array([cand.kinds[i] is Kind.COLLECTION for i in kept], dtype=bool))
             self.bad_geometry = bad
         else:
+            assert held is not None                   # not rebuilt: the engine it holds is this one
             self.warnings += self.bad_geometry
             if strategy != self.culler.strategy_name:
                 self.worker.run(self.culler.set_strategy, strategy)
@@ -239,7 +240,9 @@ class Session:
             moved = np.flatnonzero(np.any(m != self.culler.scene.matrices, axis=(1, 2)))
             if len(moved):
                 self.worker.run(self.culler.set_matrices, moved, m[moved])
-        return self.culler, [cand.objects[i] for i in self.held.index]
+        held = self.held
+        assert held is not None                       # built above, or the one it was
+        return self.culler, [cand.objects[i] for i in held.index]
 
     def _sizes(self, context, display: Size):
         """``(options, query resolution, display resolution or None)`` of a pass."""
@@ -277,7 +280,8 @@ class Session:
 
     def compute_steps(self, context, camera: Camera, display: Size, fresh: bool = True, restart: bool = False,
                       envelope: Envelope | AtRest | None = None, lights: list | None = None,
-                      strategy: str | None = None, reuse: bool = False) -> Generator:
+                      strategy: str | None = None,
+                      reuse: bool = False) -> Generator[object, None, tuple[CullResult, list]]:
         """:meth:`compute` in steps (see :meth:`engine_steps`, also for ``reuse``);
         ``strategy``: this pass's, instead of the scene's setting."""
         job, objects = yield from self._submit_steps(context, camera, display, fresh, restart, envelope, lights,
@@ -287,7 +291,7 @@ class Session:
 
     def _submit_steps(self, context, camera: Camera, display: Size, fresh: bool, restart: bool,
                       envelope: Envelope | AtRest | None, lights: list | None,
-                      strategy: str | None = None, reuse: bool = False) -> Generator:
+                      strategy: str | None = None, reuse: bool = False) -> Generator[object, None, tuple[Job, list]]:
         """The engine for the pass (:meth:`engine_steps`) and its cull handed to the engine
         thread: ``(the cull's Job, the engine's objects)``."""
         self.discard()                        # one pass at a time on the engine
@@ -377,8 +381,9 @@ class Session:
                 raise
             finally:
                 self.enter_while = None
-            self.pending = Pending(job, objects, self.held, camera, tuple(display), view, view_rule, show_only,
-                                   self.version, layer_of(context), identity.uids().copy(), t, blender_s)
+            assert self.held is not None              # the engine the pass was handed to
+            self.pending = Pending(job, objects, self.held, camera, (display[0], display[1]), view, view_rule,
+                                   show_only, self.version, layer_of(context), identity.uids().copy(), t, blender_s)
             return self.pending
 
     def current(self, context, pending: "Pending") -> bool:

@@ -68,7 +68,7 @@ class CullPass:
         # leaves drawn before the traversal started.
         self.free = np.zeros(n, dtype=bool)
         self.predrawn = np.zeros(n, dtype=bool)
-        self._to_draw = []                  # units drawn on the CPU side, not yet sent to GL
+        self._to_draw: list = []            # units drawn on the CPU side, not yet sent to GL
         # World size of one query pixel per unit of distance (perspective) or
         # absolute (orthographic), the larger of the two axes.
         p = camera.projection

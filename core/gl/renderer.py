@@ -61,7 +61,7 @@ from .layout import BOX_TRIANGLES  # noqa: F401  (re-exported: the renderer's bo
 from .upload import box_vertices, upload_blocks
 
 # GL state this package set last, per context: renderers sharing a context share it.
-_CONTEXT_STATE = weakref.WeakKeyDictionary()
+_CONTEXT_STATE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 F32_SAFE = 1e30                         # far inside float32's range, after a projection too
 NDC_CORNERS = np.array([(x, y, z, 1.0) for z in (-1, 1) for y in (-1, 1) for x in (-1, 1)])
 COUNTER_KEYS = ("gl_calls", "blocking_reads", "query_fragments", "draws", "query_batches")
@@ -162,6 +162,10 @@ class BaseRenderer:
     (the methods marked "per path").  See the module doc."""
 
     path = ""                       # per path: "4.3" or "4.1"
+    # per path, made by the subclass: the box programs by _box_program_key, the scene's VAOs
+    box_progs: dict
+    depth_vao: object
+    id_vao: object
 
     def __init__(self, scene, width: int, height: int, ctx=None, units=None, display=None):
         (self.width, self.height), self.display = check_resolution((width, height), display)

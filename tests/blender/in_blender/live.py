@@ -229,7 +229,8 @@ def passes_land_only_unchanged():
     got["undone_next"] = ("Error" not in err.getvalue(), hidden_but_seen())
     live.stop(bpy.context)
     bpy.ops.occ.restore()
-    want = {"begun": True, "landed": (True, True), "quiet": 0, "left_quiet": (0, [], None), "moved_begun": True, "moved": (False, [], []),
+    want = {"begun": True, "landed": (True, True), "quiet": 0, "left_quiet": (0, [], None),
+            "moved_begun": True, "moved": (False, [], []),
             "moved_next": (True, []), "deleted_begun": True, "deleted": (False, []),
             "undone_begun": True, "undone": (False, True), "undone_next": (True, [])}
     check("live_passes_land_only_unchanged", got == want, got)
