@@ -39,7 +39,9 @@ Prints a table per phase and a timeline; ``--json`` writes the whole record.  Ex
 when a target fails.  ``--scale 0.1`` runs a tenth of every count (at least 3 each),
 ``--count live=200`` sets one; ``--without-thread-release`` runs the engine thread as it
 was before issue 30's fix (it ended with its EGL context current: about 20 MB kept per
-disable/enable on the city), to show what the toggle phase catches.
+disable/enable on the city), to show what the toggle phase catches.  ``--trace-malloc``
+traces Python's allocations (numpy's arrays too, not the GL driver's) and prints, per
+phase, the sites that grew after warm-up.
 """
 
 import argparse
@@ -52,6 +54,7 @@ import tempfile
 import threading
 import time
 import traceback
+import tracemalloc
 import zipfile
 
 WORK = None
@@ -78,6 +81,7 @@ TRIVIAL_ID = "occ_soak_trivial"
 TRIVIAL = f"bl_ext.user_default.{TRIVIAL_ID}"
 SIZES = {"live": 5000, "cull": 500, "undo": 200, "toggle": 50, "control": 50, "save": 20}
 GROWTH_MB = 50.0        # the issue's budget after warm-up
+TRACE = False           # --trace-malloc
 TREND_MB = 10.0         # what a line fitted to a phase's samples may rise
 CAMERA = "soak_camera"
 RENDER = (1280, 720)
@@ -262,6 +266,7 @@ class Soak:
     def __init__(self, path, work, tee):
         self.path, self.work, self.tee = path, work, tee
         self.samples, self.phases, self.checks = [], {}, {}
+        self.traced = {}                 # phase: grown(...) (--trace-malloc)
         self.view = 0
 
     # -- records
@@ -327,7 +332,10 @@ class Soak:
         t = time.perf_counter()
         start = self.sample(name, 0)
         ref, ref_gl, errors = None, None, 0
+        traced = None
         for k in range(1, cycles + 1):
+            if TRACE and k == warm + 1:
+                traced = tracemalloc.take_snapshot()
             try:
                 body(k)
             except Exception:  # every failure is recorded, the soak goes on
@@ -350,6 +358,8 @@ class Soak:
                 print(f"{name} {k}/{cycles}: {row['rss_mb']:.0f} MB, {row['gl_alive']} GL objects, "
                       f"{row['stale_contexts']} released contexts kept, {time.perf_counter() - t:.0f} s", flush=True)
         self.check(f"{name}_no_exception", errors == 0, "")
+        if traced is not None:
+            self.traced[name] = grown(traced, tracemalloc.take_snapshot())
         end = self.sample(name, cycles)
         rows = [r for r in self.samples if r["phase"] == name]
         after = [r for r in rows if r["cycle"] >= warm]
@@ -472,6 +482,14 @@ class Soak:
 
 
 # --- report ------------------------------------------------------------------------
+def grown(before, after, top=12):
+    """The Python allocation sites (numpy's arrays included) that grew most between two
+    ``tracemalloc`` snapshots: ``[(KB, count, "file:line"), ...]``."""
+    stats = after.compare_to(before, "lineno")
+    return [(round(s.size_diff / 1024, 1), s.count_diff, f"{s.traceback[0].filename}:{s.traceback[0].lineno}")
+            for s in sorted(stats, key=lambda s: -s.size_diff)[:top] if s.size_diff > 0]
+
+
 def table(rows, cols):
     widths = [max(len(c), *(len(str(r.get(c, ""))) for r in rows)) for c in cols]
     lines = ["  ".join(c.rjust(w) for c, w in zip(cols, widths, strict=True))]
@@ -508,8 +526,14 @@ def main(argv=None):
     ap.add_argument("--without-thread-release", action="store_true",
                     help="the engine thread ends without releasing its EGL state (the leak before the fix)")
     ap.add_argument("--json", help="write the summary and every sample here")
+    ap.add_argument("--trace-malloc", action="store_true",
+                    help="trace Python's allocations (numpy's too): per phase, the sites that grew after warm-up")
     ap.add_argument("--work", help="folder for the user resources, the zips and the saved file")
     args = ap.parse_args(argv)
+    global TRACE
+    TRACE = args.trace_malloc
+    if TRACE:
+        tracemalloc.start(1)
     work = WORK or args.work or tempfile.mkdtemp(prefix="occ_soak_")
     tee = Tee(sys.stderr)
     sys.stderr = tee
@@ -539,10 +563,14 @@ def main(argv=None):
            "blender": bpy.app.version_string, "scale": args.scale, "counts": counts,
            "thread_release": not args.without_thread_release,
            "seconds": round(time.perf_counter() - soak.t0, 1), "phases": soak.phases, "checks": soak.checks,
-           "tracebacks": tee.lines[:50], "samples": soak.samples}
+           "tracebacks": tee.lines[:50], "samples": soak.samples, "malloc_grown": soak.traced}
     print(f"\n{out['scene']}: {objects:,} objects, {triangles:,} triangles, Blender {out['blender']}, "
           f"{out['seconds']:.0f} s")
     report(out)
+    for phase, sites in soak.traced.items():
+        print(f"\n{phase}: Python allocations grown after warm-up (KB, count, site)")
+        for kb, count, site in sites:
+            print(f"  {kb:10.1f} {count:7d}  {site}")
     if args.json:
         with open(args.json, "w") as f:
             json.dump(out, f, indent=1)
