@@ -154,8 +154,9 @@ class LiveLoop:
 
     - :meth:`look` at the view at every redraw and tick (the motion is measured);
     - :meth:`holds`: whether the displayed set (``shown``: the camera and envelope it
-      was made for, or None when nothing is hidden) holds for the view and its next
-      step; when not, everything is shown before the next redraw;
+      was made for, or None when nothing is hidden; a camera of None: made for a view
+      nobody knows, it holds for none) holds for the view and its next step; when
+      not, everything is shown before the next redraw;
     - :meth:`due`: while the view moves, whether a pass should start now: none is in
       flight, the displayed set would not last until a pass started now lands, and the
       turn until then leaves such a pass a chance to hold (:meth:`LivePolicy.reachable`);
@@ -177,7 +178,9 @@ class LiveLoop:
         self.tracker.observe(view, now)
 
     def holds(self, shown, view):
-        return shown is None or self.tracker.safe(self.policy, shown[0], shown[1], view)
+        if shown is None:
+            return True                               # nothing hidden holds anywhere
+        return shown[0] is not None and self.tracker.safe(self.policy, shown[0], shown[1], view)
 
     def latency(self):
         """The time a pass started now will take to land: the slowest of the last few."""
@@ -187,7 +190,8 @@ class LiveLoop:
         t = self.tracker
         if self.flight is not None or not self.policy.reachable(max(t.turns), self.latency(), t.step[1]):
             return False
-        return shown is None or not t.lasts(self.policy, shown[0], shown[1], view, self.latency())
+        return shown is None or shown[0] is None or not t.lasts(self.policy, shown[0], shown[1], view,
+                                                                  self.latency())
 
     def start(self, view, now, scene_size=None, envelope=None):
         """A pass starts from ``view``: its envelope, the measured motion's over the pass's

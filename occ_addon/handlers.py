@@ -13,6 +13,7 @@ from bpy.app.handlers import persistent
 
 from . import bus, localview, visibility
 from .identity import ident
+from .passes import UNKNOWN
 from .session import SESSION
 
 
@@ -91,6 +92,8 @@ def on_undo(*_args):
         visibility.after_undo()
     finally:
         SESSION.applying = False
+    if visibility.culled().any():       # hidden for a view nobody recorded: it holds for none
+        SESSION.shown = UNKNOWN
     bus.emit("undone")
 
 

@@ -40,7 +40,7 @@ from ..core.camera import camera_cut
 from ..core.motion import AT_REST, LiveLoop, MotionTracker
 from . import bus, overlay, visibility
 from .cameras import camera_for, find_viewport, region_camera, scene_camera, view_state
-from .passes import Shown
+from .passes import shown_by
 from .props import settings_key
 from .session import POLICY, SESSION
 
@@ -204,7 +204,7 @@ def _land(context, camera, display, now):
     else:
         failed = None
     why = _changed_under(context, display, flight, pending) if failed is None else "failed"
-    shown = Shown(pending.camera, result.envelope) if failed is None and result.envelope is not None else None
+    shown = shown_by(result, pending.camera) if failed is None else None
     lands = LOOP.land(shown, camera, now) and shown is not None
     if failed is not None:
         SESSION.finish(context, pending)              # raises the engine's error (the tick reports it)
@@ -212,6 +212,8 @@ def _land(context, camera, display, now):
         key = f"dropped_{why or 'left'}"
         COUNTS[key] = COUNTS.get(key, 0) + 1
         SESSION.discard()
+        if flight.rest and _state["changed_at"] is None and _state["dirty_at"] is None:
+            _state["changed_at"] = now                # at rest a pass must land: another once it rests
         return False
     SESSION.finish(context, pending)
     COUNTS["landed"] += 1
@@ -428,6 +430,6 @@ def guard_camera(scene):
     if SESSION.shown is None:        # evaluating the camera ran this handler again, which showed all
         return
     centre, envelope = SESSION.shown
-    if camera is None or not CAMERA_TRACKER.safe(POLICY, centre, envelope, camera):
+    if camera is None or centre is None or not CAMERA_TRACKER.safe(POLICY, centre, envelope, camera):
         SESSION.shown = None
         visibility.restore()

@@ -12,10 +12,19 @@ from ..core.envelope import Envelope
 
 
 class Shown(NamedTuple):
-    """The view a hidden set was made from and the envelope of views it holds for."""
+    """The view a hidden set was made from and the envelope of views it holds for;
+    :data:`UNKNOWN` (both None): a hidden set of a view the session does not know."""
 
-    camera: Camera
-    envelope: Envelope
+    camera: Camera | None
+    envelope: Envelope | None
+
+
+# A pass made for no envelope (a Cull click from the scene camera, live mode off)
+# holds for its own view only: no move, no turn, no next step.
+EXACT = Envelope(0.0, 0.0, any_roll=False)
+# What an undo or redo brings back hidden was hidden for a view nobody recorded: it
+# holds for no view (live mode and the redraw guard show it all before the next redraw).
+UNKNOWN = Shown(None, None)
 
 
 @dataclass(frozen=True, eq=False)
@@ -70,7 +79,7 @@ class LastPass:
                 f"{self.triangles_hidden:,} triangles hidden ({self.ms:.0f} ms)")
 
 
-def shown_by(result: CullResult, camera: Camera) -> Shown | None:
-    """The view and envelope a pass's hidden set holds for, or None when the pass
-    was made for no envelope (it holds for its own view only)."""
-    return None if result.envelope is None else Shown(camera, result.envelope)
+def shown_by(result: CullResult, camera: Camera) -> Shown:
+    """The view and envelope a pass's hidden set holds for (:data:`EXACT` when the pass
+    was made for no envelope: its own view only)."""
+    return Shown(camera, EXACT if result.envelope is None else result.envelope)

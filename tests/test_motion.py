@@ -33,6 +33,17 @@ def test_the_displayed_set_holds_only_inside_its_envelope_with_room_for_the_next
     assert not loop.holds(other_lens, view)                     # another lens: the envelope says nothing
 
 
+def test_a_set_made_for_an_unknown_view_holds_for_none_and_wants_a_pass():
+    loop = LiveLoop()
+    view = moving(loop, speed=0.0)                              # at rest
+    unknown = (None, None)                                      # brought back by an undo
+    assert not loop.holds(unknown, view)
+    assert loop.due(unknown, view)
+    exact = (view, Envelope(0.0, 0.0, any_roll=False))          # a pass made for its own view only
+    assert loop.holds(exact, view)                              # at rest, at that very view
+    assert not loop.holds(exact, walk(0.01))
+
+
 def test_a_pass_is_due_once_the_displayed_set_would_not_last_until_it_lands():
     loop = LiveLoop()
     view = moving(loop, speed=3.0)

@@ -13,6 +13,7 @@ from .common import (
     addon,
     box,
     check,
+    cull,
     drawn,
     hidden_but_seen,
     hidden_by_addon,
@@ -234,3 +235,38 @@ def passes_land_only_unchanged():
             "moved_next": (True, []), "deleted_begun": True, "deleted": (False, []),
             "undone_begun": True, "undone": (False, True), "undone_next": (True, [])}
     check("live_passes_land_only_unchanged", got == want, got)
+
+
+def live_keeps_no_set_made_for_another_view():
+    """Live turned on after a Cull click from the scene camera (made for no envelope: it
+    holds for its own view only), the camera moved since: what the click hid is shown
+    before any pass lands, also when live's first pass is dropped (the jump since live's
+    last look counts as the motion's step, so the pass at rest does not hold at once).
+    The click's set kept instead hides an object the camera sees (the check can fail)."""
+    live = addon("live")
+    scene = new_scene()
+    box("target", (3, -1, 0), (4, 1, 1))
+    update()
+    live.DEBOUNCE_S = 0.0
+    live.start(bpy.context)
+    ticks(live)                                       # live looked at the view once
+    live.stop(bpy.context)
+    bpy.ops.occ.restore()
+    r, _ = cull()                                     # a Cull click, live off: the target hidden
+    hid = hidden_by_addon("target")
+    scene.camera.location = (3.5, -8.0, 0.5)          # beside the wall: the target in plain view
+    scene.camera.rotation_euler = (math.pi / 2, 0.0, 0.0)
+    update()
+    kept = {"stale_before_live": hidden_but_seen()}
+    live.start(bpy.context)
+    for _ in range(3):
+        live._tick()
+        kept[f"tick_{len(kept)}"] = hidden_but_seen()
+        live.settle()
+        kept[f"settled_{len(kept)}"] = hidden_but_seen()
+    live.stop(bpy.context)
+    bpy.ops.occ.restore()
+    stale = kept.pop("stale_before_live")
+    check("live_keeps_no_set_made_for_another_view",
+          r == {"FINISHED"} and hid and stale == ["target"] and not any(kept.values()),
+          (r, hid, stale, kept, dict(live.COUNTS)))
