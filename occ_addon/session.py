@@ -100,6 +100,7 @@ class Session:
         self.warnings = []         # objects left out of the last pass, for the report
         self.bad_geometry = []     # of them, those left out for their vertices (known since the last build)
         self.layer = None          # (scene, view layer) of the last pass
+        self.reread = False        # the next pass compares every transform (reread_transforms)
         self.busy = None           # the label of a modal operator's work in steps (live passes wait)
         self.shown: Shown | None = None  # the view and motion the hidden set holds for
         self.read: Candidates | None = None   # the last pass's candidates (see engine_steps' reuse)
@@ -135,7 +136,7 @@ class Session:
         after a view-layer switch): a Cull click and an analysis's frames, where the
         file has several view layers or scenes, trust no original ``matrix_world``
         another layer's evaluation may have left behind."""
-        self.layer = None
+        self.reread = True
 
     def left_layer(self, context) -> int:
         """The context shows another scene or view layer than the last pass's: what the
@@ -174,11 +175,19 @@ class Session:
         # the evaluated layer keeps a stale original matrix_world until this layer's
         # evaluation writes it back, and the candidates read originals in bulk: once
         # per switch, every one is compared with its evaluated copy (Extractor.fresh_matrices).
-        every = layer != self.layer and not alone
+        every = (layer != self.layer or self.reread) and not alone
         # ... and what the add-on hides is checked against its data (as on a click): in
         # another layer an object may be drawn that no edit report reached while it was not
         verify = verify or layer != self.layer
-        self.layer = layer
+        if self.layer is not None and layer != self.layer:
+            # ... and so may every object read before: an edit is reported only by the
+            # evaluation of a layer that holds the object, and a layer's first evaluation
+            # reports its objects without their geometry changes (workflow seed 7053: a
+            # vertex made NaN while the active layer left the object out, then a new
+            # layer).  Read again, every cached geometry; meshes unchanged keep their
+            # chunks in the engine (ChunkCache).
+            self.extractor.mark(geometry=list(self.extractor.cache))
+        self.layer, self.reread = layer, False
         cand = self.extractor.candidates(context, verify, every)
         if len(cand.give_back):
             visibility.release(np.isin(identity.uids(), cand.give_back))

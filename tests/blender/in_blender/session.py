@@ -546,3 +546,41 @@ def foreign_overrides_during_a_job():
     check("foreign_override_no_crash", calls == 12, calls)
     check("foreign_override_guard_where_needed", guarded == wrapped, (wrapped, guarded))
     check("foreign_override_waits_for_the_job", all(waited) or not wrapped, waited)
+
+
+def edit_outside_the_layer():
+    """A wall's mesh edited while the window shows a view layer that leaves the wall out
+    (no evaluation reports the edit), then a new view layer that draws it: its first
+    evaluation reports the wall without the geometry change.  The next pass reads the
+    wall as it is now: the wall made low no longer hides the target behind it (the
+    wall's old geometry would, so the check can fail)."""
+    scene = new_scene()
+    box("target", (3, -1, 0), (4, 1, 1))
+    walls = bpy.data.collections.new("Walls")
+    scene.collection.children.link(walls)
+    wall = bpy.data.objects["wall"]
+    for c in list(wall.users_collection):
+        c.objects.unlink(wall)
+    walls.objects.link(wall)
+    update()
+    r1, _ = cull()                                        # the target hidden behind the wall
+    hid = hidden_by_addon("target")
+    bpy.ops.occ.restore()
+    other = scene.view_layers.new("Other")
+    other.layer_collection.children["Walls"].exclude = True
+    bpy.context.window.view_layer = other
+    update()
+    r2, _ = cull()                                        # a pass in the layer without the wall
+    for v in wall.data.vertices:                          # the wall made low: the target in view
+        v.co.z = min(v.co.z, -1.5)
+    wall.data.update()
+    update()
+    third = scene.view_layers.new("Third")                # a new layer: its first evaluation
+    bpy.context.window.view_layer = third
+    update()
+    r3, _ = cull()
+    check("edit_outside_the_layer_seen",
+          (r1, hid, r2, r3, hidden_by_addon("target")) == ({"FINISHED"}, True, {"FINISHED"}, {"FINISHED"}, False),
+          (r1, hid, r2, r3, hidden_by_addon("target")))
+    promise("edit_outside_the_layer_truth")
+    bpy.ops.occ.restore()
