@@ -150,7 +150,7 @@ def analysis_steps(context, frames: list[int], path: str, rule: str = "seen",
                 vis |= policy.drawn_beyond_depth(view_rule, result.state, scene.occ.cull_raytraced)
             policy.widen_instances(objects, instances, vis)
             shown = [held_names[i] for i in np.flatnonzero(vis)]
-            others = [o.name for o in extra + policy.members_seen(objects, instances, vis, emitting)]
+            others = [o.name for o in extra + policy.members_seen(objects, instances, vis, emitting, extra)]
             names = list(dict.fromkeys(shown + others))
             out.per_frame.append({"frame": f, "visible": names})
             for n in others:

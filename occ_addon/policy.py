@@ -106,20 +106,28 @@ def emitters(objects: list) -> list[int]:
             if any(ps.settings.render_type in {"OBJECT", "COLLECTION"} for ps in o.particle_systems)]
 
 
-def members_seen(objects: list, instances: list[int], vis: np.ndarray, emitting: list[int] = ()) -> list:
+def instanced_members(o) -> list:
+    """The objects ``o`` draws through instancing: its instance collection's objects,
+    and what its particle systems instance (an object, or a collection's objects)."""
+    out = list(o.instance_collection.all_objects) \
+        if o.instance_type == "COLLECTION" and o.instance_collection is not None else []
+    for ps in o.particle_systems:
+        st = ps.settings
+        if st.render_type == "OBJECT" and st.instance_object is not None:
+            out.append(st.instance_object)
+        elif st.render_type == "COLLECTION" and st.instance_collection is not None:
+            out.extend(st.instance_collection.all_objects)
+    return out
+
+
+def members_seen(objects: list, instances: list[int], vis: np.ndarray, emitting: list[int] = (),
+                 bystanders: list = ()) -> list:
     """Objects seen beside the engine's visible ones through instances: the members of
     every visible collection instance (an object is seen where an instance draws it),
     and what the particles of every visible emitter in ``emitting`` instance (the
-    engine holds those instances as the emitter's geometry).
-    The others seen beside them are those Blender draws that the engine does not hold
-    (:func:`.extract.bystanders`: never culled, so visible)."""
-    seen = [m for i in instances if vis[i] for m in objects[i].instance_collection.all_objects]
-    for i in emitting:
-        if vis[i]:
-            for ps in objects[i].particle_systems:
-                st = ps.settings
-                if st.render_type == "OBJECT" and st.instance_object is not None:
-                    seen.append(st.instance_object)
-                elif st.render_type == "COLLECTION" and st.instance_collection is not None:
-                    seen.extend(st.instance_collection.all_objects)
-    return seen
+    engine holds those instances as the emitter's geometry); the same of every one of
+    ``bystanders``: what Blender draws that the engine does not hold
+    (:func:`.extract.bystanders`: never culled, so visible; workflow seed 7032: a hair
+    emitter left out of the engine, its hair collection's member left out of the report)."""
+    drawing = [objects[i] for i in sorted(set(instances) | set(emitting)) if vis[i]] + list(bystanders)
+    return [m for o in drawing for m in instanced_members(o)]

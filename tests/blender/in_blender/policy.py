@@ -320,6 +320,36 @@ def instance_wire_member_analyzed():
               and "target" in never, (r, sorted(truth), sorted(named), sorted(never)))
 
 
+def bystander_emitter_members_analyzed():
+    """A hair emitter the engine does not hold (drawn as wire: never an occluder, never
+    culled) in plain view, its particles instancing a collection excluded from the view
+    layer: its member is drawn only where the particles draw it, in view.  Analyze
+    counts the member seen and "Collect Never Visible" leaves it out (workflow seed
+    7032: the member, its only other home that collection, was collected although seen)."""
+    scene = new_scene()
+    lib = bpy.data.collections.new("HairLib")
+    scene.collection.children.link(lib)
+    bpy.context.view_layer.layer_collection.children["HairLib"].exclude = True
+    box("hair_piece", (3, -0.2, 0), (3.3, 0.2, 0.3), lib)            # itself behind the wall
+    em = box("wire_emitter", (-6.2, -0.2, 0.8), (-5.8, 0.2, 1.2))    # in view
+    em.display_type = "WIRE"
+    em.modifiers.new("hair", "PARTICLE_SYSTEM")
+    ps = em.particle_systems[0].settings
+    ps.type, ps.count, ps.hair_length, ps.particle_size = "HAIR", 4, 0.2, 1.0
+    ps.display_method = "RENDER"
+    ps.render_type, ps.instance_collection = "COLLECTION", lib
+    box("target", (3, 2, 0), (4, 3, 1))                                # behind the wall: never visible
+    update()
+    report = os.path.join(WORK, "bystander_emitter.json")
+    r = bpy.ops.occ.analyze(filepath=report, frame_start=1, frame_end=1, link_never_visible=True)
+    with open(report) as f:
+        named = set(json.load(f)["frames"][0]["visible"])
+    never = {o.name for o in bpy.data.collections["Never Visible"].objects}
+    check("bystander_emitter_members_analyzed_seen",
+          r == {"FINISHED"} and {"wire_emitter", "hair_piece"} <= named and "hair_piece" not in never
+          and "target" in never, (r, sorted(named), sorted(never)))
+
+
 def rule():
     """What the last pass said the view draws (the session's figures, passes.LastPass)."""
     last = addon("session").SESSION.last
