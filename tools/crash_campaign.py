@@ -3,7 +3,7 @@ a process of its own, so that a crash of Blender ends one seed only and is count
 a crash (issue 30).
 
     .venv/bin/python tools/crash_campaign.py --seeds 1000:1100 [--steps 300] [--jobs 2]
-        [--hide-in VIEW] [--minutes 40] [--plain-check] [--json OUT.json]
+        [--hide-in VIEW] [--minutes 40] [--plain-check] [--skip KIND,..] [--json OUT.json]
     .venv-bpy42/bin/python tools/crash_campaign.py --seeds 1:20      (another bpy: its python)
 
 Per seed: ``pass``, ``fail`` (an invariant broke: the step, its kind, the first
@@ -117,6 +117,7 @@ def run_one(seed, args, zip_path, work, plain=False, steps=None):
     cmd = [args.python, WORKFLOWS, "--work", home, "--seed", str(seed), "--steps", str(steps),
            "--hide-in", args.hide_in, "--progress", progress, "--tail", "12"]
     cmd += ["--plain"] if plain else ["--zip", zip_path]
+    cmd += ["--skip", args.skip] if args.skip else []
     env = {**os.environ, "BLENDER_USER_RESOURCES": os.path.join(home, "user"), "PYTHONHASHSEED": "0"}
     t = time.perf_counter()
     try:
@@ -129,7 +130,8 @@ def run_one(seed, args, zip_path, work, plain=False, steps=None):
     seconds = round(time.perf_counter() - t, 1)
     step, kind = last_progress(progress)
     replay = (f"{os.path.relpath(args.python, ROOT)} tests/blender/workflows.py --seed {seed} "
-              f"--steps {step or steps} --hide-in {args.hide_in}{' --plain' if plain else ''} --verbose")
+              f"--steps {step or steps} --hide-in {args.hide_in}{' --plain' if plain else ''}"
+              f"{' --skip ' + args.skip if args.skip else ''} --verbose")
     res = {"seed": seed, "rc": rc, "seconds": seconds, "step": step, "kind": kind, "replay": replay}
     line = next((ln for ln in out.splitlines() if ln.startswith(MARK)), None)
     if line is not None:
@@ -186,6 +188,8 @@ def main(argv=None):
     p.add_argument("--steps", type=int, default=300)
     p.add_argument("--jobs", type=int, default=1, help="seeds run at once")
     p.add_argument("--hide-in", default="AUTO", choices=("AUTO", "VIEW", "EVERYWHERE"))
+    p.add_argument("--skip", default="", help="step kinds left out (workflows.py --skip): e.g. the kinds of "
+                   "Blender's own crashes, to hunt the add-on's failures further into each seed")
     p.add_argument("--python", default=sys.executable, help="the interpreter with bpy (default: this one)")
     p.add_argument("--timeout", type=int, default=900, help="seconds per seed")
     p.add_argument("--minutes", type=float, default=None, help="start no seed after this many minutes")
