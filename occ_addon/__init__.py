@@ -2,7 +2,10 @@
 order and unregisters in reverse; no GPU or timer work happens here.
 
 Modules: :mod:`.session` (the engine's lifecycle and a pass), :mod:`.cameras`,
-:mod:`.extract` (Blender to arrays), :mod:`.policy` (what is never hidden),
+:mod:`.extract` (Blender to arrays: the candidates and the extractor) and what it reads
+with: :mod:`.kinds` (what an object is), :mod:`.drawn` (what a view draws),
+:mod:`.meshes`, :mod:`.instances` (geometry in bulk), :mod:`.fingerprints` (what a hidden
+object's geometry was read from); :mod:`.policy` (what is never hidden),
 :mod:`.visibility` (the hide record), :mod:`.passes` (what a pass leaves behind),
 :mod:`.analysis`, :mod:`.live`, :mod:`.handlers` (Blender's handlers), :mod:`.bus`
 (the change bus), and the faces: :mod:`.operators`, :mod:`.panel`, :mod:`.overlay`, :mod:`.props`.

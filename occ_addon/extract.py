@@ -12,7 +12,7 @@ same for every parent), from the geometry read while it was shown and its
 transform rebuilt from ``matrix_basis`` through the parent chain.  Everything
 else is handled conservatively by construction:
 
-- *dynamic* objects (above) are never hidden (:func:`is_dynamic`); one the
+- *dynamic* objects (above) are never hidden (:func:`.kinds.is_dynamic`); one the
   add-on had hidden is shown again before the pass (so it is evaluated now);
 - an object the user hid in any way is no candidate (and one the add-on had
   hidden is given back to the user's hide);
@@ -46,14 +46,16 @@ one by one only where unknown), and what they look like
 (:meth:`Extractor.scene_steps`, ``to_mesh`` per changed object, only when the set of
 objects or some geometry changed; the depsgraph and frame-change handlers mark
 what changed).
+
+This module holds both questions (:class:`Candidates`, :class:`Extractor`); what they
+ask of Blender lives beside it: what an object is (:mod:`.kinds`), what a view draws
+(:mod:`.drawn`), meshes and instances read in bulk (:mod:`.meshes`, :mod:`.instances`),
+and what a hidden object's geometry was read from (:mod:`.fingerprints`).
 """
 
-import ctypes
 import time
-import zlib
-from collections.abc import Callable, Generator, Iterable
+from collections.abc import Generator, Iterable
 from dataclasses import dataclass
-from enum import Enum
 
 import bpy
 import numpy as np
@@ -61,101 +63,15 @@ import numpy as np
 from ..core import OccError, Scene
 from . import identity
 from .cameras import pass_view
+from .drawn import NoView, drawn, filters_geometry, shown_by_collections, user_shown, view_shows
+from .fingerprints import fingerprint
 from .identity import ident
+from .instances import UNREAD, instanced_geometry
+from .kinds import CODES, KINDS, UNKNOWN, BulkMap, Kind, ObjectInfo, instanced_sources, is_dynamic, kind
+from .meshes import COPY_VERTICES, SHARED_ARRAYS, mesh_arrays
 from .worker import Progress
 
-GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
-SOLID_DISPLAY = {"SOLID", "TEXTURED"}            # wire and bounds display never occlude
 STEP_S = 0.1                                     # geometry reading yields about this often (modal steps)
-_EMPTY = (np.zeros((0, 3), dtype=np.float32), np.zeros((0, 3), dtype=np.int32))
-
-
-class Kind(Enum):
-    """How an object can take part, by its settings alone."""
-
-    MESH = "mesh"
-    INSTANCER = "instancer"      # mesh-like, brings instances: its own geometry (where drawn) and theirs
-    COLLECTION = "collection"    # an empty that instances a collection
-
-
-@dataclass(frozen=True, slots=True)
-class ObjectInfo:
-    """What an object is, from its settings (edits report it: :meth:`Extractor.saw`
-    forgets it): its :func:`kind` and whether it has a parent."""
-
-    kind: Kind | None
-    parented: bool
-
-
-# Kind as a small integer, for lookups in bulk (BulkMap codes): UNKNOWN -1, 0 none
-KINDS = (None, Kind.MESH, Kind.INSTANCER, Kind.COLLECTION)
-CODES = {k: i for i, k in enumerate(KINDS)}
-UNKNOWN = -1
-
-
-class BulkMap:
-    """``uid -> value`` (a dict's ``get``, ``[]``, ``pop``, ``clear``) with each value's
-    small-integer code (``code(value)``) mirrored in sorted arrays, so that a pass looks
-    up every object in one ``searchsorted`` and asks one by one only what it has not
-    seen (or what an edit made it forget): what an object is (:class:`ObjectInfo`) and
-    whether it is dynamic (:func:`is_dynamic`)."""
-
-    def __init__(self, code: Callable[[object], int]):
-        self.code = code
-        self.entries: dict[int, object] = {}
-        self.uids = np.zeros(0, dtype=np.int64)        # sorted
-        self.codes = np.zeros(0, dtype=np.int8)        # code(value), UNKNOWN where forgotten
-        self.pending: dict[int, int] = {}              # set since the arrays were merged
-
-    def __len__(self):
-        return len(self.entries)
-
-    def clear(self) -> None:
-        self.__init__(self.code)
-
-    def get(self, uid: int):
-        return self.entries.get(uid)
-
-    def __getitem__(self, uid: int):
-        return self.entries[uid]
-
-    def __setitem__(self, uid: int, value) -> None:
-        self.entries[uid] = value
-        self.pending[uid] = self.code(value)
-
-    def update(self, uids: list, values: list) -> None:
-        """``self[u] = v`` for each pair, at once."""
-        self.entries.update(zip(uids, values, strict=True))
-        self.pending.update(zip(uids, map(self.code, values), strict=True))
-
-    def pop(self, uid: int, default=None):
-        entry = self.entries.pop(uid, default)
-        self.pending.pop(uid, None)
-        k = int(np.searchsorted(self.uids, uid))
-        if k < len(self.uids) and self.uids[k] == uid:
-            self.codes[k] = UNKNOWN
-        return entry
-
-    def codes_of(self, uids: np.ndarray) -> np.ndarray:
-        """``(n,) int8`` the codes of ``uids``' values (UNKNOWN: none)."""
-        if self.pending:
-            pu = np.fromiter(self.pending.keys(), dtype=np.int64, count=len(self.pending))
-            pc = np.fromiter(self.pending.values(), dtype=np.int8, count=len(self.pending))
-            self.pending = {}
-            at = np.searchsorted(self.uids, pu)
-            hit = at < len(self.uids)
-            hit[hit] = self.uids[at[hit]] == pu[hit]
-            self.codes[at[hit]] = pc[hit]
-            if not hit.all():
-                u, c = np.concatenate([self.uids, pu[~hit]]), np.concatenate([self.codes, pc[~hit]])
-                order = np.argsort(u, kind="stable")
-                self.uids, self.codes = u[order], c[order]
-        out = np.full(len(uids), UNKNOWN, dtype=np.int8)
-        if len(self.uids):
-            at = np.minimum(np.searchsorted(self.uids, uids), len(self.uids) - 1)
-            found = self.uids[at] == uids
-            out[found] = self.codes[at[found]]
-        return out
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -168,220 +84,6 @@ class Geometry:
     key: tuple
     vertices: np.ndarray | None
     faces: np.ndarray
-
-# Modifiers whose result depends only on the object's own data and settings
-# (their animation, if any, is the object's animation_data); anything else
-# (armature, hooks, booleans, geometry nodes, physics, ...) makes an object dynamic.
-STATIC_MODIFIERS = {"SUBSURF", "MULTIRES", "MIRROR", "BEVEL", "SOLIDIFY", "TRIANGULATE", "WELD",
-                    "DECIMATE", "EDGE_SPLIT", "WEIGHTED_NORMAL", "REMESH", "WIREFRAME", "SKIN",
-                    "SMOOTH", "LAPLACIANSMOOTH", "CORRECTIVE_SMOOTH", "ARRAY", "SCREW"}
-
-
-def positions(mesh) -> np.ndarray:
-    """``(v, 3) float32`` vertex positions of a mesh, one bulk read: the ``position``
-    attribute (Blender 3.5+, a plain array copy) or, where there is none (3.4),
-    ``vertices.co``."""
-    v = np.empty((len(mesh.vertices), 3), dtype=np.float32)
-    attr = mesh.attributes.get("position")
-    if attr is not None and attr.data_type == "FLOAT_VECTOR" and attr.domain == "POINT":
-        attr.data.foreach_get("vector", v.reshape(-1))
-    else:
-        mesh.vertices.foreach_get("co", v.reshape(-1))
-    return v
-
-
-# Blender 4.0+ shares a mesh's arrays between copies until one is written: a ``to_mesh``
-# copy costs next to nothing but its making (about 20 us), and the arrays a read un-shares
-# (positions, the corners' vertices: the Python API reads them as if to write them) go with
-# ``to_mesh_clear`` instead of staying beside the evaluated mesh (10 M-vertex grid,
-# ``tools/blender_scale.py --only grid --steps``: first cull's peak 1,405 MB above the
-# scene read from a copy, 1,672 MB read in place).  So a plain mesh of fewer than
-# ``COPY_VERTICES`` vertices is read in place (a 50,000-object scene would pay a second for
-# the copies), a larger one from a copy.  Before 4.0 a copy copies every vertex, edge and
-# corner (~600 MB at 10 M vertices): a plain mesh is read in place.
-SHARED_ARRAYS = bpy.app.version >= (4, 0, 0)
-COPY_VERTICES = 4096
-
-
-def mesh_arrays(obj_eval, direct: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """Local vertices ``(v, 3) float32`` and triangles ``(f, 3) int32`` of an evaluated
-    object, as Blender holds them (no wider copy: the engine takes both dtypes).
-
-    direct: read the evaluated mesh itself rather than a ``to_mesh`` copy of it; only
-    for a mesh object without modifiers outside edit mode, whose evaluated data is
-    a plain mesh (edit mode and GPU subdivision give wrappers that only
-    ``to_mesh`` turns into what Blender draws), and only where the copy would copy
-    (see :data:`SHARED_ARRAYS`)."""
-    if direct:
-        return _read_mesh(obj_eval.data)
-    mesh = obj_eval.to_mesh()
-    if mesh is None:                     # e.g. an empty text object
-        obj_eval.to_mesh_clear()
-        return _EMPTY
-    try:
-        return _read_mesh(mesh)
-    finally:
-        obj_eval.to_mesh_clear()
-
-
-def _read_mesh(mesh):
-    mesh.calc_loop_triangles()
-    v = positions(mesh)
-    n = len(mesh.loop_triangles)
-    f = _triangles_in_place(mesh, n) if n >= RAW_TRIANGLES else None
-    if f is None:
-        f = np.empty((n, 3), dtype=np.int32)
-        mesh.loop_triangles.foreach_get("vertices", f.reshape(-1))
-    return v, f
-
-
-# Above this many triangles a mesh's triangles are read from Blender's own array
-RAW_TRIANGLES = 1 << 17
-SAMPLES = 64         # triangles checked against the Python API's own answer
-
-
-def _corner_vertices(mesh) -> np.ndarray:
-    """``(c,) int32`` the vertex of every face corner, one bulk read."""
-    out = np.empty(len(mesh.loops), dtype=np.int32)
-    attr = mesh.attributes.get(".corner_vert")
-    if attr is not None and attr.data_type == "INT" and attr.domain == "CORNER":
-        attr.data.foreach_get("value", out)
-    else:
-        mesh.loops.foreach_get("vertex_index", out)
-    return out
-
-
-def _triangles_in_place(mesh, n: int) -> np.ndarray | None:
-    """``(n, 3) int32`` triangles of a large mesh, or None: use ``foreach_get``.
-
-    ``loop_triangles.foreach_get("vertices")`` computes each item on its own (6.2 s for
-    20 M triangles here).  The triangles' corners lie in one array of Blender's (``int3``
-    items in 4.1+, 16-byte ``MLoopTri`` before), so they are viewed where they lie, with
-    the stride the items' addresses show, and mapped to vertices through the corners'
-    vertex array (one bulk read): the whole mesh read takes 1.2 s instead of 6.6 s
-    (``tools/blender_scale.py --only grid --steps``).  Trusted only where the items are evenly spaced
-    and a spread of samples (first, last, seeded) reads the Python API's own ``loops``
-    and ``vertices``; anything else: None."""
-    tris = mesh.loop_triangles
-    base = tris[0].as_pointer()
-    stride = tris[1].as_pointer() - base
-    if stride not in (12, 16) or tris[n - 1].as_pointer() - base != stride * (n - 1):
-        return None
-    raw = (ctypes.c_char * (stride * (n - 1) + 12)).from_address(base)
-    corners = np.lib.stride_tricks.as_strided(np.frombuffer(raw, dtype=np.int32), shape=(n, 3),
-                                              strides=(stride, 4), writeable=False)
-    picks = np.unique(np.r_[0, n - 1, np.random.default_rng(n).integers(0, n, SAMPLES)]).tolist()
-    if any(tuple(tris[i].loops) != tuple(corners[i].tolist()) for i in picks):
-        return None
-    to_vertex = _corner_vertices(mesh)
-    if int(corners.min()) < 0 or int(corners.max()) >= len(to_vertex):
-        return None
-    f = np.empty((n, 3), dtype=np.int32)
-    for a in range(0, n, 1 << 20):                    # in blocks: no index array of the whole
-        np.take(to_vertex, corners[a:a + (1 << 20)], out=f[a:a + (1 << 20)])
-    del to_vertex
-    if any(tuple(tris[i].vertices) != tuple(f[i].tolist()) for i in picks):
-        return None
-    return f
-
-
-def instanced_sources(obj):
-    """Session ids of the objects ``obj`` may instance (vertex / face instancing's
-    children and theirs, particle systems' instance objects and collections), or
-    None where that cannot be told from settings (geometry nodes)."""
-    if any(m.type == "NODES" for m in obj.modifiers):
-        return None
-    out = set()
-    if obj.instance_type in {"VERTS", "FACES"}:
-        out.update(ident(c) for c in obj.children_recursive)
-    for ps in obj.particle_systems:
-        s = ps.settings
-        if s.instance_object is not None:
-            out.add(ident(s.instance_object))
-        if s.instance_collection is not None:
-            out.update(ident(o) for o in s.instance_collection.all_objects)
-    return out
-
-
-def is_instancer(obj) -> bool:
-    return obj.instance_type == "COLLECTION" and obj.instance_collection is not None
-
-
-def may_instance(obj):
-    """Whether ``obj`` can bring instances (vertex / face instancing, particles, geometry nodes)."""
-    mods = obj.modifiers
-    return obj.instance_type in {"VERTS", "FACES"} or len(obj.particle_systems) > 0 \
-        or (len(mods) > 0 and any(m.type == "NODES" for m in mods))
-
-
-def kind(obj) -> Kind | None:
-    """The :class:`Kind` of ``obj``, or None: it takes no part (it occludes nothing)."""
-    if obj.type in GEOMETRY_TYPES:
-        if obj.display_type not in SOLID_DISPLAY or obj.show_in_front:
-            return None                   # wire or bounds occlude nothing; "in front" is drawn over walls
-        parent = obj.parent
-        if parent is not None and parent.instance_type in {"VERTS", "FACES"}:
-            return None                   # drawn only as the parent's instances
-        return Kind.INSTANCER if may_instance(obj) else Kind.MESH
-    if obj.type == "EMPTY" and is_instancer(obj):
-        if obj.display_type not in SOLID_DISPLAY or obj.show_in_front:
-            return None                   # its instances are drawn as it is (wire, bounds, in front)
-        return Kind.COLLECTION
-    return None
-
-
-_POINTERS = {}     # modifier type -> its properties that point to objects, collections or textures
-
-
-def _object_pointers(mod):
-    """Whether a modifier reads another datablock (mirror object, array caps, ...)."""
-    props = _POINTERS.get(mod.type)
-    if props is None:
-        props = _POINTERS[mod.type] = [
-            p.identifier for p in mod.bl_rna.properties
-            if p.type == "POINTER" and getattr(p.fixed_type, "identifier", "") in {"Object", "Collection", "Texture"}]
-    return any(getattr(mod, p, None) is not None for p in props)
-
-
-def _animated(idblock):
-    ad = getattr(idblock, "animation_data", None)
-    return ad is not None and (ad.action is not None or len(ad.drivers) > 0 or len(ad.nla_tracks) > 0)
-
-
-def _data_animated(data) -> bool:
-    return _animated(data) or _animated(getattr(data, "shape_keys", None))
-
-
-def is_dynamic(obj, memo: dict | None = None) -> bool:
-    """Whether ``obj``'s evaluated state can change without an edit (animation,
-    drivers, constraints, physics, particles, instancing, geometry nodes,
-    modifiers that read other objects, bone or vertex parents, a dynamic parent):
-    such an object is never hidden, since Blender stops evaluating what is hidden.
-    ``memo``: whether each object data is animated (shared meshes are asked once)."""
-    seen = 0
-    while obj is not None and seen < 64:      # parent chains: a few levels
-        if _animated(obj) or len(obj.constraints) or obj.rigid_body is not None \
-                or obj.rigid_body_constraint is not None or len(obj.particle_systems) \
-                or obj.instance_type in {"VERTS", "FACES"}:
-            return True
-        data = obj.data
-        if data is not None:
-            if memo is None:
-                animated = _data_animated(data)
-            else:
-                animated = memo.get(data)
-                if animated is None:
-                    animated = memo[data] = _data_animated(data)
-            if animated:
-                return True
-        for m in obj.modifiers:
-            if m.type not in STATIC_MODIFIERS or _object_pointers(m):
-                return True
-        if obj.parent is not None and obj.parent_type not in {"OBJECT"}:
-            return True
-        obj = obj.parent
-        seen += 1
-    return False
 
 
 def bulk_matrices(collection, prop: str) -> np.ndarray:
@@ -405,124 +107,6 @@ def world_matrix(obj) -> np.ndarray:
     if obj.parent is not None:
         m = world_matrix(obj.parent) @ np.array(obj.matrix_parent_inverse, dtype=np.float64) @ m
     return m
-
-
-def shown_by_collections(view_layer):
-    """``(m,) int64`` sorted session ids of the objects in the collections the view
-    layer shows (not excluded, eye and monitor on, all the way up), in bulk."""
-    ids = []
-    stack = [(view_layer.layer_collection, True)]
-    while stack:                                   # collections: a handful
-        lc, ok = stack.pop()
-        ok = ok and not lc.exclude and not lc.hide_viewport and not lc.collection.hide_viewport
-        if ok:
-            ids.append(identity.uids(lc.collection.objects))
-        stack.extend((c, ok) for c in lc.children)
-    return np.unique(np.concatenate(ids)) if ids else np.zeros(0, dtype=np.int64)
-
-
-def user_shown(obj, view_layer, shown):
-    """Whether Blender would draw ``obj`` if the add-on had not hidden it: the
-    user's eye, its collections' eye, monitor and exclude (``shown``: see
-    :func:`shown_by_collections`), the view layer."""
-    uid = ident(obj)
-    k = np.searchsorted(shown, uid)
-    return k < len(shown) and shown[k] == uid and not obj.hide_get(view_layer=view_layer)
-
-
-DRAWN_TYPES = GEOMETRY_TYPES | {"POINTCLOUD", "VOLUME", "GREASEPENCIL", "GPENCIL", "CURVES"}
-
-# The object-type filters of a 3D view (``SpaceView3D.show_object_viewport_*``) of the types that take part
-TYPE_FILTERS = {"MESH": "show_object_viewport_mesh", "CURVE": "show_object_viewport_curve",
-                "SURFACE": "show_object_viewport_surf", "META": "show_object_viewport_meta",
-                "FONT": "show_object_viewport_font", "EMPTY": "show_object_viewport_empty"}
-
-
-def view_shows(obj, space, stale: bool = True) -> bool:
-    """Whether 3D view ``space`` draws ``obj``, which the add-on hid, once it is shown
-    again, as far as that can be told while it is hidden: its object-type filter.
-    Hidden everywhere (``stale``: not evaluated), in local view or with local
-    collections it cannot (Blender brings an object's membership up to date only while
-    it is drawn: ``visible_in_viewport_get`` and ``local_view_get`` read stale bits):
-    False, so it is given back and evaluated.  Hidden in a view's local view by the
-    add-on, it was in that local view when hidden, and nothing but leaving the local
-    view (which ends the hiding) changes that."""
-    if space.use_local_collections or (stale and space.local_view is not None):
-        return False
-    return getattr(space, TYPE_FILTERS.get(obj.type, ""), True)
-
-
-def filters_geometry(space) -> bool:
-    """Whether 3D view ``space`` filters out a type that takes part.  A collection
-    instance is drawn by its members' types, which the instancer's own visibility
-    does not tell: in such a view it is no candidate (conservative: it neither
-    occludes nor is hidden)."""
-    return space is not None and not all(getattr(space, TYPE_FILTERS[t]) for t in GEOMETRY_TYPES)
-
-
-def bystanders(view_layer, held: np.ndarray) -> list:
-    """Objects Blender draws now that the engine does not hold (``held``: the
-    engine's objects' session ids, ``(k,) int64``): wire and bounds display, point
-    clouds, volumes, grease pencil, hair, vertex-instanced children, NaN values.
-    Never culled, so counted visible by analyze.  The held ones are told apart in
-    bulk (one ``foreach_get``); only the others are looked at one by one."""
-    layer = view_layer.objects
-    rest = np.flatnonzero(~np.isin(identity.uids(layer), held))
-    if not len(rest):
-        return []
-    items = layer.values()                        # one list; indexing the collection is O(i)
-    return [o for o in (items[i] for i in rest)
-            if (o.type in DRAWN_TYPES or is_instancer(o)) and o.visible_get()]
-
-
-class NoView(Enum):
-    """:func:`drawn`'s ``space`` for no 3D view at all: the view layer's own visibility."""
-
-    BASE = "base"
-
-
-def drawn(view_layer, uids_all: np.ndarray, space=None) -> np.ndarray:
-    """``(n,) bool`` over ``view_layer.objects``: what Blender draws in 3D view ``space``
-    (None: the context's 3D view, if any; :attr:`NoView.BASE`: no view, the view layer's eye,
-    collection and monitor flags), as ``visible_get(viewport=space)`` tells one object at
-    a time, in bulk: ``context.visible_objects`` in that view's context (one list, a
-    fraction of a ``visible_get`` per object)."""
-    context = bpy.context
-    found = None
-    if space is NoView.BASE:                         # no view: the view layer's own visibility
-        shown = None
-        if context.view_layer == view_layer:
-            if context.area is None:
-                shown = context.visible_objects
-            else:
-                try:
-                    with context.temp_override(area=None, region=None):
-                        shown = bpy.context.visible_objects
-                except (TypeError, RuntimeError):    # no override without a view: one by one
-                    shown = None
-        if shown is None:                            # one by one: the eye, collections, monitor
-            ids = shown_by_collections(view_layer)
-            return np.fromiter((user_shown(o, view_layer, ids) and not o.hide_viewport
-                                for o in view_layer.objects), dtype=bool, count=len(uids_all))
-        ids = identity.idents(shown)
-        return np.isin(uids_all, ids)
-    if space is not None:
-        found = next(((w, a) for w in context.window_manager.windows for a in w.screen.areas
-                      if a.spaces.active == space), None)
-        if found is None or found[0].view_layer != view_layer:   # not a view of this layer's window
-            return np.fromiter((o.visible_get(viewport=space) for o in view_layer.objects), dtype=bool,
-                               count=len(uids_all))
-    if found is None:
-        if context.view_layer != view_layer:
-            return np.fromiter((o.visible_get() for o in view_layer.objects), dtype=bool, count=len(uids_all))
-        shown = context.visible_objects
-    else:
-        win, area = found
-        region = next((r for r in area.regions if r.type == "WINDOW"), None)
-        with context.temp_override(window=win, area=area, region=region):
-            shown = bpy.context.visible_objects
-    ids = identity.idents(shown)
-    return np.isin(uids_all, ids)
 
 
 class Candidates:
@@ -825,7 +409,7 @@ class Extractor:
         fresh = {ident(o): o for o, k, c in zip(cand.objects, cand.kinds, cand.stale, strict=True)
                  if not c and ((k is Kind.COLLECTION and self._instance_stale(o))
                                or (k is Kind.INSTANCER and self._instancer_stale(o)))}
-        for uid, (v, f) in _instanced_geometry(depsgraph, fresh).items():
+        for uid, (v, f) in instanced_geometry(depsgraph, fresh).items():
             o = fresh[uid]
             if v is UNREAD[0]:                    # kept visible, never an occluder (core.Scene.invalid)
                 self.cache[uid] = Geometry(("unknown", uid), v, f)
@@ -939,92 +523,6 @@ class Extractor:
         return hit
 
 
-def _mesh_fingerprint(mesh, memo):
-    """Sizes and checksums of a mesh's vertex positions and of its faces' corners (once
-    per mesh: ``memo``): an edit of the faces alone (edges rotated, faces deleted and
-    others made of the same vertices) changes what the mesh covers as much as a move
-    of its vertices."""
-    key = ("fp", ident(mesh))
-    hit = memo.get(key)
-    if hit is None:
-        co = positions(mesh)
-        hit = memo[key] = (len(mesh.vertices), len(mesh.polygons), zlib.crc32(co),
-                           zlib.crc32(_corner_vertices(mesh)), _shape_keys_fingerprint(mesh))
-    return hit
-
-
-def _shape_keys_fingerprint(mesh):
-    """Each shape key's settings and a checksum of its positions (a key's value set by
-    hand while the object is hidden moves its vertices as much as an edit)."""
-    keys = mesh.shape_keys
-    if keys is None:
-        return ()
-    out = [keys.use_relative, keys.eval_time]
-    for kb in keys.key_blocks:
-        co = np.empty(len(kb.data) * 3, dtype=np.float32)
-        kb.data.foreach_get("co", co)
-        out.append((kb.value, kb.mute, kb.slider_min, kb.slider_max, kb.relative_key.name,
-                    kb.vertex_group, zlib.crc32(co)))
-    return tuple(out)
-
-
-def _modifiers_fingerprint(obj):
-    """Each modifier's type and every setting it has (its RNA properties and, for
-    geometry nodes, its inputs): a modifier edited while the object is hidden changes
-    the geometry as much as a vertex moved."""
-    mods = obj.modifiers            # most objects have none: no generator made (50,000 a pass)
-    return tuple([_settings(m) for m in mods]) if len(mods) else ()
-
-
-def _settings(m) -> tuple:
-    """A comparable value of one modifier's settings."""
-    out = [m.type]
-    for p in m.bl_rna.properties:
-        if p.identifier in ("rna_type", "name", "is_active", "show_expanded", "persistent_uid") \
-                or p.type == "COLLECTION":
-            continue
-        out.append(_value(getattr(m, p.identifier, None)))
-    if m.type == "NODES":                               # its inputs: ID properties (before 5.2)
-        try:
-            out.extend((k, _value(m[k])) for k in m.keys())
-        except TypeError:                               # (5.2: not ID properties; a geometry-nodes
-            pass                                        # object is dynamic, never hidden, anyway)
-    return tuple(out)
-
-
-def _value(v):
-    """A hashable stand-in for an RNA or ID-property value (datablocks by identity)."""
-    if isinstance(v, bpy.types.ID):
-        return ("id", ident(v))
-    if isinstance(v, (bool, int, float, str)) or v is None:
-        return v
-    try:
-        return tuple(_value(x) for x in v)
-    except TypeError:
-        return repr(type(v))
-
-
-def fingerprint(obj, k: Kind, memo: dict) -> tuple | None:
-    """What the geometry of ``obj`` is read from, as a comparable value: its mesh
-    (sizes and a checksum of its vertices), its display, its modifiers; for a
-    collection instance, its members' and their placement.  None where it cannot
-    be told cheaply (curves, text, metaballs): such an object is shown again to
-    be read.  Modifier settings are not in it: edited while hidden, they are
-    seen once the object is shown."""
-    base = (k, obj.display_type, obj.show_in_front, obj.instance_type)
-    if k is Kind.COLLECTION:
-        parts = [base]
-        for m in obj.instance_collection.all_objects:
-            if m.type != "MESH":
-                return None
-            parts.append((ident(m), m.display_type, _modifiers_fingerprint(m),
-                          _mesh_fingerprint(m.data, memo), tuple(map(tuple, m.matrix_basis))))
-        return tuple(parts)
-    if obj.type != "MESH":
-        return None
-    return base + (ident(obj.data), _modifiers_fingerprint(obj), _mesh_fingerprint(obj.data, memo))
-
-
 def _finite_or_none(v):
     return v if np.all(np.isfinite(v)) else None
 
@@ -1041,132 +539,6 @@ def _inverse(m):
 def _members(collection):
     """Session ids of the objects an instanced collection brings, as a sorted tuple."""
     return tuple(sorted(ident(o) for o in collection.all_objects))
-
-
-def _instanced_geometry(depsgraph, instancers):
-    """World-space geometry of the instances of instancers ``{uid: obj}``: ``{uid: (v, f)}``.
-    Instanced objects displayed as wire or bounds are left out (they occlude nothing)."""
-    if not instancers:
-        return {}
-    parts = {uid: [] for uid in instancers}
-    # No mesh of an instance is read while iterating: its object is a temporary, and
-    # reading its mesh there (to_mesh, or the mesh itself) made Blender 4.2 crash in the
-    # iteration in 4 runs of 6 of workflow seed 5020 (about 1 in 9 without the reads:
-    # 4.2's iterator crashes there on its own now and then).  An instance of a real
-    # object is read once from that object's own evaluated copy, after the iteration
-    # (once however many particles show it); geometry an instancer made itself
-    # (geometry nodes' own meshes) is read from its evaluated geometry
-    # (:func:`_made_geometry`); where that cannot be read (Blender 4.2 has no such API)
-    # the instancer is UNREAD: kept visible, never an occluder.
-    sources = {}                                     # source uid -> (original, {owner: [matrix]})
-    unknown = set()
-    for inst in depsgraph.object_instances:
-        if not inst.is_instance or inst.parent is None:
-            continue
-        instancer = inst.parent.original
-        owner = ident(instancer)
-        ob = inst.object
-        if owner not in parts or ob.type not in GEOMETRY_TYPES or ob.display_type not in SOLID_DISPLAY:
-            continue
-        m = np.array(inst.matrix_world, dtype=np.float64)
-        source = ob.original
-        if source is not None and source != instancer:
-            sources.setdefault(ident(source), (source, {}))[1].setdefault(owner, []).append(m)
-        elif not MADE_READABLE:
-            unknown.add(owner)                       # geometry it made, not to be read here
-    for source, uses in sources.values():
-        evaluated = source.evaluated_get(depsgraph)
-        if not evaluated.is_evaluated:
-            continue                                 # not in this depsgraph: what it draws is unknown
-        v, f = mesh_arrays(evaluated)
-        for owner, mats in uses.items():
-            parts[owner].append(_placed(v, f, np.array(mats)))
-    for uid, obj in instancers.items():
-        if not MADE_READABLE or obj.type == "EMPTY":   # an empty makes no geometry (5.2 refuses to say)
-            continue
-        evaluated = obj.evaluated_get(depsgraph)
-        if evaluated.display_type in SOLID_DISPLAY:
-            try:
-                parts[uid] += _made_geometry(evaluated)
-            except (TypeError, RuntimeError, _Unread):   # Blender cannot give all of it: unread, kept visible
-                unknown.add(uid)
-    out = {uid: UNREAD for uid in unknown}
-    for uid, pieces in parts.items():
-        if uid in out:
-            continue
-        base, vs, fs = 0, [], []
-        for v, f in pieces:
-            vs.append(v)
-            fs.append(f.astype(np.int64) + base)
-            base += len(v)
-        out[uid] = (np.concatenate(vs), np.concatenate(fs)) if pieces else _EMPTY
-    return out
-
-
-MADE_DEPTH = 8          # instances of instances an instancer's own geometry is followed through
-# Whether Blender gives an instancer's own geometry after evaluation (4.3 on); before
-# (4.2), reading those meshes crashed Blender (see _instanced_geometry): such an
-# instancer's geometry is UNREAD (a NaN vertex), which the engine keeps visible and
-# never draws as an occluder (core.Scene.invalid): never hidden, never reported never visible.
-MADE_READABLE = hasattr(bpy.types.Object, "evaluated_geometry")
-UNREAD = (np.full((1, 3), np.nan, dtype=np.float32), np.zeros((1, 3), dtype=np.int32))
-
-
-class _Unread(Exception):
-    """Part of what an instancer made cannot be read: the instancer is UNREAD."""
-
-
-def _placed(v, f, mats):
-    """One mesh ``(v, f)`` placed by each matrix of ``mats`` ``(k, 4, 4)``, as one piece:
-    world vertices ``(k nv, 3)`` and faces ``(k nf, 3) int64`` (in bulk: a hair system
-    places one mesh thousands of times)."""
-    k, nv = len(mats), len(v)
-    world = np.einsum("kij,nj->kni", mats[:, :3, :3], v) + mats[:, None, :3, 3]
-    faces = f[None].astype(np.int64) + (np.arange(k, dtype=np.int64) * nv)[:, None, None]
-    return world.reshape(-1, 3), faces.reshape(-1, 3)
-
-
-def _made_geometry(evaluated):
-    """World-space ``[(v, f)]`` of the meshes geometry nodes made and instanced on the
-    evaluated object ``evaluated`` (its instances of other objects and collections are
-    the depsgraph iteration's), read from its evaluated geometry after the evaluation,
-    each mesh once however often it is instanced (``Object.evaluated_geometry``, Blender
-    4.3 on).  Raises :class:`_Unread` where instances carry no transforms or nest
-    deeper than :data:`MADE_DEPTH`."""
-    out = []
-    stack = [(evaluated.evaluated_geometry(), np.array(evaluated.matrix_world, dtype=np.float64), 0)]
-    while stack:
-        geometry, world, depth = stack.pop()
-        points = geometry.instances_pointcloud()
-        if points is None or not len(points.points):
-            continue
-        index, transform = points.attributes.get(".reference_index"), points.attributes.get("instance_transform")
-        if index is None or transform is None:
-            raise _Unread("instances without transforms")
-        n = len(points.points)
-        which = np.zeros(n, dtype=np.int32)
-        index.data.foreach_get("value", which)
-        t = np.zeros(n * 16, dtype=np.float32)
-        transform.data.foreach_get("value", t)
-        t = t.reshape(n, 4, 4).transpose(0, 2, 1).astype(np.float64)    # stored by columns
-        for r, ref in enumerate(geometry.instance_references()):
-            if not isinstance(ref, bpy.types.GeometrySet):
-                continue                                      # an object or a collection: iterated
-            at = np.flatnonzero(which == r)
-            if not len(at):
-                continue
-            mats = world @ t[at]
-            mesh = ref.mesh
-            if mesh is not None:
-                v, f = _read_mesh(mesh)
-                if len(f):
-                    out.append(_placed(v, f, mats))
-            nested = ref.instances_pointcloud()
-            if nested is not None and len(nested.points):     # instances inside: followed per placement
-                if depth >= MADE_DEPTH:
-                    raise _Unread("instances nested too deep")
-                stack.extend((ref, m, depth + 1) for m in mats)
-    return out
 
 
 def _tree(scene, objects, uids):

@@ -24,7 +24,7 @@ import bpy
 import numpy as np
 from mathutils import Euler, Matrix, Quaternion
 
-from .extract import is_dynamic
+from .kinds import is_dynamic
 
 # transform channels the keys may animate (anything else keyed on the camera: frames)
 CHANNELS = {"location": 3, "rotation_euler": 3, "rotation_quaternion": 4, "rotation_axis_angle": 4,
@@ -153,7 +153,7 @@ def probe(scene, moving: list, lights_count: bool) -> KeyedCamera | None:
         if isinstance(idb, bpy.types.Light) and not lights_count:
             continue
         return None                          # anything else moves with time: frames
-    # parents: to an object's origin, none moving with time nor able to (extract.is_dynamic)
+    # parents: to an object's origin, none moving with time nor able to (kinds.is_dynamic)
     if len(cam.constraints) or cam.data.animation_data is not None or (cam.parent is not None and (
             cam.parent_type != "OBJECT" or is_dynamic(cam.parent) or not ancestors.isdisjoint(moved))):
         return None

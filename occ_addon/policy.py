@@ -7,11 +7,11 @@ Never hidden, whatever the engine answers:
 - the user's "never cull" flag and the exclusion collection (``scene.occ``);
 - members of instanced collections (hiding a member would hide its instances
   too), of the instances the engine holds and of those it does not hold (drawn
-  as wire or bounds, in front: :func:`.extract.bystanders`);
+  as wire or bounds, in front: :func:`.drawn.bystanders`);
 - an instance of a collection with a member that draws without occluding (wire,
   bounds, "in front", point clouds, ...: :func:`draws_beyond_geometry`): the
   instance is larger than the engine's box of it;
-- dynamic objects (:func:`.extract.is_dynamic`: Blender stops evaluating what is
+- dynamic objects (:func:`.kinds.is_dynamic`: Blender stops evaluating what is
   hidden);
 - what the view shows beyond depth (:func:`drawn_beyond_depth`, :mod:`.shading`).
 
@@ -23,8 +23,9 @@ import numpy as np
 
 from ..core import Visibility
 from . import identity, visibility
-from .extract import DRAWN_TYPES, bystanders, is_instancer, kind
+from .drawn import DRAWN_TYPES, bystanders
 from .identity import ident
+from .kinds import is_collection_instance, kind
 
 
 def draws_beyond_geometry(collection) -> bool:
@@ -71,7 +72,7 @@ def never_hidden(context, objects: list, uids: np.ndarray, collection: np.ndarra
     # ... and so are those of instances the engine does not hold (drawn as wire or
     # bounds, in front): hiding a member would take it out of them too
     for o in bystanders(context.view_layer, uids):
-        if is_instancer(o) and ident(o.instance_collection) not in colls:
+        if is_collection_instance(o) and ident(o.instance_collection) not in colls:
             flagged.append(identity.uids(o.instance_collection.all_objects))
     # ... and what a particle system instances (its object, its collection's members):
     # hiding one takes it out of the particles' instances, which may be seen
@@ -84,7 +85,7 @@ def never_hidden(context, objects: list, uids: np.ndarray, collection: np.ndarra
 
 def instancers(objects: list) -> list[int]:
     """Indices of the collection instances among ``objects``."""
-    return [i for i, o in enumerate(objects) if is_instancer(o)]
+    return [i for i, o in enumerate(objects) if is_collection_instance(o)]
 
 
 def widen_instances(objects: list, instances: list[int], vis: np.ndarray) -> None:
@@ -127,7 +128,7 @@ def members_seen(objects: list, instances: list[int], vis: np.ndarray, emitting:
     and what the particles of every visible emitter in ``emitting`` instance (the
     engine holds those instances as the emitter's geometry); the same of every one of
     ``bystanders``: what Blender draws that the engine does not hold
-    (:func:`.extract.bystanders`: never culled, so visible; workflow seed 7032: a hair
+    (:func:`.drawn.bystanders`: never culled, so visible; workflow seed 7032: a hair
     emitter left out of the engine, its hair collection's member left out of the report)."""
     drawing = [objects[i] for i in sorted(set(instances) | set(emitting)) if vis[i]] + list(bystanders)
     return [m for o in drawing for m in instanced_members(o)]

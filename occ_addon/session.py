@@ -23,7 +23,8 @@ from ..core.settings import MAX_RESOLUTION, preset, query_resolution
 from ..core.units import ChunkCache
 from . import identity, localview, policy, shading, visibility
 from .cameras import hide_view
-from .extract import Candidates, Extractor, Kind
+from .extract import Candidates, Extractor
+from .kinds import Kind
 from .passes import LastPass, Shown, shown_by
 from .worker import EngineThread, Job, drive
 

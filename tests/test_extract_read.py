@@ -23,7 +23,7 @@ SCRIPT = r"""
 import importlib, json, sys
 import bpy, numpy as np
 sys.path.insert(0, PARENT)
-ex = importlib.import_module(PKG + ".occ_addon.extract")
+meshes = importlib.import_module(PKG + ".occ_addon.meshes")
 out = {}
 bpy.ops.mesh.primitive_uv_sphere_add(segments=17, ring_count=9)
 plain = bpy.context.object
@@ -36,7 +36,7 @@ sub.modifiers.new("s", "SUBSURF").levels = 2
 dg = bpy.context.evaluated_depsgraph_get()
 for name, ob in (("plain", plain), ("sub", sub)):
     oe = ob.evaluated_get(dg)
-    v, f = ex.mesh_arrays(oe)
+    v, f = meshes.mesh_arrays(oe)
     m = oe.to_mesh()
     co = np.empty(len(m.vertices) * 3, np.float32); m.vertices.foreach_get("co", co)
     m.calc_loop_triangles()
@@ -45,7 +45,7 @@ for name, ob in (("plain", plain), ("sub", sub)):
     out[name] = {"dtypes": [str(v.dtype), str(f.dtype)], "shape": [list(v.shape), list(f.shape)],
                  "co": bool(np.array_equal(v.ravel(), co)), "tri": bool(np.array_equal(f.ravel(), tri))}
     if name == "plain":
-        dv, df = ex.mesh_arrays(oe, True)
+        dv, df = meshes.mesh_arrays(oe, True)
         out["direct"] = bool(np.array_equal(dv, v) and np.array_equal(df, f))
         out["shape_key_seen"] = bool(v[:, 0].max() > 1.2)
 print("RESULT" + json.dumps(out))

@@ -314,7 +314,7 @@ def watch_addon():
     add-on's engine thread) and the objects drawn beside the engine's (read once with the
     keys).  -> {step: [seconds per call]}, filled as the analysis runs."""
     calls = {"add-on candidates (Session.candidates)": [], "engine pass (Culler.cull)": [],
-             "objects beside the engine's (extract.bystanders)": []}
+             "objects beside the engine's (drawn.bystanders)": []}
 
     def timed(fn, key):
         def call(*a, **k):

@@ -156,7 +156,7 @@ def instancers():
     cull()
     if hasattr(bpy.types.Object, "evaluated_geometry"):
         check("instancer_instances_occlude", hidden_by_addon("behind_instance"), drawn("behind_instance"))
-    else:   # Blender 4.2: geometry nodes' own meshes are not read (extract._instanced_geometry): no occluder
+    else:   # Blender 4.2: geometry nodes' own meshes are not read (instances.instanced_geometry): no occluder
         check("instancer_instances_occlude", not hidden_by_addon("behind_instance"), drawn("behind_instance"))
     promise("instancer_occlude_truth")
     seen = analyzed_objects("instancers")

@@ -379,13 +379,13 @@ def click_restarts():
 
 
 def bulk_map_is_its_dict():
-    """extract.BulkMap (what each object is, whether it is dynamic: looked up in bulk)
+    """kinds.BulkMap (what each object is, whether it is dynamic: looked up in bulk)
     answers as the dict it mirrors through a seeded run of sets, re-sets, pops and
     clears, and unknown uids read UNKNOWN."""
     import random
-    extract = addon("extract")
+    kinds = addon("kinds")
     rng = random.Random(7)
-    table, truth, bad = extract.BulkMap(int), {}, []
+    table, truth, bad = kinds.BulkMap(int), {}, []
     for step in range(3000):
         uid = rng.randrange(400)
         op = rng.random()
@@ -399,17 +399,17 @@ def bulk_map_is_its_dict():
             truth.clear()
         if step % 37 == 0:
             probe = np.array(rng.sample(range(500), 60), dtype=np.int64)
-            want = np.array([truth.get(int(u), extract.UNKNOWN) for u in probe])
+            want = np.array([truth.get(int(u), kinds.UNKNOWN) for u in probe])
             if not np.array_equal(table.codes_of(probe), want) or len(table) != len(truth):
                 bad.append(("codes", step))
     check("bulk_map_is_its_dict", not bad, bad[:5])
 
 
 def large_mesh_triangles_in_place():
-    """A large mesh's triangles read from Blender's own array (extract._triangles_in_place)
+    """A large mesh's triangles read from Blender's own array (meshes._triangles_in_place)
     are ``loop_triangles.foreach_get("vertices")``'s, triangle for triangle, on a mesh of
     quads, triangles and n-gons (its tessellation), and the in-place read is what is taken."""
-    extract = addon("extract")
+    meshes = addon("meshes")
     new_scene()
     bpy.ops.mesh.primitive_grid_add(x_subdivisions=300, y_subdivisions=300, size=20)
     mesh = bpy.context.object.data
@@ -422,9 +422,9 @@ def large_mesh_triangles_in_place():
     n = len(mesh.loop_triangles)
     want = np.empty((n, 3), dtype=np.int32)
     mesh.loop_triangles.foreach_get("vertices", want.reshape(-1))
-    got = extract._triangles_in_place(mesh, n)
-    v, f = extract._read_mesh(mesh)
-    check("large_mesh_triangles_in_place", n >= extract.RAW_TRIANGLES and got is not None
+    got = meshes._triangles_in_place(mesh, n)
+    v, f = meshes.read_mesh(mesh)
+    check("large_mesh_triangles_in_place", n >= meshes.RAW_TRIANGLES and got is not None
           and np.array_equal(got, want) and np.array_equal(f, want), (n, got is None))
 
 
