@@ -8,8 +8,8 @@ geometry-nodes Object Info node instances.
 The steps: a mesh whose geometry-nodes modifier instances object ``Source`` (Object
 Info, as instance) on three points, evaluated; ``Source`` removed by a script; the view
 layer evaluated again and its ``depsgraph.object_instances`` iterated.  The native stack
-ends in Blender's dupli generation (``make_duplis_geometry_set_impl``,
-``object_has_geometry_set_instances``).  The Delete operator (X) only unlinks such an
+ends in Blender's dupli generation (``mul_m4_m4m4`` <- ``make_duplis_geometry_set_impl``
+<- ``object_duplilist``).  The Delete operator (X) only unlinks such an
 object (the node still uses it), so a user's delete does not get there; a script's or
 another add-on's removal does.  Blender's viewport iterates the same instances to draw
 them; the add-on's passes and the seeded workflows' truth iterate them to read what
