@@ -48,16 +48,9 @@ POLL_S = 0.1          # timer period at rest
 FLIGHT_POLL_S = 0.02  # ... while the view moves or a pass is in flight (its landing is polled)
 DEBOUNCE_S = 0.15     # the view (or the scene) must rest this long before a pass at rest
 
-# passed: (camera, display) of the last pass at rest, for telling a cut (:func:`_is_cut`)
-# settings: props.settings_key at the last tick (polled: the settings have no update callbacks)
-# changes: how many changes the bus announced (a pass in flight lands only if none came)
-_state = {"last_view": None, "changed_at": None, "dirty_at": None, "passed": None, "settings": None,
-          "changes": 0, "moving": False}
 # live mode's decisions while the view moves (core.motion.LiveLoop: the motion benchmark
 # replays the same); its tracker measures the view's motion between looks (redraws, ticks)
 LOOP = LiveLoop(POLICY)
-# leaving: a leave timer is registered; region, view_state: the watched 3D view (track)
-_motion = {"leaving": False, "region": None, "view_state": None}
 
 
 @dataclass(frozen=True)
@@ -73,7 +66,30 @@ class Flight:
     rest: bool
 
 
-_flight: list[Flight] = []      # the pass in flight's (at most one)
+@dataclass
+class Watch:
+    """What live mode keeps between ticks and redraws (no Blender object: undo and file
+    loads replace them)."""
+
+    last_view: np.ndarray | None = None   # the view (camera and display) at the last tick
+    changed_at: float | None = None       # when the view last moved (None: a pass began since)
+    dirty_at: float | None = None         # when something else first changed since a pass at rest began
+    passed: tuple | None = None           # (camera, display) of the last pass at rest (:func:`_is_cut`)
+    settings: tuple | None = None         # props.settings_key at the last tick (polled: no callbacks)
+    changes: int = 0                      # changes the bus announced (a pass in flight lands only if none came)
+    moving: bool = False                  # the view moved at the last tick
+    leaving: bool = False                 # a leave timer is registered
+    region: int | None = None             # the watched 3D view's region data (:func:`track`) ...
+    view_state: object = None             # ... and what it drew then (:func:`.cameras.view_state`)
+    flight: Flight | None = None          # what the pass in flight was begun under, if live began it
+
+    def forget_view(self, now: float | None = None) -> None:
+        """Forget the view: the next tick records it (``now``: as if it moved then)."""
+        self.last_view, self.changed_at, self.dirty_at, self.passed, self.moving = None, now, None, None, False
+
+
+WATCH = Watch()
+
 # what became of live's passes since the add-on loaded (read by tools/gui_walk.py):
 # begun; landed; dropped_left: the view had left its envelope when it finished;
 # dropped_WHAT: WHAT changed under it (:func:`_changed_under`)
@@ -85,14 +101,14 @@ def track(context):
     guard watches (a Cull click culls the view it was pressed in, live mode the view a
     timer finds)."""
     found = find_viewport(context) if context.scene.occ.source == "VIEWPORT" else None
-    _motion["region"] = None if found is None else found[2].as_pointer()
-    _motion["view_state"] = None if found is None else view_state(found[0].spaces.active)
+    WATCH.region = None if found is None else found[2].as_pointer()
+    WATCH.view_state = None if found is None else view_state(found[0].spaces.active)
 
 
 def _view_changed(space):
     """Whether the watched view now draws other objects than at the pass (local view
     entered or left, a type filter toggled): the hidden set no longer holds."""
-    return _motion["region"] is not None and view_state(space) != _motion["view_state"]
+    return WATCH.region is not None and view_state(space) != WATCH.view_state
 
 
 def observe(camera):
@@ -108,18 +124,18 @@ def guard():
     """Before a redraw of the culled viewport (a draw handler, so cheap): a view about
     to leave the hidden set's envelope makes :func:`leave` run at once (a timer: data
     cannot change while drawing)."""
-    if SESSION.shown is None or _motion["leaving"]:
+    if SESSION.shown is None or WATCH.leaving:
         return
     context = bpy.context
     if context.scene is None or context.scene.occ.source != "VIEWPORT":
         return
     rv3d = context.region_data
-    if rv3d is None or rv3d.as_pointer() != _motion["region"]:
+    if rv3d is None or rv3d.as_pointer() != WATCH.region:
         return                                        # another view's redraw
     camera = region_camera(rv3d)
     observe(camera)
     if _unsafe(camera) or _view_changed(context.space_data):
-        _motion["leaving"] = True
+        WATCH.leaving = True
         bpy.app.timers.register(_leave_timer, first_interval=0.0)
 
 
@@ -131,7 +147,7 @@ def _leave_timer():
         SESSION.shown = None
         visibility.restore()
     finally:
-        _motion["leaving"] = False
+        WATCH.leaving = False
     return None
 
 
@@ -146,9 +162,9 @@ def leave(*_args):
 def changed():
     """Something other than the view changed: re-cull once it rests (a listener of
     the change bus, :mod:`.handlers`); a pass in flight will not land."""
-    _state["changes"] += 1
-    if _state["dirty_at"] is None:
-        _state["dirty_at"] = time.perf_counter()
+    WATCH.changes += 1
+    if WATCH.dirty_at is None:
+        WATCH.dirty_at = time.perf_counter()
 
 
 def _is_cut(passed, camera, display):
@@ -170,7 +186,7 @@ def _watched_state(context):
 def _begin(context, camera, display, now, fresh, rest):
     """Start a pass beside the interface: at rest (the rest envelope, hiding what it may)
     or during motion (the envelope :class:`..core.motion.LiveLoop` sizes)."""
-    dirty = _state["dirty_at"]
+    dirty = WATCH.dirty_at
     envelope = LOOP.start(camera, now, SESSION.culler.scene_size if SESSION.culler is not None else None,
                           envelope=AT_REST if rest else None)
     try:
@@ -179,8 +195,8 @@ def _begin(context, camera, display, now, fresh, rest):
         LOOP.drop()
         raise
     # the pass's own reads and update are not a change
-    _state["dirty_at"] = dirty
-    _flight[:] = [Flight(_state["changes"], settings_key(context.scene.occ), _watched_state(context), rest)]
+    WATCH.dirty_at = dirty
+    WATCH.flight = Flight(WATCH.changes, settings_key(context.scene.occ), _watched_state(context), rest)
     COUNTS["begun"] += 1
 
 
@@ -188,14 +204,14 @@ def _land(context, camera, display, now):
     """A pass in flight that finished lands (its set applied) or is dropped: see the
     module's doc.  Returns whether one landed."""
     pending = SESSION.pending
-    if pending is None or not _flight:
+    if pending is None or WATCH.flight is None:
         if LOOP.flight is not None:                   # dropped by another pass (a Cull click, a reset)
             LOOP.drop()
-        _flight.clear()
+        WATCH.flight = None
         return False
     if not pending.job.done():
         return False
-    flight = _flight.pop()
+    flight, WATCH.flight = WATCH.flight, None
     context.view_layer.update()                       # edits still pending reach the bus now
     try:
         result = pending.job.result()
@@ -212,14 +228,14 @@ def _land(context, camera, display, now):
         key = f"dropped_{why or 'left'}"
         COUNTS[key] = COUNTS.get(key, 0) + 1
         SESSION.discard()
-        if flight.rest and _state["changed_at"] is None and _state["dirty_at"] is None:
-            _state["changed_at"] = now                # at rest a pass must land: another once it rests
+        if flight.rest and WATCH.changed_at is None and WATCH.dirty_at is None:
+            WATCH.changed_at = now                # at rest a pass must land: another once it rests
         return False
     SESSION.finish(context, pending)
     COUNTS["landed"] += 1
     track(context)
     if flight.rest:
-        _state["passed"] = (pending.camera, pending.display)
+        WATCH.passed = (pending.camera, pending.display)
     return True
 
 
@@ -227,7 +243,7 @@ def _changed_under(context, display, flight, pending):
     """What changed since ``pending`` began, that its set may no longer hold for (None:
     nothing): the change bus, the display size, the settings, the session (its engine, the
     view layer, the objects) or what the watched view draws."""
-    checks = (("bus", lambda: flight.changes == _state["changes"]),
+    checks = (("bus", lambda: flight.changes == WATCH.changes),
               ("display", lambda: pending.display == tuple(display)),
               ("settings", lambda: flight.settings == settings_key(context.scene.occ)),
               ("session", lambda: SESSION.current(context, pending)),
@@ -266,10 +282,10 @@ def _tick():
     if SESSION.left_layer(context):                   # another layer: what was hidden for the last is shown
         changed()                                     # ... and a fresh pass decides here
     settings = settings_key(scene.occ)
-    if settings != _state["settings"]:                # what may be hidden changed: a fresh pass
-        if _state["settings"] is not None:
+    if settings != WATCH.settings:                    # what may be hidden changed: a fresh pass
+        if WATCH.settings is not None:
             changed()
-        _state["settings"] = settings
+        WATCH.settings = settings
     key = np.concatenate([camera.view.ravel(), camera.projection.ravel(), display])
     now = time.perf_counter()
     observe(camera)
@@ -277,29 +293,28 @@ def _tick():
         _land(context, camera, display, now)
         found = find_viewport(context) if scene.occ.source == "VIEWPORT" else None
         if found is not None and _view_changed(found[0].spaces.active) and SESSION.shown is not None:
-            _state["dirty_at"] = now                  # it draws other objects now: a fresh pass next
+            WATCH.dirty_at = now                      # it draws other objects now: a fresh pass next
             leave()
         elif _unsafe(camera):                         # the redraw guard missed it: leave now
             leave()
-        moved = _state["last_view"] is None or not np.array_equal(key, _state["last_view"])
-        _state["moving"] = moved
+        moved = WATCH.last_view is None or not np.array_equal(key, WATCH.last_view)
+        WATCH.moving = moved
         if moved:
-            _state["last_view"], _state["changed_at"] = key, now
+            WATCH.last_view, WATCH.changed_at = key, now
             # during motion: a pass from here once the displayed set would not last until
             # it lands (no scene change pending: that is a fresh pass's, at rest)
-            if (SESSION.pending is None and SESSION.culler is not None and _state["passed"] is not None
-                    and _state["dirty_at"] is None and LOOP.due(SESSION.shown, camera)):
+            if (SESSION.pending is None and SESSION.culler is not None and WATCH.passed is not None
+                    and WATCH.dirty_at is None and LOOP.due(SESSION.shown, camera)):
                 _begin(context, camera, display, now, fresh=False, rest=False)
             return _period()
-        rested = [t for t in (_state["changed_at"], _state["dirty_at"]) if t is not None]
+        rested = [t for t in (WATCH.changed_at, WATCH.dirty_at) if t is not None]
         if rested and now - max(rested) >= DEBOUNCE_S and SESSION.pending is None:
-            fresh = _state["dirty_at"] is not None or _is_cut(_state["passed"], camera, display)
-            _state.update(changed_at=None, dirty_at=None)
+            fresh = WATCH.dirty_at is not None or _is_cut(WATCH.passed, camera, display)
+            WATCH.changed_at = WATCH.dirty_at = None
             _begin(context, camera, display, now, fresh=fresh, rest=True)
     except OccError as e:  # the user's to fix (an empty scene, a panoramic camera): show all, keep going
         print(f"occlusion culling: {e}")
-        _state["passed"] = None
-        _flight.clear()
+        WATCH.passed = WATCH.flight = None
         SESSION.discard()
         LOOP.drop()
         SESSION.shown = None
@@ -307,7 +322,7 @@ def _tick():
     except Exception:  # a timer must not raise: our bug, live mode stops and shows everything
         traceback.print_exc()
         print("occlusion culling stopped (details above)")
-        _flight.clear()
+        WATCH.flight = None
         SESSION.reset()
         LOOP.drop()
         visibility.restore()
@@ -318,7 +333,7 @@ def _tick():
 
 def _period():
     """The next tick: soon while a pass is in flight or the view moves, else at rest's pace."""
-    return FLIGHT_POLL_S if SESSION.pending is not None or _state["moving"] else POLL_S
+    return FLIGHT_POLL_S if SESSION.pending is not None or WATCH.moving else POLL_S
 
 
 def _ensure_timer():
@@ -367,17 +382,17 @@ def unregister():
 def start(context):
     install()
     context.scene.occ.live = True
-    _state.update(last_view=None, changed_at=time.perf_counter(), dirty_at=None, passed=None,
-                  settings=settings_key(context.scene.occ), moving=False)
+    WATCH.forget_view(time.perf_counter())
+    WATCH.settings = settings_key(context.scene.occ)
     _ensure_timer()
 
 
 def stop(context):
     context.scene.occ.live = False
     _drop_timer()
-    _state.update(last_view=None, changed_at=None, dirty_at=None, passed=None, moving=False)
-    if _flight:                                      # live's pass in flight lands nowhere
-        _flight.clear()
+    WATCH.forget_view()
+    if WATCH.flight is not None:                     # live's pass in flight lands nowhere
+        WATCH.flight = None
         SESSION.discard()
     LOOP.drop()
 

@@ -191,16 +191,16 @@ def passes_land_only_unchanged():
     # a landed pass left nothing for Blender's next update to report (a figure written to
     # the scene would: a window evaluates it after the pass, and the bus would call it
     # the user's change, dropping the next pass in flight); nor does a Cull click
-    changes = live._state["changes"]
+    changes = live.WATCH.changes
     bpy.context.view_layer.update()
     bpy.ops.occ.cull()
     bpy.context.view_layer.update()
-    got["quiet"] = live._state["changes"] - changes
+    got["quiet"] = live.WATCH.changes - changes
     # leaving the envelope shows everything as the add-on's own change: no edit announced
     # (a pass in flight may land; motion passes do not wait for rest)
     live.leave()
     bpy.context.view_layer.update()
-    got["left_quiet"] = (live._state["changes"] - changes, hidden_by_addon_any(), live._state["dirty_at"])
+    got["left_quiet"] = (live.WATCH.changes - changes, hidden_by_addon_any(), live.WATCH.dirty_at)
     live.stop(bpy.context)
     bpy.ops.occ.restore()
 
