@@ -26,6 +26,8 @@ Blender's user interface survives undo, not a file load, and a file is never
 saved with it (:func:`.visibility.lift`).
 """
 
+from dataclasses import dataclass
+
 import bpy
 import numpy as np
 
@@ -33,9 +35,17 @@ from . import bus
 from .identity import uids
 from .worker import quiet
 
-# the add-on's own local views: SpaceView3D pointer -> the session ids of the objects
-# of its window's view layer that hold the bit (sorted), and that layer's name
-_own: dict[int, dict] = {}
+
+@dataclass
+class OwnView:
+    """One of the add-on's own local views: its window's view layer (by name) and the
+    session ids of that layer's objects that hold the view's bit ``(k,) int64``, sorted."""
+
+    layer: str
+    uids: np.ndarray
+
+
+_own: dict[int, OwnView] = {}     # SpaceView3D pointer -> its OwnView
 
 
 def spaces():
@@ -134,7 +144,7 @@ def enter(win, area) -> None:
             picked.select_set(False, view_layer=layer)
     if space.local_view is None:                     # Blender has no local view left (16 at most)
         return
-    _own[space.as_pointer()] = {"layer": layer.name, "uids": _layer_uids(layer)}
+    _own[space.as_pointer()] = OwnView(layer.name, _layer_uids(layer))
     _set_all(layer, space)
 
 
@@ -194,7 +204,7 @@ def layer_switched() -> bool:
     bits were last set (its bases there carry none yet)."""
     for pointer, own in _own.items():
         found = find(pointer)
-        if found is not None and found[0].view_layer.name != own["layer"]:
+        if found is not None and found[0].view_layer.name != own.layer:
             return True
     return False
 
@@ -231,14 +241,14 @@ def adopt() -> None:
         win, _, space = found
         layer = win.view_layer
         now = _layer_uids(layer)
-        if layer.name != own["layer"]:
+        if layer.name != own.layer:
             fresh = np.ones(len(now), dtype=bool)
         else:
-            fresh = ~np.isin(now, own["uids"], assume_unique=True)
+            fresh = ~np.isin(now, own.uids, assume_unique=True)
         if fresh.any():
             ids = uids(layer.objects)
             _set_all(layer, space, True, np.isin(ids, now[fresh]))
-        own.update(layer=layer.name, uids=now)
+        own.layer, own.uids = layer.name, now
 
 
 def resync(culled) -> None:
@@ -256,7 +266,7 @@ def resync(culled) -> None:
         keep = np.isin(ids, culled)
         _set_all(layer, space, True, ~keep)
         _set_all(layer, space, False, keep)
-        own.update(layer=layer.name, uids=np.sort(ids))
+        own.layer, own.uids = layer.name, np.sort(ids)
 
 
 def forget() -> None:

@@ -2,6 +2,8 @@
 inset of the occupancy map and the last pass's figures.  Installed on the first
 pass in a window, never at registration or in background mode."""
 
+from dataclasses import dataclass
+
 import bpy
 import numpy as np
 
@@ -12,7 +14,22 @@ from .session import SESSION
 MAX_BOXES = 4000            # wireframes drawn at most (the largest culled ones)
 INSET = 160                 # occupancy inset width in pixels
 _handles = []
-_cache = {"key": None, "lines": None, "grid": None, "batch": None, "inset": None}
+
+
+@dataclass
+class Drawn:
+    """What the overlay draws of one pass (made once per pass, not per redraw): the
+    culled boxes' wireframe lines ``(2m, 3) float32`` and the occupancy map ``(rows,
+    cols) bool``; their GPU batches, made at the first redraw that draws them."""
+
+    version: int                 # the session's pass (SESSION.version) it was made for
+    lines: np.ndarray
+    grid: np.ndarray
+    batch: object = None         # the wireframes' batch
+    inset: tuple | None = None   # the inset's (shader, backdrop, tiles or None, height)
+
+
+_drawn: list[Drawn] = []         # the last pass's, once drawn
 
 
 def _shader(kind):
@@ -29,14 +46,14 @@ def _geometry():
     last = SESSION.last
     if last is None:
         return None
-    if _cache["key"] != SESSION.version:
+    if not _drawn or _drawn[0].version != SESSION.version:
         boxes = last.bounds[last.hidden]
         if len(boxes) > MAX_BOXES:
             size = np.prod(np.maximum(boxes[:, 1] - boxes[:, 0], 1e-9), axis=1)
             boxes = boxes[np.argsort(size)[-MAX_BOXES:]]
         grid = last.occupancy if last.occupancy is not None else np.zeros((0, 0), dtype=bool)
-        _cache.update(key=SESSION.version, lines=box_lines(boxes), grid=grid, batch=None, inset=None)
-    return _cache
+        _drawn[:] = [Drawn(SESSION.version, box_lines(boxes), grid)]
+    return _drawn[0]
 
 
 def _in_culled_view() -> bool:
@@ -49,15 +66,15 @@ def _in_culled_view() -> bool:
 def _draw_view():
     scene = bpy.context.scene
     geo = _geometry()
-    if geo is None or not scene.occ.show_overlay or not len(geo["lines"]) or not _in_culled_view():
+    if geo is None or not scene.occ.show_overlay or not len(geo.lines) or not _in_culled_view():
         return
     import gpu
     from gpu_extras.batch import batch_for_shader
     shader = _shader("3D")
     gpu.state.blend_set("ALPHA")
-    if geo.get("batch") is None:                    # one batch per pass, not per redraw
-        geo["batch"] = batch_for_shader(shader, "LINES", {"pos": geo["lines"]})
-    batch = geo["batch"]
+    if geo.batch is None:                           # one batch per pass, not per redraw
+        geo.batch = batch_for_shader(shader, "LINES", {"pos": geo.lines})
+    batch = geo.batch
     shader.bind()
     shader.uniform_float("color", (1.0, 0.35, 0.25, 0.5))
     batch.draw(shader)
@@ -84,12 +101,12 @@ def _draw_pixel():
         return
     import blf
     import gpu
-    grid = geo["grid"]
+    grid = geo.grid
     top = 30
     if grid.size:
-        if geo.get("inset") is None:                # one set of batches per pass, not per redraw
-            geo["inset"] = _inset(grid)
-        shader, back, tiles, h = geo["inset"]
+        if geo.inset is None:                       # one set of batches per pass, not per redraw
+            geo.inset = _inset(grid)
+        shader, back, tiles, h = geo.inset
         gpu.state.blend_set("ALPHA")
         shader.bind()
         shader.uniform_float("color", (0.0, 0.0, 0.0, 0.5))
@@ -118,4 +135,4 @@ def uninstall():
     space = bpy.types.SpaceView3D
     while _handles:
         space.draw_handler_remove(_handles.pop(), "WINDOW")
-    _cache.update(key=None, lines=None, grid=None, batch=None, inset=None)
+    _drawn.clear()
