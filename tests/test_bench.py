@@ -8,7 +8,7 @@ import sys
 
 import numpy as np
 
-from core.lab.bench import format_table, run_bench
+from core.lab.bench import format_table, report_json, run_bench
 from core.lab.tradeoff import display_truth, measure, pareto, run_tradeoff
 from core.settings import PRESETS, CullOptions
 from tests import scenes
@@ -25,14 +25,17 @@ def test_run_bench_report(ctx):
                     culler_kw={"ctx": ctx})
     assert set(rep["strategies"]) == {"vfc", "stopwait", "om", "om_multi", "oracle"}
     for name, s in rep["strategies"].items():
-        assert BENCH_KEYS <= set(s), name
-        assert s["false_negatives"] == 0
-        assert s["conservativity"] >= 1.0
-    assert rep["strategies"]["oracle"]["conservativity"] == 1.0
-    assert rep["strategies"]["vfc"]["queries"] == 0
-    assert rep["strategies"]["om_multi"]["triangles"] < rep["strategies"]["vfc"]["triangles"]
+        assert BENCH_KEYS <= set(s.as_dict()), name
+        assert s.false_negatives == 0
+        assert s.conservativity >= 1.0
+    assert rep["strategies"]["oracle"].conservativity == 1.0
+    assert rep["strategies"]["vfc"].queries == 0
+    assert rep["strategies"]["om_multi"].triangles < rep["strategies"]["vfc"].triangles
     table = format_table(rep, "t")
     assert "om_multi" in table and "x stopwait" in table
+    plain = json.loads(json.dumps(report_json(rep, per_frame=False)))      # the --json form
+    assert plain["strategies"]["vfc"] == {k: v for k, v in rep["strategies"]["vfc"].as_dict().items()
+                                          if k != "per_frame"}
 
 
 def test_rounds_rotate_the_strategies_and_take_the_median_round(ctx, monkeypatch):
@@ -54,14 +57,14 @@ def test_rounds_rotate_the_strategies_and_take_the_median_round(ctx, monkeypatch
     assert order == ["vfc", "gpu", "oracle", "gpu", "oracle", "vfc", "oracle", "vfc", "gpu"]
     assert rep["rounds"] == 3
     for s in rep["strategies"].values():
-        r = s["frame_ms_rounds"]
+        r = s.frame_ms_rounds
         assert len(r) == 3 and r[0] < r[1] < r[2]
-        assert s["frame_ms_median"] == r[1]
-        assert len(s["per_frame"]["frame_ms"]) == len(cams)
-        assert np.isclose(np.median(s["per_frame"]["frame_ms"]), r[1], rtol=1e-3)
-        assert s["false_negatives"] == 0
+        assert s.frame_ms_median == r[1]
+        assert len(s.per_frame["frame_ms"]) == len(cams)
+        assert np.isclose(np.median(s.per_frame["frame_ms"]), r[1], rtol=1e-3)
+        assert s.false_negatives == 0
     if os.environ.get("OCC_GL") != "4.1":       # new each round: only its first pass has no memory
-        assert np.isclose(rep["strategies"]["gpu"]["fresh_passes"], 1 / len(cams))
+        assert np.isclose(rep["strategies"]["gpu"].fresh_passes, 1 / len(cams))
     assert "3 rounds" in format_table(rep, "t")
 
 
@@ -158,11 +161,11 @@ def test_bench_display_counts_misses_at_the_display_resolution(ctx):
     rep = run_bench(scene, [cam], strategies, (300, 200), culler_kw={"ctx": ctx}, display=(1200, 800))
     assert rep["display"] == [1200, 800] and rep["resolution"] == [300, 200]
     for name in strategies:
-        assert rep["strategies"][name]["false_negatives"] == 0, name
+        assert rep["strategies"][name].false_negatives == 0, name
     low = run_bench(scene, [cam], ["oracle"], (300, 200), culler_kw={"ctx": ctx})
     high = run_bench(scene, [cam], ["oracle"], (300, 200), culler_kw={"ctx": ctx}, display=(1200, 800))
     assert "display" not in low
-    assert high["strategies"]["oracle"]["objects_truly_visible"] > low["strategies"]["oracle"]["objects_truly_visible"]
+    assert high["strategies"]["oracle"].objects_truly_visible > low["strategies"]["oracle"].objects_truly_visible
 
 
 def test_bench_display_below_the_query_resolution_is_one_error_line():

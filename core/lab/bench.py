@@ -10,6 +10,7 @@ skipped by the occupancy map, query rectangle pixels, false negatives and R/V'
 
 import resource
 import time
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -30,6 +31,89 @@ TABLE_COLUMNS = (
 # paper counts them), the screen rectangles' pixels are in the JSON (query_rect_pixels).
 
 
+def _extra():
+    """A field only some rows carry: None, and left out of :meth:`BenchRow.as_dict`, when unset."""
+    return field(default=None, metadata={"extra": True})
+
+
+@dataclass
+class BenchRow:
+    """One strategy's row of the benchmark (or one builder's of ``bench --hierarchies``):
+    its figures over the camera path, per frame unless said otherwise.
+
+    :func:`summarise` fills the first groups from the passes' rows; :func:`run_bench` adds
+    the rounds, the memory and the per-frame series, the envelope's row what it hides,
+    :func:`add_speedups` the ratios, :func:`run_hierarchies` the builder's figures.
+    :meth:`as_dict` is the row of the ``--json`` report (docs/scripting.md, 'Report
+    schema'): these keys, in this order, the extras only when set.
+    """
+
+    # time, ms
+    frame_ms_median: float           # with rounds: the median of the rounds' medians
+    frame_ms_p95: float
+    culling_ms: float                # traversal + queries, mean
+    traversal_ms: float
+    query_ms: float
+    draw_ms: float
+    cpu_ms: float                    # outside GL calls, mean
+    cpu_ms_median: float
+    gl_ms: float
+    gl_calls: float | None           # mean; None: a renderer that does not count them (null in the JSON)
+    blocking_reads: float | None     # mean; as gl_calls
+    # work, mean per frame
+    triangles: float                 # triangles drawn
+    render_rate: float               # % of the scene's triangles drawn
+    queries: float
+    queries_skipped: float           # boxes drawn or opened without a test
+    multiple_queries: float
+    query_pixels: float              # pixels the query boxes rasterise
+    query_rect_pixels: float         # pixels of their screen rectangles
+    nodes_visited: float
+    fresh_passes: float              # share of passes that started without memory
+    # the answer against the object-ID truth
+    false_negatives: int             # objects culled although visible, summed over the path (must be 0)
+    conservativity: float            # R/V': objects kept over objects truly visible
+    objects_kept: float
+    objects_truly_visible: float
+    # run_bench's rows
+    frame_ms_rounds: list[float] | None = _extra()           # each round's median frame
+    peak_rss_mb: float | None = _extra()                     # of the process so far, MiB
+    per_frame: dict[str, list] | None = _extra()             # {"frame_ms": [..], "triangles": [..]}, a round's
+    # the envelope's row
+    hidden_kept: float | None = _extra()                     # share of the default's hidden objects it hides
+    hidden_triangles_kept: float | None = _extra()           # the same in triangles
+    # speed-ups within one run (add_speedups)
+    speedup_over_vfc: float | None = _extra()
+    speedup_over_stopwait: float | None = _extra()
+    # bench --hierarchies
+    builder: str | None = _extra()                           # the builder chosen (auto's choice)
+    inner_nodes: int | None = _extra()
+    leaf_nodes: int | None = _extra()
+    units: int | None = _extra()
+    build_s: float | None = _extra()
+    structure_mb: float | None = _extra()
+    frustum_ms: float | None = _extra()                      # mean
+    occlusion_ms: float | None = _extra()                    # traversal + queries - frustum, mean
+    fps: float | None = _extra()                             # of the median frame
+
+    def as_dict(self) -> dict:
+        """The row as plain JSON values, unset extras left out."""
+        return {f.name: v for f in fields(self)
+                if (v := getattr(self, f.name)) is not None or not f.metadata.get("extra")}
+
+
+def report_json(report: dict, per_frame: bool = True) -> dict:
+    """The report of :func:`run_bench` or :func:`run_hierarchies` as plain JSON values
+    (what ``--json`` prints and the report folder holds): its rows as dicts, without
+    their per-frame series unless ``per_frame``."""
+    out = dict(report)
+    for key in ("strategies", "hierarchies"):
+        if key in report:
+            out[key] = {name: {k: v for k, v in row.as_dict().items() if per_frame or k != "per_frame"}
+                        for name, row in report[key].items()}
+    return out
+
+
 def peak_rss_mb():
     """Peak resident memory of this process so far, MiB (Linux reports KiB)."""
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
@@ -40,7 +124,8 @@ ENVELOPE_VIEWS = 4        # views of the envelope sampled per frame for the enve
 
 def run_bench(scene, cameras, strategies, resolution=DEFAULT_RESOLUTION, warmup=1, culler_kw=None,
               progress=None, rounds=1, envelope=None, display=None):
-    """Run every strategy over ``cameras``; returns the report dict (the ``--json`` shape).
+    """Run every strategy over ``cameras``; returns the report dict, its ``strategies``
+    :class:`BenchRow` s (:func:`report_json`: the ``--json`` shape).
 
     ``rounds``: the whole path this many times for each strategy, the strategies'
     order rotated each round (a new strategy each time: nothing learnt carries over),
@@ -73,7 +158,7 @@ def run_bench(scene, cameras, strategies, resolution=DEFAULT_RESOLUTION, warmup=
                   "strategies": {}}
         if display is not None:
             report["display"] = list(display)
-        runs = {name: [] for name in strategies}
+        runs: dict[str, list[list[dict]]] = {name: [] for name in strategies}
         rows_of = {}
         for k in range(rounds):
             shift = k % len(strategies)
@@ -136,23 +221,23 @@ def _envelope_row(culler, seer, cameras, truths, envelope, tri_total):
         stats = {**r.stats.as_dict(), "triangles_drawn": r.stats.triangles_visible}   # what drawing it would draw
         rows.append({**stats, "false_negatives": int((seen & hidden).sum()), "truly_visible": int(truth.sum())})
     row = _summary([rows], tri_total)
-    row["hidden_kept"] = env_hidden / max(point_hidden, 1)
-    row["hidden_triangles_kept"] = env_tri / max(point_tri, 1)
+    row.hidden_kept = env_hidden / max(point_hidden, 1)
+    row.hidden_triangles_kept = env_tri / max(point_tri, 1)
     return row
 
 
-def _summary(runs, tri_total):
+def _summary(runs, tri_total) -> BenchRow:
     """A strategy's row from its rounds (lists of pass rows): the median of the rounds'
     median frames, every other figure over all passes; the per-frame series of the
     round with the median frame (the plots')."""
     row = summarise([x for rows in runs for x in rows], tri_total)
     medians = [float(np.median([x["total_ms"] for x in rows])) for rows in runs]
-    row["frame_ms_median"] = float(np.median(medians))
-    row["frame_ms_rounds"] = medians
-    row["peak_rss_mb"] = round(peak_rss_mb(), 1)
+    row.frame_ms_median = float(np.median(medians))
+    row.frame_ms_rounds = medians
+    row.peak_rss_mb = round(peak_rss_mb(), 1)
     middle = runs[int(np.argsort(medians)[(len(medians) - 1) // 2])]
-    row["per_frame"] = {"frame_ms": [round(x["total_ms"], 3) for x in middle],
-                        "triangles": [x["triangles_drawn"] for x in middle]}
+    row.per_frame = {"frame_ms": [round(x["total_ms"], 3) for x in middle],
+                     "triangles": [x["triangles_drawn"] for x in middle]}
     return row
 
 
@@ -166,7 +251,8 @@ HIERARCHY_COLUMNS = (
 
 def run_hierarchies(scene, cameras, builders, resolution=DEFAULT_RESOLUTION, strategy=None,
                     chunk_triangles=None, progress=None):
-    """The seed's Appendix A table: per builder, nodes, build time and per-frame times."""
+    """The seed's Appendix A table: per builder, nodes, build time and per-frame times;
+    the report dict, its ``hierarchies`` :class:`BenchRow` s (:func:`report_json`: the JSON)."""
     from .hierarchy_choice import build_culler
     # hierarchies are compared under a strategy that always tests (auto may not)
     strategy = strategy or "om_coherent"
@@ -191,13 +277,11 @@ def run_hierarchies(scene, cameras, builders, resolution=DEFAULT_RESOLUTION, str
                              "truly_visible": int(truth.sum())})
             h = culler.hierarchy
             s = summarise(rows, tri_total)
-            s.update({"builder": chosen, "inner_nodes": int((~h.is_leaf).sum()),
-                      "leaf_nodes": int(h.is_leaf.sum()), "units": len(culler.units),
-                      "build_s": build_s, "structure_mb": culler.structure_mb(),
-                      "frustum_ms": float(np.mean([x["frustum_ms"] for x in rows])),
-                      "occlusion_ms": float(np.mean([x["traversal_ms"] + x["query_ms"]
-                                                     - x["frustum_ms"] for x in rows])),
-                      "fps": 1e3 / max(s["frame_ms_median"], 1e-9)})
+            s.builder, s.inner_nodes, s.leaf_nodes = chosen, int((~h.is_leaf).sum()), int(h.is_leaf.sum())
+            s.units, s.build_s, s.structure_mb = len(culler.units), build_s, culler.structure_mb()
+            s.frustum_ms = float(np.mean([x["frustum_ms"] for x in rows]))
+            s.occlusion_ms = float(np.mean([x["traversal_ms"] + x["query_ms"] - x["frustum_ms"] for x in rows]))
+            s.fps = 1e3 / max(s.frame_ms_median, 1e-9)
             report["hierarchies"][name] = s
             if progress:
                 progress(name, s)
@@ -212,16 +296,16 @@ def format_hierarchy_table(report, title=""):
     lines = [title, f"{report['objects']} objects, {report['triangles_total']:,} triangles, "
              f"{report['frames']} frames, strategy {report['strategy']}", head, "-" * len(head)]
     for name, s in report["hierarchies"].items():
-        label = name if s["builder"] == name else f"{name}:{s['builder']}"
-        vals = [label, s["inner_nodes"], s["leaf_nodes"], s["units"], s["build_s"], s["structure_mb"], s["frustum_ms"],
-                s["occlusion_ms"], s["draw_ms"], s["render_rate"], s["fps"], s["frame_ms_median"],
-                s["false_negatives"]]
+        label = name if s.builder == name else f"{name}:{s.builder}"
+        vals = [label, s.inner_nodes, s.leaf_nodes, s.units, s.build_s, s.structure_mb, s.frustum_ms,
+                s.occlusion_ms, s.draw_ms, s.render_rate, s.fps, s.frame_ms_median, s.false_negatives]
         lines.append(" ".join(fmt.format(v) for (_, fmt), v in zip(HIERARCHY_COLUMNS, vals, strict=True)))
     return "\n".join(lines)
 
 
-def summarise(rows, tri_total):
-    """Aggregate per-frame stats into one row of the table."""
+def summarise(rows, tri_total) -> BenchRow:
+    """Aggregate per-frame stats (the passes' rows: :meth:`PassStats.as_dict` with
+    ``false_negatives`` and ``truly_visible``) into one row of the table."""
     ms = np.array([x["total_ms"] for x in rows])
     mean = {k: float(np.mean([x.get(k, 0) for x in rows])) for k in
             ("triangles_drawn", "queries", "queries_skipped", "query_rect_pixels", "query_raster_pixels",
@@ -231,34 +315,35 @@ def summarise(rows, tri_total):
                for k in ("gl_calls", "blocking_reads")}
     kept = sum(x["visible"] for x in rows)
     seen = sum(x["truly_visible"] for x in rows)
-    return {
-        "frame_ms_median": float(np.median(ms)),
-        "frame_ms_p95": float(np.percentile(ms, 95)),
-        "culling_ms": mean["traversal_ms"] + mean["query_ms"],
-        "traversal_ms": mean["traversal_ms"], "query_ms": mean["query_ms"],
-        "draw_ms": mean["draw_ms"],
-        "cpu_ms": mean["cpu_ms"], "cpu_ms_median": float(np.median([x.get("cpu_ms", 0.0) for x in rows])),
-        "gl_ms": mean["gl_ms"],
-        "gl_calls": counted["gl_calls"], "blocking_reads": counted["blocking_reads"],
-        "triangles": mean["triangles_drawn"],
-        "render_rate": 100.0 * mean["triangles_drawn"] / max(tri_total, 1),
-        "queries": mean["queries"], "queries_skipped": mean["queries_skipped"],
-        "multiple_queries": mean["multiple_queries"],
-        "query_pixels": mean["query_raster_pixels"],
-        "query_rect_pixels": mean["query_rect_pixels"],
-        "nodes_visited": mean["nodes_visited"], "fresh_passes": mean["fresh"],
-        "false_negatives": int(sum(x["false_negatives"] for x in rows)),
-        "conservativity": kept / max(seen, 1),
-        "objects_kept": mean["visible"], "objects_truly_visible": mean["truly_visible"],
-    }
+    return BenchRow(
+        frame_ms_median=float(np.median(ms)),
+        frame_ms_p95=float(np.percentile(ms, 95)),
+        culling_ms=mean["traversal_ms"] + mean["query_ms"],
+        traversal_ms=mean["traversal_ms"], query_ms=mean["query_ms"],
+        draw_ms=mean["draw_ms"],
+        cpu_ms=mean["cpu_ms"], cpu_ms_median=float(np.median([x.get("cpu_ms", 0.0) for x in rows])),
+        gl_ms=mean["gl_ms"],
+        gl_calls=counted["gl_calls"], blocking_reads=counted["blocking_reads"],
+        triangles=mean["triangles_drawn"],
+        render_rate=100.0 * mean["triangles_drawn"] / max(tri_total, 1),
+        queries=mean["queries"], queries_skipped=mean["queries_skipped"],
+        multiple_queries=mean["multiple_queries"],
+        query_pixels=mean["query_raster_pixels"],
+        query_rect_pixels=mean["query_rect_pixels"],
+        nodes_visited=mean["nodes_visited"], fresh_passes=mean["fresh"],
+        false_negatives=int(sum(x["false_negatives"] for x in rows)),
+        conservativity=kept / max(seen, 1),
+        objects_kept=mean["visible"], objects_truly_visible=mean["truly_visible"],
+    )
 
 
-def add_speedups(strategies):
+def add_speedups(strategies: dict[str, BenchRow]) -> None:
+    """Every row's speed-up over vfc and over stopwait, where they ran."""
     for base in ("vfc", "stopwait"):
         if base in strategies:
-            ref = strategies[base]["frame_ms_median"]
+            ref = strategies[base].frame_ms_median
             for row in strategies.values():
-                row[f"speedup_over_{base}"] = ref / max(row["frame_ms_median"], 1e-9)
+                setattr(row, f"speedup_over_{base}", ref / max(row.frame_ms_median, 1e-9))
 
 
 def format_table(report, title=""):
@@ -270,11 +355,12 @@ def format_table(report, title=""):
              + f", device: {report['device']}", head, "-" * len(head)]
     for name, s in report["strategies"].items():
         nan = float("nan")
-        vals = [name, s["frame_ms_median"], s["frame_ms_p95"], s.get("cpu_ms", nan),
-                nan if s.get("gl_calls") is None else s["gl_calls"],
-                nan if s.get("blocking_reads") is None else s["blocking_reads"],
-                s["triangles"], s["render_rate"], s["queries"], s["queries_skipped"], s["query_pixels"],
-                s["false_negatives"], s["conservativity"], s.get("speedup_over_vfc", nan),
-                s.get("speedup_over_stopwait", nan)]
+        vals = [name, s.frame_ms_median, s.frame_ms_p95, s.cpu_ms,
+                nan if s.gl_calls is None else s.gl_calls,
+                nan if s.blocking_reads is None else s.blocking_reads,
+                s.triangles, s.render_rate, s.queries, s.queries_skipped, s.query_pixels,
+                s.false_negatives, s.conservativity,
+                nan if s.speedup_over_vfc is None else s.speedup_over_vfc,
+                nan if s.speedup_over_stopwait is None else s.speedup_over_stopwait]
         lines.append(" ".join(fmt.format(v) for (_, fmt), v in zip(TABLE_COLUMNS, vals, strict=True)))
     return "\n".join(line for line in lines if line is not None)

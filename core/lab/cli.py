@@ -142,6 +142,7 @@ def _dump_json(report):
 def cmd_bench(args):
     if args.hierarchies:
         return cmd_hierarchies(args)
+    from .bench import report_json
     from .reports import bench_scene, bench_steps, write_index
     strategies = parse_names(args.strategies, STRATEGIES, "strategies")
     resolution = parse_resolution(args.resolution)
@@ -159,8 +160,7 @@ def cmd_bench(args):
         if out:
             write_index(out)
     if args.json:
-        _dump_json({**report, "strategies": {k: {kk: vv for kk, vv in v.items() if kk != "per_frame"}
-                                             for k, v in report["strategies"].items()}})
+        _dump_json(report_json(report, per_frame=False))
     else:
         print(table)
 
@@ -185,7 +185,7 @@ def cmd_motion(args):
 
 
 def cmd_hierarchies(args):
-    from .bench import format_hierarchy_table, run_hierarchies
+    from .bench import format_hierarchy_table, report_json, run_hierarchies
     from .hierarchy_choice import CANDIDATES
     builders = parse_names(args.hierarchies, CANDIDATES + ("auto",), "hierarchy builders")
     resolution = parse_resolution(args.resolution)
@@ -194,18 +194,18 @@ def cmd_hierarchies(args):
     scene, cameras, title = load_job(args.scene, args.camera, args.frames)
     with Progress(len(builders), f"hierarchies {title}", unit="builder", quiet=args.quiet) as progress:
         report = run_hierarchies(scene, cameras, builders, resolution, progress=lambda n, s: progress.step(
-            f"{n:<9} median {s['frame_ms_median']:.2f} ms"))
+            f"{n:<9} median {s.frame_ms_median:.2f} ms"))
     report["scene"] = title
     table = format_hierarchy_table(report, f"== {title}: hierarchies ==")
     if args.out:
         with open(os.path.join(args.out, f"{title}_hierarchies.json"), "w") as f:
-            json.dump(report, f, indent=1)
+            json.dump(report_json(report), f, indent=1)
         with open(os.path.join(args.out, f"{title}_hierarchies.txt"), "w") as f:
             f.write(table + "\n")
         from .reports import write_index
         write_index(args.out)
     if args.json:
-        _dump_json(report)
+        _dump_json(report_json(report))
     else:
         print(table)
 

@@ -18,7 +18,7 @@ from ..cull import view_pass
 from ..engine import DEFAULT_RESOLUTION, Culler
 from ..errors import OccError
 from ..occupancy import OccupancyMap
-from .bench import format_table, run_bench
+from .bench import format_table, report_json, run_bench
 from .images import STATE_COLOURS, colour_by_state
 from .jobs import load_job
 
@@ -65,9 +65,9 @@ def write_plots(report, out_dir, title):
     for key, label in (("frame_ms", "frame time (ms)"), ("triangles", "triangles drawn")):
         fig, ax = plt.subplots(figsize=(9, 4.6))
         for name, s in report["strategies"].items():
-            values = np.asarray(s["per_frame"][key], dtype=np.float64)
-            summary = (f"median {s['frame_ms_median']:.1f} ms" if key == "frame_ms"
-                       else f"mean {s['triangles']:,.0f}")
+            values = np.asarray(s.per_frame[key], dtype=np.float64)
+            summary = (f"median {s.frame_ms_median:.1f} ms" if key == "frame_ms"
+                       else f"mean {s.triangles:,.0f}")
             ax.plot(np.maximum(values, 1 if key == "triangles" else 1e-3), label=f"{name} ({summary})")
         ax.set_xlabel("frame of the camera path")
         ax.set_ylabel(label + ", log scale")
@@ -267,13 +267,13 @@ def bench_scene(spec, camera=None, strategies=STRATEGIES, resolution=DEFAULT_RES
     step(f"{title}: loaded {len(scene)} objects, {int(scene.triangle_counts.sum()):,} triangles "
          f"in {time.perf_counter() - t:.1f} s; {len(cameras)} frames")
     report = run_bench(scene, cameras, list(strategies), resolution, rounds=rounds, envelope=envelope, display=display,
-                       progress=lambda n, s: step(f"{title} {n:<11} median {s['frame_ms_median']:.2f} ms"))
+                       progress=lambda n, s: step(f"{title} {n:<11} median {s.frame_ms_median:.2f} ms"))
     report["scene"] = title
     table = format_table(report, f"== {title} ==")
     if out_dir:
         os.makedirs(out_dir, exist_ok=True)
         with open(os.path.join(out_dir, f"{title}.json"), "w") as f:
-            json.dump(report, f, indent=1)
+            json.dump(report_json(report), f, indent=1)
         with open(os.path.join(out_dir, f"{title}.txt"), "w") as f:
             f.write(table + "\n")
         if plot:
