@@ -148,7 +148,7 @@ def analysis_steps(context, frames: list[int], path: str, rule: str = "seen",
             vis = result.state == Visibility.VISIBLE          # one array compare, no per-object enum
             if view_rule is not None:          # shadow casters are the engine's (given the lights)
                 vis |= policy.drawn_beyond_depth(view_rule, result.state, scene.occ.cull_raytraced)
-            policy.widen_instances(objects, instances, vis)
+            policy.widen_instances(objects, instances + emitting, vis)
             shown = [held_names[i] for i in np.flatnonzero(vis)]
             others = [o.name for o in extra + policy.members_seen(objects, instances, vis, emitting, extra)]
             names = list(dict.fromkeys(shown + others))

@@ -28,12 +28,13 @@ from .identity import ident
 from .kinds import is_collection_instance, kind
 
 
-def draws_beyond_geometry(collection) -> bool:
-    """Whether an instanced collection holds a member Blender draws but the engine's
-    geometry of its instances leaves out (wire, bounds or "in front" display, point
-    clouds, volumes, ...): such a member may stand anywhere, so an instance of the
-    collection is larger than its box in the engine."""
-    return any(kind(m) is None and m.type in DRAWN_TYPES for m in collection.all_objects)
+def draws_beyond_geometry(instanced) -> bool:
+    """Whether any of ``instanced`` (what an instancer instances: a collection's objects,
+    a particle system's object) is drawn by Blender but left out of the engine's geometry
+    of the instances (wire, bounds or "in front" display, point clouds, volumes, ...):
+    such an instance may stand anywhere, so the instancer is larger than its box in the
+    engine."""
+    return any(kind(m) is None and m.type in DRAWN_TYPES for m in instanced)
 
 
 def drawn_beyond_depth(view_rule, state: np.ndarray, cull_raytraced: bool) -> np.ndarray:
@@ -67,7 +68,7 @@ def never_hidden(context, objects: list, uids: np.ndarray, collection: np.ndarra
         colls.setdefault(ident(c), (c, []))[1].append(k)
     for c, at in colls.values():
         flagged.append(identity.uids(c.all_objects))
-        if culled[at].any() and draws_beyond_geometry(c):
+        if culled[at].any() and draws_beyond_geometry(c.all_objects):
             out[at] = True
     # ... and so are those of instances the engine does not hold (drawn as wire or
     # bounds, in front): hiding a member would take it out of them too
@@ -88,17 +89,20 @@ def instancers(objects: list) -> list[int]:
     return [i for i, o in enumerate(objects) if is_collection_instance(o)]
 
 
-def widen_instances(objects: list, instances: list[int], vis: np.ndarray) -> None:
-    """Count as seen (in ``vis``, ``(k,) bool``, in place) every instance in
-    ``instances`` whose collection draws beside its geometry (wire, bounds, ...): the
-    engine knows only its solid part, and it is seen wherever it is drawn
-    (conservative by construction)."""
+def widen_instances(objects: list, instancing: list[int], vis: np.ndarray) -> None:
+    """Count as seen (in ``vis``, ``(k,) bool``, in place) every instancer in
+    ``instancing`` (collection instances, emitters) that instances something drawn
+    beside its geometry (wire, bounds, ...): the engine knows only its solid part,
+    and it is seen wherever it is drawn (conservative by construction; workflow seed
+    7155 on Blender 4.2: a hair emitter whose instance object is drawn as wire, its own
+    mesh out of view, its wire instances in it)."""
     wide = {}                                          # collection name -> the answer, once a call
-    for i in (i for i in instances if not vis[i]):
-        c = objects[i].instance_collection
-        if c.name_full not in wide:
-            wide[c.name_full] = draws_beyond_geometry(c)
-        vis[i] = wide[c.name_full]
+    for i in (i for i in instancing if not vis[i]):
+        o = objects[i]
+        c = o.instance_collection if o.instance_type == "COLLECTION" else None
+        if c is not None and c.name_full not in wide:
+            wide[c.name_full] = draws_beyond_geometry(c.all_objects)
+        vis[i] = (c is not None and wide[c.name_full]) or draws_beyond_geometry(_particle_instanced(o))
 
 
 def emitters(objects: list) -> list[int]:
@@ -112,6 +116,12 @@ def instanced_members(o) -> list:
     and what its particle systems instance (an object, or a collection's objects)."""
     out = list(o.instance_collection.all_objects) \
         if o.instance_type == "COLLECTION" and o.instance_collection is not None else []
+    return out + _particle_instanced(o)
+
+
+def _particle_instanced(o) -> list:
+    """What the particle systems of ``o`` instance: an object, or a collection's objects."""
+    out = []
     for ps in o.particle_systems:
         st = ps.settings
         if st.render_type == "OBJECT" and st.instance_object is not None:

@@ -350,6 +350,34 @@ def bystander_emitter_members_analyzed():
           and "target" in never, (r, sorted(named), sorted(never)))
 
 
+def emitter_wire_instances_analyzed():
+    """A hair emitter beside the view, its particles instancing an object drawn as wire,
+    large enough to reach into the view: the engine holds the emitter's own mesh only
+    (wire occludes nothing), out of the view, but the camera sees its instances.
+    Analyze counts the emitter seen and "Collect Never Visible" leaves it out (workflow
+    seed 7155 on Blender 4.2: such an emitter collected though seen)."""
+    scene = new_scene()
+    src = box("wire_src", (-23, -3, -2.5), (-17, 3, 3.5))              # behind the camera
+    src.display_type = "WIRE"
+    em = box("emitter", (-2.1, 4.4, 0.9), (-1.9, 4.6, 1.1))           # beside the view
+    em.modifiers.new("hair", "PARTICLE_SYSTEM")
+    ps = em.particle_systems[0].settings
+    ps.type, ps.count, ps.hair_length, ps.particle_size = "HAIR", 4, 0.2, 5.0   # instances 6 units wide
+    ps.display_method = "RENDER"
+    ps.render_type, ps.instance_object = "OBJECT", src
+    box("target", (3, 2, 0), (4, 3, 1))                                # behind the wall: never visible
+    update()
+    truth = {n for n in seen_names() if n in bpy.context.view_layer.objects}
+    report = os.path.join(WORK, "emitter_wire_instances.json")
+    r = bpy.ops.occ.analyze(filepath=report, frame_start=1, frame_end=1, link_never_visible=True)
+    with open(report) as f:
+        named = set(json.load(f)["frames"][0]["visible"])
+    never = {o.name for o in bpy.data.collections["Never Visible"].objects}
+    check("emitter_wire_instances_analyzed_seen",
+          r == {"FINISHED"} and "emitter" in truth and truth <= named and "emitter" not in never
+          and "target" in never, (r, sorted(truth), sorted(named), sorted(never)))
+
+
 def rule():
     """What the last pass said the view draws (the session's figures, passes.LastPass)."""
     last = addon("session").SESSION.last
