@@ -356,7 +356,7 @@ def emitter_wire_instances_analyzed():
     (wire occludes nothing), out of the view, but the camera sees its instances.
     Analyze counts the emitter seen and "Collect Never Visible" leaves it out (workflow
     seed 7155 on Blender 4.2: such an emitter collected though seen)."""
-    scene = new_scene()
+    new_scene()
     src = box("wire_src", (-23, -3, -2.5), (-17, 3, 3.5))              # behind the camera
     src.display_type = "WIRE"
     em = box("emitter", (-2.1, 4.4, 0.9), (-1.9, 4.6, 1.1))           # beside the view
