@@ -34,8 +34,17 @@ def instanced_geometry(depsgraph, instancers):
             continue
         instancer = inst.parent.original
         owner = ident(instancer)
+        if owner not in parts:
+            continue
         ob = inst.object
-        if owner not in parts or ob.type not in GEOMETRY_TYPES or ob.display_type not in SOLID_DISPLAY:
+        if not isinstance(ob, bpy.types.Object):
+            # Blender 4.2 hands over an ID that is no object after a script removed one that
+            # geometry nodes instanced, and the next step of its iteration crashes (workflow
+            # seed 7194; tools/gn_deleted_object_crash.py): the iteration ends here, and what
+            # every instancer draws is unknown (kept visible, never an occluder)
+            unknown.update(parts)
+            break
+        if ob.type not in GEOMETRY_TYPES or ob.display_type not in SOLID_DISPLAY:
             continue
         m = np.array(inst.matrix_world, dtype=np.float64)
         source = ob.original
