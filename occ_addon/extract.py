@@ -377,6 +377,27 @@ class Extractor:
             out &= ~np.isin(uids, np.fromiter(self.dirty.keys(), dtype=np.int64, count=len(self.dirty)))
         return out
 
+    def check_shown(self, cand: "Candidates") -> None:
+        """Objects the add-on hid everywhere and has shown again since (their fingerprint
+        from :meth:`seal` still stands: no read since): an edit made while one was hidden
+        was reported by no evaluation, and the add-on's own show is no edit (its report is
+        ignored), so each is compared once with the data its cached geometry was read
+        from, and read again where that changed (workflow seed 7207: a linked duplicate's
+        shared mesh edited while the add-on hid it, shown again when the view left the
+        hidden set's envelope, then hidden by the next pass behind its old, smaller shape)."""
+        if not self.fps:
+            return
+        shown = np.flatnonzero(np.isin(cand.uids, np.fromiter(self.fps, dtype=np.int64, count=len(self.fps)))
+                               & ~cand.stale)
+        memo: dict = {}
+        changed = []
+        for i in shown.tolist():
+            uid = int(cand.uids[i])
+            if self.fps.pop(uid) != fingerprint(cand.objects[i], cand.kinds[i], memo):
+                changed.append(uid)
+        if changed:
+            self.mark(geometry=changed)
+
     def needs_geometry(self, cand: "Candidates") -> bool:
         """Whether :meth:`scene_steps` must read geometry again for these candidates.
         Instancers are asked whatever was reported: what they instance may change

@@ -194,6 +194,7 @@ class Session:
             visibility.release(np.isin(identity.uids(), cand.give_back))
             context.view_layer.update()
             cand = self.extractor.candidates(context)
+        self.extractor.check_shown(cand)
         return cand
 
     def engine_steps(self, context, resolution: Size, strategy: str, verify: bool = False,

@@ -270,3 +270,39 @@ def live_keeps_no_set_made_for_another_view():
     check("live_keeps_no_set_made_for_another_view",
           r == {"FINISHED"} and hid and stale == ["target"] and not any(kept.values()),
           (r, hid, stale, kept, dict(live.COUNTS)))
+
+
+def shown_again_after_an_unseen_edit():
+    """An object a Cull click hid is edited while hidden (no evaluation reports it: it is
+    not evaluated), moved in front of the wall by its mesh alone.  Live mode then starts
+    from a view the click's set does not hold for: everything is shown (the add-on's own
+    change, its reports ignored) and a pass at rest runs.  That pass reads the object as
+    it is now, so it stays drawn; its geometry cached from before the edit (behind the
+    wall) would hide it again (the check can fail)."""
+    live = addon("live")
+    scene = new_scene()
+    box("target", (3, -1, 0), (4, 1, 1))
+    update()
+    r, _ = cull()
+    hid = hidden_by_addon("target")
+    target = bpy.data.objects["target"]
+    for v in target.data.vertices:                      # in front of the wall, by its mesh alone
+        v.co.x -= 6.0
+    target.data.update()
+    scene.camera.location.y += 0.05                     # the click's set holds for its own view only
+    update()
+    live.DEBOUNCE_S = 0.0
+    landed = live.COUNTS["landed"]
+    live.start(bpy.context)
+    for _ in range(8):                                  # until a pass at rest has landed
+        live._tick()
+        live.settle()
+        if live.COUNTS["landed"] > landed:
+            break
+    passes = live.COUNTS["landed"] - landed
+    seen = hidden_but_seen()
+    drawn_now = drawn("target")
+    live.stop(bpy.context)
+    bpy.ops.occ.restore()
+    check("live_shown_again_after_an_unseen_edit", r == {"FINISHED"} and hid and passes and drawn_now and not seen,
+          (r, hid, passes, drawn_now, seen, dict(live.COUNTS)))
