@@ -309,15 +309,35 @@ def instance_wire_member_analyzed():
         scene.collection.objects.link(inst)
         box("target", (3, 2, 0), (4, 3, 1))                            # behind the wall: never visible
         update()
-        report = os.path.join(WORK, f"instance_{display.lower()}_member.json")
-        r = bpy.ops.occ.analyze(filepath=report, frame_start=1, frame_end=1, link_never_visible=True)
-        with open(report) as f:
-            named = set(json.load(f)["frames"][0]["visible"])
-        never = {o.name for o in bpy.data.collections["Never Visible"].objects}
+        r, named, never = _analyzed(f"instance_{display.lower()}_member")
         truth = {n for n in seen_names() if n in bpy.context.view_layer.objects}
         check(f"instance_{display.lower()}_member_analyzed_seen",
               r == {"FINISHED"} and "lib_instance" in truth and truth <= named and "lib_instance" not in never
               and "target" in never, (r, sorted(truth), sorted(named), sorted(never)))
+
+
+def _hair(emitter, size, source):
+    """Four hair strands on ``emitter`` instancing ``source`` (an object or a collection)
+    at particle size ``size``, drawn as they render; and "target" behind the wall."""
+    emitter.modifiers.new("hair", "PARTICLE_SYSTEM")
+    ps = emitter.particle_systems[0].settings
+    ps.type, ps.count, ps.hair_length, ps.particle_size = "HAIR", 4, 0.2, size
+    ps.display_method = "RENDER"
+    if isinstance(source, bpy.types.Collection):
+        ps.render_type, ps.instance_collection = "COLLECTION", source
+    else:
+        ps.render_type, ps.instance_object = "OBJECT", source
+    box("target", (3, 2, 0), (4, 3, 1))                                # behind the wall: never visible
+    update()
+
+
+def _analyzed(name):
+    """Analyze frame 1, collecting: ``(result, the frame's visible names, Never Visible's)``."""
+    report = os.path.join(WORK, f"{name}.json")
+    r = bpy.ops.occ.analyze(filepath=report, frame_start=1, frame_end=1, link_never_visible=True)
+    with open(report) as f:
+        named = set(json.load(f)["frames"][0]["visible"])
+    return r, named, {o.name for o in bpy.data.collections["Never Visible"].objects}
 
 
 def bystander_emitter_members_analyzed():
@@ -333,18 +353,8 @@ def bystander_emitter_members_analyzed():
     box("hair_piece", (3, -0.2, 0), (3.3, 0.2, 0.3), lib)            # itself behind the wall
     em = box("wire_emitter", (-6.2, -0.2, 0.8), (-5.8, 0.2, 1.2))    # in view
     em.display_type = "WIRE"
-    em.modifiers.new("hair", "PARTICLE_SYSTEM")
-    ps = em.particle_systems[0].settings
-    ps.type, ps.count, ps.hair_length, ps.particle_size = "HAIR", 4, 0.2, 1.0
-    ps.display_method = "RENDER"
-    ps.render_type, ps.instance_collection = "COLLECTION", lib
-    box("target", (3, 2, 0), (4, 3, 1))                                # behind the wall: never visible
-    update()
-    report = os.path.join(WORK, "bystander_emitter.json")
-    r = bpy.ops.occ.analyze(filepath=report, frame_start=1, frame_end=1, link_never_visible=True)
-    with open(report) as f:
-        named = set(json.load(f)["frames"][0]["visible"])
-    never = {o.name for o in bpy.data.collections["Never Visible"].objects}
+    _hair(em, 1.0, lib)
+    r, named, never = _analyzed("bystander_emitter")
     check("bystander_emitter_members_analyzed_seen",
           r == {"FINISHED"} and {"wire_emitter", "hair_piece"} <= named and "hair_piece" not in never
           and "target" in never, (r, sorted(named), sorted(never)))
@@ -359,20 +369,9 @@ def emitter_wire_instances_analyzed():
     new_scene()
     src = box("wire_src", (-23, -3, -2.5), (-17, 3, 3.5))              # behind the camera
     src.display_type = "WIRE"
-    em = box("emitter", (-2.1, 4.4, 0.9), (-1.9, 4.6, 1.1))           # beside the view
-    em.modifiers.new("hair", "PARTICLE_SYSTEM")
-    ps = em.particle_systems[0].settings
-    ps.type, ps.count, ps.hair_length, ps.particle_size = "HAIR", 4, 0.2, 5.0   # instances 6 units wide
-    ps.display_method = "RENDER"
-    ps.render_type, ps.instance_object = "OBJECT", src
-    box("target", (3, 2, 0), (4, 3, 1))                                # behind the wall: never visible
-    update()
+    _hair(box("emitter", (-2.1, 4.4, 0.9), (-1.9, 4.6, 1.1)), 5.0, src)   # beside the view; instances 6 wide
     truth = {n for n in seen_names() if n in bpy.context.view_layer.objects}
-    report = os.path.join(WORK, "emitter_wire_instances.json")
-    r = bpy.ops.occ.analyze(filepath=report, frame_start=1, frame_end=1, link_never_visible=True)
-    with open(report) as f:
-        named = set(json.load(f)["frames"][0]["visible"])
-    never = {o.name for o in bpy.data.collections["Never Visible"].objects}
+    r, named, never = _analyzed("emitter_wire_instances")
     check("emitter_wire_instances_analyzed_seen",
           r == {"FINISHED"} and "emitter" in truth and truth <= named and "emitter" not in never
           and "target" in never, (r, sorted(truth), sorted(named), sorted(never)))
