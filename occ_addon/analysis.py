@@ -149,6 +149,8 @@ def analysis_steps(context, frames: list[int], path: str, rule: str = "seen",
             if view_rule is not None:          # shadow casters are the engine's (given the lights)
                 vis |= policy.drawn_beyond_depth(view_rule, result.state, scene.occ.cull_raytraced)
             policy.widen_instances(objects, instances + emitting, vis)
+            if SESSION.extractor.beyond:        # instances drawn as wire, bounds, ...: seen where drawn
+                vis |= np.isin(held.uids, np.fromiter(SESSION.extractor.beyond, dtype=np.int64))
             shown = [held_names[i] for i in np.flatnonzero(vis)]
             others = [o.name for o in extra + policy.members_seen(objects, instances, vis, emitting, extra)]
             names = list(dict.fromkeys(shown + others))

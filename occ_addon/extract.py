@@ -237,6 +237,7 @@ class Extractor:
         self.shown_ids = None    # sorted uids of the objects in shown collections (see shown_by_collections)
         self.fps = {}            # uid -> fingerprint of the data its cached geometry was read from (seal)
         self.sources = {}        # instancer uid -> its instanced_sources when its instances were read
+        self.beyond: set[int] = set()   # instancers whose instances, as read, draw beyond their geometry
         self.stale_originals = set()  # uids whose original matrix_world lags their evaluated one
 
     def forget(self, uid: int) -> None:
@@ -430,7 +431,10 @@ class Extractor:
         fresh = {ident(o): o for o, k, c in zip(cand.objects, cand.kinds, cand.stale, strict=True)
                  if not c and ((k is Kind.COLLECTION and self._instance_stale(o))
                                or (k is Kind.INSTANCER and self._instancer_stale(o)))}
-        for uid, (v, f) in instanced_geometry(depsgraph, fresh).items():
+        beyond: set[int] = set()
+        read_instances = instanced_geometry(depsgraph, fresh, beyond)
+        self.beyond = (self.beyond - fresh.keys()) | beyond
+        for uid, (v, f) in read_instances.items():
             o = fresh[uid]
             if v is UNREAD[0]:                    # kept visible, never an occluder (core.Scene.invalid)
                 self.cache[uid] = Geometry(("unknown", uid), v, f)

@@ -7,14 +7,17 @@ cannot give it)."""
 import bpy
 import numpy as np
 
+from .drawn import DRAWN_TYPES
 from .identity import ident
 from .kinds import GEOMETRY_TYPES, SOLID_DISPLAY
 from .meshes import EMPTY, mesh_arrays, read_mesh
 
 
-def instanced_geometry(depsgraph, instancers):
+def instanced_geometry(depsgraph, instancers, beyond: set | None = None):
     """World-space geometry of the instances of instancers ``{uid: obj}``: ``{uid: (v, f)}``.
-    Instanced objects displayed as wire or bounds are left out (they occlude nothing)."""
+    Instanced objects displayed as wire or bounds are left out (they occlude nothing), and
+    so are point clouds, volumes and curves; ``beyond`` gets the instancers whose
+    instances Blender draws beyond that geometry (they are seen wherever they are drawn)."""
     if not instancers:
         return {}
     parts = {uid: [] for uid in instancers}
@@ -45,6 +48,8 @@ def instanced_geometry(depsgraph, instancers):
             unknown.update(parts)
             break
         if ob.type not in GEOMETRY_TYPES or ob.display_type not in SOLID_DISPLAY:
+            if beyond is not None and ob.type in DRAWN_TYPES:
+                beyond.add(owner)
             continue
         m = np.array(inst.matrix_world, dtype=np.float64)
         source = ob.original

@@ -29,7 +29,7 @@ CASES = (policy.user_hidden_objects, policy.dynamic_objects, cameras.camera_as_r
          session.modal_steps,
          session.instanced_child_edited, session.instance_source_deleted, session.click_restarts,
          policy.instance_wire_member_analyzed, policy.bystander_emitter_members_analyzed,
-         policy.emitter_wire_instances_analyzed,
+         policy.emitter_wire_instances_analyzed, policy.gn_bounds_instances_analyzed,
          policy.wire_collection_instance,
          analysis.never_visible_adds_no_path, analysis.never_visible_keeps_users_objects,
          policy.view_rules, policy.lit_renders,

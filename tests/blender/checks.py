@@ -19,7 +19,7 @@ CHECKS = {
         "exclude_collection_moved_into_drawn", "exclude_collection_undo_restore_drawn",
         "instance_wire_member_analyzed_seen", "instance_bounds_member_analyzed_seen",
         "bystander_emitter_members_analyzed_seen",
-        "emitter_wire_instances_analyzed_seen",
+        "emitter_wire_instances_analyzed_seen", "gn_bounds_instances_analyzed_seen",
         "wire_instance_wire_never_hidden", "wire_instance_wire_truth",
         "wire_instance_bounds_never_hidden", "wire_instance_bounds_truth",
         "rules_cycles_hides_nothing", "rules_cycles_opt_in_hides", "rules_eevee_raytracing_hides_nothing",

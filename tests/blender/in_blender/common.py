@@ -204,8 +204,9 @@ def keyframes(obj, at):
         obj.keyframe_insert("location", frame=frame)
 
 
-def gn_instancer(obj, at):
-    """A geometry-nodes modifier that keeps the mesh and adds one cube instance at ``at`` (local)."""
+def gn_instancer(obj, at, source=None):
+    """A geometry-nodes modifier that keeps the mesh and adds one cube instance at ``at``
+    (local), or one instance of object ``source`` (Object Info, its own geometry)."""
     ng = bpy.data.node_groups.new("scatter", "GeometryNodeTree")
     ng.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
     ng.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
@@ -216,7 +217,13 @@ def gn_instancer(obj, at):
     pts.inputs["Count"].default_value = 1
     pts.inputs["Position"].default_value = at
     ng.links.new(pts.outputs["Points"], inst.inputs["Points"])
-    ng.links.new(cube.outputs["Mesh"], inst.inputs["Instance"])
+    if source is None:
+        ng.links.new(cube.outputs["Mesh"], inst.inputs["Instance"])
+    else:
+        info = n.new("GeometryNodeObjectInfo")
+        info.inputs["Object"].default_value = source
+        info.inputs["As Instance"].default_value = True
+        ng.links.new(info.outputs["Geometry"], inst.inputs["Instance"])
     ng.links.new(gin.outputs[0], join.inputs[0])
     ng.links.new(inst.outputs["Instances"], join.inputs[0])
     ng.links.new(join.outputs[0], gout.inputs[0])

@@ -377,6 +377,27 @@ def emitter_wire_instances_analyzed():
           and "target" in never, (r, sorted(truth), sorted(named), sorted(never)))
 
 
+def gn_bounds_instances_analyzed():
+    """A geometry-nodes instancer behind the wall whose one instance, in front of it, is
+    an object drawn as bounds (the engine leaves it out: it occludes nothing): the camera
+    sees the instance, so analyze counts the instancer seen and "Collect Never Visible"
+    leaves it out (workflow seed 7331 on Blender 5.2: such an instancer collected though
+    seen).  On Blender 4.2, whose geometry nodes' own geometry the add-on cannot read, the
+    instancer is kept visible anyway."""
+    new_scene()
+    src = box("bounds_src", (-20.5, -0.5, 0), (-19.5, 0.5, 1))          # behind the camera
+    src.display_type = "BOUNDS"
+    host = box("gn_host", (3, -1, 0), (4, 1, 1))                        # behind the wall
+    gn_instancer(host, (-6.0, 0.0, 0.0), source=src)                    # its instance before the wall
+    box("target", (3, 2, 0), (4, 3, 1))                                 # behind the wall: never visible
+    update()
+    truth = {n for n in seen_names() if n in bpy.context.view_layer.objects}
+    r, named, never = _analyzed("gn_bounds_instances")
+    check("gn_bounds_instances_analyzed_seen",
+          r == {"FINISHED"} and "gn_host" in truth and truth <= named and "gn_host" not in never
+          and "target" in never, (r, sorted(truth), sorted(named), sorted(never)))
+
+
 def rule():
     """What the last pass said the view draws (the session's figures, passes.LastPass)."""
     last = addon("session").SESSION.last
