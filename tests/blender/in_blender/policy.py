@@ -340,6 +340,16 @@ def _analyzed(name):
     return r, named, {o.name for o in bpy.data.collections["Never Visible"].objects}
 
 
+def _instancer_seen(name, instancer):
+    """Check ``NAME_analyzed_seen``: the truth sees ``instancer`` (through its instances),
+    analyze names everything the truth sees, and collects "target" but not the instancer."""
+    truth = {n for n in seen_names() if n in bpy.context.view_layer.objects}
+    r, named, never = _analyzed(name)
+    check(f"{name}_analyzed_seen",
+          r == {"FINISHED"} and instancer in truth and truth <= named and instancer not in never
+          and "target" in never, (r, sorted(truth), sorted(named), sorted(never)))
+
+
 def bystander_emitter_members_analyzed():
     """A hair emitter the engine does not hold (drawn as wire: never an occluder, never
     culled) in plain view, its particles instancing a collection excluded from the view
@@ -370,11 +380,7 @@ def emitter_wire_instances_analyzed():
     src = box("wire_src", (-23, -3, -2.5), (-17, 3, 3.5))              # behind the camera
     src.display_type = "WIRE"
     _hair(box("emitter", (-2.1, 4.4, 0.9), (-1.9, 4.6, 1.1)), 5.0, src)   # beside the view; instances 6 wide
-    truth = {n for n in seen_names() if n in bpy.context.view_layer.objects}
-    r, named, never = _analyzed("emitter_wire_instances")
-    check("emitter_wire_instances_analyzed_seen",
-          r == {"FINISHED"} and "emitter" in truth and truth <= named and "emitter" not in never
-          and "target" in never, (r, sorted(truth), sorted(named), sorted(never)))
+    _instancer_seen("emitter_wire_instances", "emitter")
 
 
 def gn_bounds_instances_analyzed():
@@ -391,11 +397,7 @@ def gn_bounds_instances_analyzed():
     gn_instancer(host, (-6.0, 0.0, 0.0), source=src)                    # its instance before the wall
     box("target", (3, 2, 0), (4, 3, 1))                                 # behind the wall: never visible
     update()
-    truth = {n for n in seen_names() if n in bpy.context.view_layer.objects}
-    r, named, never = _analyzed("gn_bounds_instances")
-    check("gn_bounds_instances_analyzed_seen",
-          r == {"FINISHED"} and "gn_host" in truth and truth <= named and "gn_host" not in never
-          and "target" in never, (r, sorted(truth), sorted(named), sorted(never)))
+    _instancer_seen("gn_bounds_instances", "gn_host")
 
 
 def rule():
