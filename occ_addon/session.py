@@ -181,13 +181,13 @@ class Session:
         # another layer an object may be drawn that no edit report reached while it was not
         verify = verify or layer != self.layer
         if self.layer is not None and layer != self.layer:
-            # ... and so may every object read before: an edit is reported only by the
-            # evaluation of a layer that holds the object, and a layer's first evaluation
-            # reports its objects without their geometry changes (workflow seed 7053: a
-            # vertex made NaN while the active layer left the object out, then a new
-            # layer).  Read again, every cached geometry; meshes unchanged keep their
-            # chunks in the engine (ChunkCache).
-            self.extractor.mark(geometry=list(self.extractor.cache))
+            # ... and so may an object the last layer left out: an edit is reported only by
+            # the evaluation of a layer that holds the object, and a layer's first
+            # evaluation reports its objects without their geometry changes (workflow seed
+            # 7053: a vertex made NaN while the active layer left the object out, then a
+            # new layer).  Read again, every cached geometry the last engine did not hold.
+            held = set(self.held.uids.tolist()) if self.held is not None else set()
+            self.extractor.mark(geometry=[u for u in self.extractor.cache if u not in held])
         self.layer, self.reread = layer, False
         cand = self.extractor.candidates(context, verify, every)
         if len(cand.give_back):
