@@ -559,8 +559,7 @@ class _Tester:
             test = np.flatnonzero(state == Visibility.VISIBLE)
             if self.polygons is None:
                 self.polygons = occluder_polygons(self.culler, self.eye)
-            hidden = hidden_by_polygons(boxes[test] - self.eye, self.polygons, env.distance,
-                                        self.camera.view[:3, :3], self.near_eff)
+            hidden = hidden_by_polygons(boxes[test] - self.eye, self.polygons, env.distance, self.near_eff)
             state[test[hidden]] = Visibility.OCCLUDED
         return state
 

@@ -6,9 +6,13 @@ strictly on the other, and (2) for every edge ``e`` of ``F``, the ball lies on t
 polygon's side of the plane through ``x`` and ``e``, at least ``D`` from it.  (A
 segment from an eye ``b`` to ``x`` crosses ``F``'s plane at a point on the same side
 of that plane as ``b``, since ``x`` lies on it; inside ``F`` means on the polygon's
-side of every edge.)  The points hidden from a convex ball by a convex polygon form
-a convex set (an intersection of shadow cones), so a box is hidden when its eight
-corners are.
+side of every edge.)  Condition (2) is a half-space per edge: the planes through an
+edge form a pencil, and the one through ``x`` leaves the ball on the polygon's side,
+at least ``D`` away, exactly when ``x`` lies on the ball's side of the pencil's plane
+tangent to the ball that has the polygon on that side too.  So the points hidden from
+the ball form a convex set, the polygon's plane and one tangent plane per edge
+(:func:`umbra_planes`), and a box is hidden when its corner nearest each of those
+planes is inside it: one dot product per box and plane.
 
 This is what near occluders need: in image space (:mod:`core.envelope`) a wall a few
 metres from the eye moves so far across the screen as the eye moves that no window of
@@ -23,13 +27,13 @@ the largest :data:`PER_MESH` of each mesh.
 
 import numpy as np
 
-from .bounds import MAX, MIN, corners
+from .bounds import MAX, MIN
 from .tolerance import tol
 
 PER_MESH = 16          # polygons kept per mesh (its largest)
 OBJECTS = 256          # objects whose polygons are tried per pass (largest on screen)
 POLYGONS = 512         # polygons tried per pass (largest on screen)
-PAIR_CHUNK = 20000     # box-polygon pairs per vectorised step
+BOX_CHUNK = 256        # boxes per matrix product (x 5 planes x POLYGONS doubles)
 COPLANAR_COS = 1.0 - 1e-9   # two triangles' normals this close are one plane ...
 COPLANAR_REL = 1e-9         # ... when the other's far vertex is this close to it (x mesh size)
 
@@ -103,31 +107,20 @@ def convex_polygons(vertices, faces, keep=PER_MESH):
     return np.asarray(polys)[best], areas[best]
 
 
-def _tangent_rects(points, rot):
-    """Per point set ``(k, c, 3)`` (camera-relative), the rectangle of ``x/z, y/z`` in
-    the view ``rot`` and whether every point lies in front of the eye."""
-    v = points @ rot.T
-    z = -v[..., 2]
-    front = (z > 0.0).all(axis=1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = v[..., :2] / np.where(z > 0.0, z, 1.0)[..., None]
-    return np.concatenate([t.min(axis=1), t.max(axis=1)], axis=1), front
-
-
-def hidden_by_polygons(boxes, polys, distance, rot=None, near_eff=0.0):
-    """``(m,) bool``: boxes (camera-relative, ``(m, 2, 3)``) hidden from every eye
-    within ``distance`` of the origin by at least one of the convex polygons
-    ``(k, 4, 3)`` (camera-relative; see the module doc).  ``rot``: the view's rotation,
-    to pair a box only with polygons whose picture from the centre eye holds its
-    picture (necessary: the centre eye is one of the eyes).  ``near_eff``: a polygon
-    whose plane passes nearer the centre eye than this occludes nothing (an eye's near
-    plane may cut it)."""
-    m, k = len(boxes), len(polys)
-    out = np.zeros(m, dtype=bool)
-    if not m or not k:
-        return out
-    e0 = polys
-    e1 = np.roll(polys, -1, axis=1)
+def umbra_planes(polys, radius, near_eff=0.0):
+    """The umbra of each convex polygon ``(k, 4, 3)`` (camera-relative, a triangle
+    repeating its last corner) from the ball ``B(0, radius)``, as five half-spaces
+    ``normals @ x >= offsets`` (``(k, 5, 3)``, ``(k, 5)``): the polygon's plane (row 0:
+    ``x`` beyond it) and, per edge, the plane through the edge tangent to the ball with the
+    ball and the polygon on its positive side.  A point is hidden from every eye of the
+    ball exactly when it lies in all five (module doc: the plane through ``x`` and an edge
+    leaves the ball on the polygon's side exactly when ``x`` lies on the ball's side of that
+    edge's tangent plane, given ``x`` beyond the polygon).  A repeated corner's edge is
+    always true (a zero row, offset ``-inf``); a polygon that cannot hide (degenerate, its
+    plane within ``radius`` of the eye or nearer than ``near_eff``) is never true (offset
+    ``+inf`` in row 0).  ``radius`` is ``(k,)`` or a number."""
+    k = len(polys)
+    radius = np.broadcast_to(np.asarray(radius, dtype=np.float64), (k,))
     n = np.cross(polys[:, 1] - polys[:, 0], polys[:, 2] - polys[:, 0])
     n2 = np.cross(polys[:, 2] - polys[:, 0], polys[:, 3] - polys[:, 0])
     n = np.where((np.linalg.norm(n, axis=1) >= np.linalg.norm(n2, axis=1))[:, None], n, n2)
@@ -137,51 +130,80 @@ def hidden_by_polygons(boxes, polys, distance, rot=None, near_eff=0.0):
     h = np.einsum("kj,kj->k", n, polys[:, 0])
     n = np.where((h < 0.0)[:, None], -n, n)                   # the normal points away from the eye
     h = np.abs(h)
-    mag = np.abs(polys).max(axis=(1, 2))
-    margin = distance * (1.0 + tol.near_guard_rel) + tol.box_grow_rel * mag
-    good &= h > margin                                        # the whole ball on the near side
-    good &= h > near_eff                                      # and no eye's near plane cuts it
+    guard = tol.box_grow_rel * np.abs(polys).max(axis=(1, 2))
+    good &= (h > radius) & (h > near_eff)                     # the whole ball on the near side
+    normals = np.zeros((k, 5, 3))
+    offsets = np.full((k, 5), -np.inf)
+    normals[:, 0] = n
+    offsets[:, 0] = h + guard
     centre = polys.mean(axis=1)
-    # box beyond the plane: its nearest corner along n is farther than the plane
-    lo = boxes[:, MIN] @ np.maximum(n, 0.0).T + boxes[:, MAX] @ np.minimum(n, 0.0).T
-    beyond = (lo > (h + tol.box_grow_rel * mag)[None]) & good[None]
-    cs = corners(boxes)                                        # (m, 8, 3)
-    if rot is not None:
-        br, bf = _tangent_rects(cs, rot)
-        pr, pf = _tangent_rects(polys, rot)
-        inside = (br[:, None, 0] >= pr[None, :, 0]) & (br[:, None, 1] >= pr[None, :, 1]) & \
-                 (br[:, None, 2] <= pr[None, :, 2]) & (br[:, None, 3] <= pr[None, :, 3])
-        beyond &= inside | ~bf[:, None] | ~pf[None, :]
-    # polygon-major: the polygons come largest first (convex_polygons), so most boxes are
-    # proved hidden by the first ones and their later pairs are skipped (the answer is an
-    # OR over pairs: the order changes only the work)
-    pi, bi = np.nonzero(beyond.T)
-    if not len(bi):
+    for e in range(4):
+        a0, a1 = polys[:, e], polys[:, (e + 1) % 4]
+        ed = a1 - a0
+        length = np.linalg.norm(ed, axis=1)
+        edge = length > 0.0
+        u = ed / np.where(edge, length, 1.0)[:, None]
+        m0 = np.cross(u, a0)                                  # along the plane through the eye and the edge
+        rho = np.linalg.norm(m0, axis=1)                      # the edge's line from the eye (>= h > radius)
+        edge &= rho > radius
+        v = m0 / np.where(edge, rho, 1.0)[:, None]
+        w = np.cross(v, u)                                    # from the eye's foot on the line, outwards
+        alpha = -radius / np.where(edge, rho, 1.0)
+        beta = np.sqrt(np.maximum(1.0 - alpha * alpha, 0.0))
+        inward = centre - a0
+        gv = np.einsum("kj,kj->k", v, inward)
+        g = alpha[:, None] * w + (np.where(gv >= 0.0, beta, -beta))[:, None] * v
+        # the tangent plane keeps the polygon on the ball's side (one of the two does)
+        edge &= np.einsum("kj,kj->k", g, inward) > 0.0
+        good &= edge | (length == 0.0)
+        normals[:, 1 + e] = np.where(edge[:, None], g, 0.0)
+        offsets[:, 1 + e] = np.where(edge, -radius + guard, -np.inf)
+    offsets[~good, 0] = np.inf
+    return normals, offsets
+
+
+def hidden_by_polygons(boxes, polys, distance, near_eff=0.0):
+    """``(m,) bool``: boxes (camera-relative, ``(m, 2, 3)``) hidden from every eye
+    within ``distance`` of the origin by at least one of the convex polygons
+    ``(k, 4, 3)`` (camera-relative; see the module doc).  ``near_eff``: a polygon
+    whose plane passes nearer the centre eye than this occludes nothing (an eye's near
+    plane may cut it).
+
+    The umbra is convex, so a box is in it when its corner nearest each bounding plane
+    is: per box and plane one dot product, all of them one matrix product per chunk of
+    :data:`BOX_CHUNK` boxes."""
+    m, k = len(boxes), len(polys)
+    out = np.zeros(m, dtype=bool)
+    if not m or not k:
         return out
-    s = 0
-    while s < len(bi):
-        open_ = np.flatnonzero(~out[bi[s:]])[:PAIR_CHUNK] + s     # the next pairs of boxes not yet hidden
-        if not len(open_):
-            break
-        s = int(open_[-1]) + 1
-        b, p = bi[open_], pi[open_]
-        # per pair: the box's corners x (q, 8, 1) against the polygon's edges a0 -> a1
-        # (q, 1, 4), component by component (np.cross's own arithmetic, without its copies)
-        xb, a0p, a1p = cs[b], e0[p], e1[p]                    # each gathered once
-        x = [xb[:, :, None, j] for j in range(3)]
-        a0 = [a0p[:, None, :, j] for j in range(3)]
-        ed = [a1p[:, None, :, j] - a0[j] for j in range(3)]
-        dx = [x[j] - a0[j] for j in range(3)]
-        # the normal of the plane through x and the edge: edge x (x - a0)
-        m = [ed[1] * dx[2] - ed[2] * dx[1], ed[2] * dx[0] - ed[0] * dx[2], ed[0] * dx[1] - ed[1] * dx[0]]
-        mlen = np.sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2])
-        c = centre[p][:, None, None, :]
-        side = sum(m[j] * (c[..., j] - a0[j]) for j in range(3))
-        eye = -sum(m[j] * a0[j] for j in range(3))            # the eye (origin) against that plane
-        degenerate = (ed[0] == 0.0) & (ed[1] == 0.0) & (ed[2] == 0.0)   # a triangle's repeated corner
-        with np.errstate(invalid="ignore", divide="ignore"):
-            dist = np.where(side > 0.0, eye, -eye) / mlen
-        okp = degenerate | ((mlen > 0.0) & (side != 0.0) & (dist >= margin[p][:, None, None]))
-        hid = okp.all(axis=(1, 2))
-        np.logical_or.at(out, b[hid], True)
+    mag = np.abs(polys).max(axis=(1, 2))
+    radius = distance * (1.0 + tol.near_guard_rel) + tol.box_grow_rel * mag
+    normals, offsets = umbra_planes(polys, radius, near_eff)
+    keep = np.isfinite(offsets[:, 0])
+    if not keep.any():
+        return out
+    normals, offsets = normals[keep], offsets[keep]
+    # an edge that is none (a triangle's repeated corner) repeats the polygon's plane
+    none = ~np.isfinite(offsets)
+    normals[none] = np.broadcast_to(normals[:, :1], normals.shape)[none]
+    offsets[none] = np.broadcast_to(offsets[:, :1], offsets.shape)[none]
+    # one matrix product per chunk: [lo, hi, guard, 1] x [max(n, 0); min(n, 0); -1; -offset] is each
+    # plane's least value over the box, less the box's rounding guard, less the plane's offset;
+    # columns plane-major (the five planes of every polygon, one block each)
+    planes = normals.transpose(1, 0, 2).reshape(-1, 3)
+    weights = np.concatenate([np.maximum(planes, 0.0).T, np.minimum(planes, 0.0).T,
+                              -np.ones((1, len(planes))), -offsets.T.reshape(1, -1)])
+    kk = len(normals)
+    rows = np.empty((min(m, BOX_CHUNK), 8))
+    rows[:, 7] = 1.0
+    for s in range(0, m, BOX_CHUNK):
+        b = boxes[s:s + BOX_CHUNK]
+        r = rows[:len(b)]
+        r[:, 0:3], r[:, 3:6] = b[:, MIN], b[:, MAX]
+        r[:, 6] = tol.box_grow_rel * np.abs(b).max(axis=(1, 2))
+        low = (r @ weights).reshape(len(b), 5, kk)
+        least = low[:, 0]
+        for e in range(1, 5):
+            np.minimum(least, low[:, e], out=least)
+        out[s:s + BOX_CHUNK] = (least >= 0.0).any(axis=1)
     return out

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from core import Camera, Culler, OccError, Visibility
+from core.bounds import corners
 from core.camera import look_at
 from core.envelope import Envelope, corner_half_angle, envelope_camera, sample_views
 from core.umbra import convex_polygons, hidden_by_polygons
@@ -169,6 +170,107 @@ def test_a_square_hides_what_its_umbra_holds():
     assert hidden_by_polygons(box, square, 10.5).tolist() == [False]
 
 
+def _edge_plane_slack(box, poly, radius):
+    """The module doc's condition (2), corner by corner, edge by edge (the reference): the
+    least distance from the eye to the plane through a corner of ``box`` and an edge of
+    ``poly``, signed by the ball's side (positive: the polygon's side), less ``radius``."""
+    centre = poly.mean(axis=0)
+    least = np.inf
+    for x in corners(box[None])[0]:
+        for e in range(4):
+            a0, a1 = poly[e], poly[(e + 1) % 4]
+            if np.array_equal(a0, a1):
+                continue
+            m = np.cross(a1 - a0, x - a0)
+            side = m @ (centre - a0)
+            d = (-m @ a0) / np.linalg.norm(m) if side > 0 else (m @ a0) / np.linalg.norm(m)
+            least = min(least, d - radius)
+    return least
+
+
+def _random_polygons(rng, k):
+    """Convex quads and triangles (a repeated corner) 3-30 from the eye, facing it roughly."""
+    polys = []
+    for _ in range(k):
+        normal = rng.normal(size=3)
+        normal /= np.linalg.norm(normal)
+        centre = normal * rng.uniform(3, 30)
+        a = np.cross(normal, rng.normal(size=3))
+        a /= np.linalg.norm(a)
+        b = np.cross(normal, a)
+        angles = np.sort(rng.uniform(0, 2 * np.pi, 4))
+        corners = [centre + rng.uniform(1, 8) * (np.cos(t) * a + np.sin(t) * b) for t in angles]
+        if rng.random() < 0.3:
+            corners[3] = corners[2]
+        polys.append(corners)
+    return np.array(polys)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_tangent_planes_prove_what_the_edge_planes_prove(seed):
+    """The umbra as five half-spaces (one matrix product) against the module doc's
+    condition checked corner by corner and edge by edge: the same answer wherever the
+    reference is not within a rounding guard of its boundary, and both ways occur."""
+    rng = np.random.default_rng(seed)
+    polys = _random_polygons(rng, 12)
+    centres = polys.mean(axis=1)[rng.integers(0, 12, 200)] * rng.uniform(1.05, 2.5, (200, 1))
+    half = rng.uniform(0.05, 2.0, (200, 1, 3))
+    boxes = np.concatenate([centres[:, None] - half, centres[:, None] + half], axis=1)
+    distance = float(rng.uniform(0.0, 2.5))
+    got = hidden_by_polygons(boxes, polys, distance)
+    hidden = shown = 0
+    for i, box in enumerate(boxes):
+        for p, poly in enumerate(polys):
+            n = np.cross(poly[1] - poly[0], poly[2] - poly[0])
+            n /= np.linalg.norm(n) * np.sign(n @ poly[0])
+            h = n @ poly[0]
+            beyond = box[0] @ np.maximum(n, 0) + box[1] @ np.minimum(n, 0) > h     # its nearest corner
+            if not beyond or h <= distance:
+                continue
+            slack = _edge_plane_slack(box, poly, distance)
+            if abs(slack) < 1e-4 * (1 + np.abs(box).max()):
+                continue                                   # inside the guards: either answer
+            mine = hidden_by_polygons(box[None], poly[None], distance)[0]
+            assert mine == (slack > 0), (seed, i, p, slack)
+            hidden += bool(mine)
+            shown += not mine
+    assert hidden > 5 and shown > 5
+    assert got.any()
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_what_the_polygons_hide_no_ray_from_the_ball_reaches(seed):
+    """Independent of both formulas: for every box the proof hides, segments from points of
+    the ball of eyes (on its surface and inside) to points of the box (corners, faces,
+    inside) all cross one of the polygons that hide it."""
+    rng = np.random.default_rng(100 + seed)
+    polys = _random_polygons(rng, 16)
+    centres = polys.mean(axis=1)[rng.integers(0, 16, 300)] * rng.uniform(1.05, 2.0, (300, 1))
+    half = rng.uniform(0.05, 1.5, (300, 1, 3))
+    boxes = np.concatenate([centres[:, None] - half, centres[:, None] + half], axis=1)
+    distance = float(rng.uniform(0.2, 2.0))
+    checked = 0
+    for i in np.flatnonzero(hidden_by_polygons(boxes, polys, distance)):
+        by = [p for p in range(len(polys)) if hidden_by_polygons(boxes[i:i + 1], polys[p:p + 1], distance)[0]]
+        poly = polys[by[0]]
+        eyes = rng.normal(size=(64, 3))
+        eyes *= (distance * rng.uniform(0.5, 1.0, (64, 1)) ** (1 / 3)) / np.linalg.norm(eyes, axis=1)[:, None]
+        eyes[:16] *= distance / np.linalg.norm(eyes[:16], axis=1)[:, None]      # on the sphere
+        pts = rng.uniform(boxes[i, 0], boxes[i, 1], (64, 3))
+        pts[:8] = corners(boxes[i:i + 1])[0]
+        n = np.cross(poly[1] - poly[0], poly[2] - poly[0])
+        for b, x in zip(eyes, pts, strict=True):
+            t = (n @ (poly[0] - b)) / (n @ (x - b))
+            assert 0.0 < t < 1.0, (seed, i)                # the segment meets the polygon's plane ...
+            q = b + t * (x - b)
+            for e in range(4):                             # ... inside the polygon
+                a0, a1 = poly[e], poly[(e + 1) % 4]
+                if not np.array_equal(a0, a1):
+                    assert np.cross(a1 - a0, q - a0) @ np.cross(a1 - a0, poly.mean(axis=0) - a0) >= 0.0, (seed, i)
+        checked += 1
+    assert checked > 3
+
+
 def test_motion_replays_hide_nothing_the_truth_sees(ctx):
     """Live mode's policy replayed with passes that land when they finish: inside its
     envelope a set hides nothing the truth sees, and the one step drawn outside one is
@@ -230,9 +332,9 @@ def test_envelope_holds_at_the_display_resolution(ctx):
 
 
 def test_the_polygon_proof_does_not_depend_on_order_or_chunks(ctx, monkeypatch):
-    """The proof is an OR over box-polygon pairs: the pairs it skips (boxes already proved
-    hidden) and its chunks change the work only.  Polygons shuffled and chunks of 7 pairs
-    give the answer of the envelope pass's own inputs."""
+    """The proof is an OR over box-polygon pairs: the polygons' order and the chunks of boxes
+    change the work only.  Polygons shuffled and chunks of 7 boxes give the answer of the
+    envelope pass's own inputs."""
     from core import envelope as envmod
     from core import umbra
     calls = []
@@ -252,7 +354,7 @@ def test_the_polygon_proof_does_not_depend_on_order_or_chunks(ctx, monkeypatch):
         want = hidden_by_polygons(boxes, polys, *rest, **k)
         proved += int(want.sum())
         with monkeypatch.context() as m:
-            m.setattr(umbra, "PAIR_CHUNK", 7)
+            m.setattr(umbra, "BOX_CHUNK", 7)
             assert np.array_equal(hidden_by_polygons(boxes, polys[rng.permutation(len(polys))], *rest, **k), want)
     assert calls and proved > 0
 

@@ -5,15 +5,8 @@
 # Every figure is a median over the sample path, baseline and current code on the same card
 # in the same call.  Writes $OUT/gpu.md (tables) and $OUT/raw.tgz (every bench --json and log).
 set -uo pipefail
-for f in .gl/*.deb; do dpkg -x "$f" /; done; ldconfig
-python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site .whl/*.whl || exit 1
-export PYTHONPATH=/tmp/site PYTHONUNBUFFERED=1
-[ -f /usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json ] && \
-    export __EGL_VENDOR_LIBRARY_FILENAMES=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json
-export OCC_CACHE_DIR=$PWD/.cache/scenes
-OUT=${OUT:-/tmp/out}; RAW=/tmp/gpu_raw; mkdir -p "$OUT" "$RAW"
-nvidia-smi -L
-python3 -c "import moderngl; c = moderngl.create_context(standalone=True, backend='egl', require=430); print(c.info['GL_RENDERER'], c.info['GL_VERSION'])" || exit 1
+source tools/gpu_setup.sh
+RAW=/tmp/gpu_raw; mkdir -p "$RAW"
 SCENES=${SCENES:-city assembly vessels cathedral isosurface city-xl}
 FRAMES=${FRAMES:-}
 for s in $SCENES; do

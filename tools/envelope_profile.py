@@ -1,0 +1,98 @@
+"""Where an envelope pass's time goes, stage by stage, on this machine's GL:
+
+    .venv/bin/python tools/envelope_profile.py [SCENE] [--frames N] [--envelope D,A]
+
+Culls SCENE's path (default ``city``, 640x360) with ``--envelope`` (default ``2,10``) the
+way ``bench --envelope`` does (the first frame fresh, then the culler's memory of the
+occluders), and times the stages of ``core.envelope``'s pass by wrapping them: the depth
+image (the draw), the extended depth (GPU compute passes or numpy, with its read-back),
+the pyramid, the boxes' classification, the occluder polygons and their proof.  The GL is
+waited for after the draw (``ctx.finish()``) so the draw's own time shows; compare stages,
+not totals, with ``bench``.  Prints a table of per-pass medians in ms.
+"""
+
+import argparse
+import collections
+import os
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+from core import Culler  # noqa: E402
+from core import envelope as E
+from core.lab.jobs import load_job  # noqa: E402
+
+STAGES = {  # label: (module object, attribute)
+    "depth image (draw)": None,
+    "extended depth": (E, "extended_depth"),
+    "pyramid": (E, "_pyramid"),
+    "classify boxes": (E, "classify_boxes"),
+    "occluder polygons": (E, "occluder_polygons"),
+    "polygon proof": (E, "hidden_by_polygons"),
+}
+
+
+def wrap(times, label, owner, name):
+    fn = getattr(owner, name)
+
+    def timed(*a, **k):
+        t = time.perf_counter()
+        try:
+            return fn(*a, **k)
+        finally:
+            times[label] += time.perf_counter() - t
+    setattr(owner, name, timed)
+    return fn
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("scene", nargs="?", default="city")
+    ap.add_argument("--frames", type=int, default=8)
+    ap.add_argument("--envelope", default="2,10")
+    args = ap.parse_args(argv)
+    scene, cameras, _ = load_job(args.scene, None, args.frames)
+    env = E.Envelope.parse(args.envelope)
+    rows = collections.defaultdict(list)
+    with Culler(scene, resolution=(640, 360)) as c:
+        renderer = c.renderer
+        device = renderer.device
+        gpu = renderer.gpu_envelope()
+        times = collections.Counter()
+        for label, target in STAGES.items():
+            if target:
+                wrap(times, label, *target)
+        if gpu is not None:
+            wrap(times, "extended depth", gpu, "extended_depth")
+        draw = renderer.envelope_depth
+
+        def timed_draw(*a, **k):
+            t = time.perf_counter()
+            tex = draw(*a, **k)
+            renderer.ctx.finish()
+            times["depth image (draw)"] += time.perf_counter() - t
+            return tex
+        renderer.envelope_depth = timed_draw
+        for i, cam in enumerate(cameras):
+            times.clear()
+            t = time.perf_counter()
+            c.cull(cam, envelope=env, fresh=(i == 0))
+            total = time.perf_counter() - t
+            for label in STAGES:
+                rows[label].append(1e3 * times[label])
+            rows["whole pass"].append(1e3 * total)
+    print(f"{args.scene}, --envelope {args.envelope}, {len(cameras)} passes, 640x360, "
+          f"{device}; image work: {'GPU compute' if gpu is not None else 'numpy'}")
+    print("| stage | median ms | max ms |")
+    print("|---|---|---|")
+    for label, v in rows.items():
+        print(f"| {label} | {np.median(v):.1f} | {max(v):.1f} |")
+    other = np.array(rows["whole pass"]) - sum(np.array(rows[k]) for k in STAGES)
+    print(f"| the rest (frustum, grown boxes, states) | {np.median(other):.1f} | {other.max():.1f} |")
+
+
+if __name__ == "__main__":
+    main()
