@@ -464,27 +464,26 @@ def occluder_polygons(culler, eye):
         score = size / np.maximum(gap, tol.tiny)
     objs = valid[np.argsort(-score)[:umbra.OBJECTS]]
     cache = culler.__dict__.setdefault("_polygons", {})
-    polys, weight = [], []
+    local = []
     for o in objs:
         mi = int(scene.mesh_of[o])
         v, f = scene.meshes[mi]
         key = (mi, id(v), id(f))
         if key not in cache:
-            cache[key] = umbra.convex_polygons(v, f)
-        local, area = cache[key]
-        if not len(local):
-            continue
-        m = scene.matrices[o]
-        world = local @ m[:3, :3].T + (m[:3, 3] - eye)
-        polys.append(world)
-        d = np.linalg.norm(world.mean(axis=1), axis=1)
-        weight.append(np.linalg.norm(np.cross(world[:, 2] - world[:, 0], world[:, 3] - world[:, 1]), axis=1)
-                      / np.maximum(d * d, tol.tiny))
-    if not polys:
+            cache[key] = umbra.convex_polygons(v, f)[0]
+        local.append(cache[key])
+    counts = np.array([len(p) for p in local])
+    if not counts.sum():
         return np.zeros((0, 4, 3))
-    polys = np.concatenate(polys)
-    weight = np.concatenate(weight)
-    return polys[np.argsort(-weight)[:umbra.POLYGONS]]
+    local = np.concatenate(local)
+    m = scene.matrices[np.repeat(objs, counts)]
+    world = np.einsum("pij,pkj->pki", m[:, :3, :3], local) + (m[:, :3, 3] - eye)[:, None]
+    # the largest on screen: area over squared distance
+    centre = world.mean(axis=1)
+    d2 = np.einsum("pj,pj->p", centre, centre)
+    weight = np.linalg.norm(np.cross(world[:, 2] - world[:, 0], world[:, 3] - world[:, 1]), axis=1) \
+        / np.maximum(d2, tol.tiny)
+    return world[np.argsort(-weight, kind="stable")[:umbra.POLYGONS]]
 
 
 class _Tester:
