@@ -141,6 +141,8 @@ class EnvelopeView:
     size: tuple
     lo: tuple
     hi: tuple
+    far: float = math.inf      # the lens's own far plane ...
+    turn: float = 0.0          # ... and how far (radians) a view's axis turns
 
 
 def _half_angles(camera, envelope):
@@ -189,10 +191,15 @@ def envelope_camera(camera, envelope, query_height):
     w, h = inner_x + 2 * margin, inner_y + 2 * margin
     # square pixels in tangent units: the render frustum reaches margin pixels past the cull one
     rx, ry = tx * w / inner_x, ty * h / inner_y
-    clip = (near, far + envelope.distance)
+    # the far plane is a plane: a turned view draws a point out to far / cos(c) from its eye
+    # (c: the lens's corner angle), so out to that plus D from this one (a point beyond the
+    # far plane here, off the axis, can lie before a turned view's)
+    reach = far / math.cos(corner_half_angle(camera)) + envelope.distance
+    clip = (near, reach * (1.0 + tol.near_guard_rel))
     cull = Camera(camera.view, perspective(math.degrees(2.0 * hy), tx / ty, *clip))
     render = Camera(camera.view, perspective(math.degrees(2.0 * math.atan(ry)), rx / ry, *clip))
-    return EnvelopeView(cull, render, (w, h), (margin, margin), (margin + inner_x - 1, margin + inner_y - 1))
+    return EnvelopeView(cull, render, (w, h), (margin, margin), (margin + inner_x - 1, margin + inner_y - 1),
+                        far, math.radians(envelope.angle_deg))
 
 
 def _shift_max(a, h, axis, fill):
@@ -398,6 +405,23 @@ def _split8(boxes):
     return out.reshape(-1, 2, 3)
 
 
+def _beyond_every_far_plane(rel, view):
+    """Camera-relative boxes (grown by the envelope's distance) beyond the far plane of
+    every view whose axis turns at most ``view.turn`` from this one's: a point ``r`` away,
+    ``theta`` off the axis, lies at least ``r cos(theta + turn)`` deep in each; over a box,
+    its nearest distance and its widest angle (at a corner: the cone within an angle is
+    convex) bound that from below."""
+    axis = -view.render.view[2, :3]
+    c = corners(rel)
+    dist = np.linalg.norm(c, axis=2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cos = np.where(dist > 0.0, (c @ axis) / dist, -1.0).min(axis=1)
+    theta = np.arccos(np.clip(cos, -1.0, 1.0)) + view.turn
+    nearest = np.linalg.norm(np.maximum(np.maximum(rel[:, MIN], -rel[:, MAX]), 0.0), axis=1)
+    return (theta < 0.5 * math.pi) & (nearest * np.cos(np.minimum(theta, 0.5 * math.pi))
+                                      > view.far * (1.0 + tol.near_guard_rel))
+
+
 def classify_boxes(rel, view, levels, depth_step_at, splits=SPLITS):
     """States of camera-relative boxes (already grown) from the envelope's
     :class:`EnvelopeView`: VISIBLE, OCCLUDED or VIEW_CULLED per box; ``levels``: the
@@ -413,6 +437,7 @@ def classify_boxes(rel, view, levels, depth_step_at, splits=SPLITS):
     if not k:
         return state
     outside, _ = classify(planes_from_matrix(view.cull.relative_view_projection()), rel)
+    outside |= _beyond_every_far_plane(rel, view)
     state[outside] = Visibility.VIEW_CULLED
     clip = view.render.relative_view_projection()
     size = np.asarray(view.size, dtype=np.float64)

@@ -316,6 +316,23 @@ def test_a_wall_the_near_plane_cuts_hides_nothing(ctx):
             assert c.cull(camera, envelope=env).state[1] == Visibility.VISIBLE, env
 
 
+def test_what_a_turned_view_draws_before_its_far_plane_is_not_culled(ctx):
+    """The far plane is a plane, not a sphere: a crate 118 away (6 wide), 25 degrees off the
+    axis, lies 104-110 deep (beyond the far plane at 100) from the centre view and under 97
+    (drawn) from the view turned 10 degrees away from it.  City-xl's path hid two such
+    objects from a sampled view of its envelope (bench city-xl --envelope 2,10)."""
+    phi = math.radians(25.0)
+    centre = 118.0 * np.array([math.cos(phi), math.sin(phi), 0.0])
+    scene = scenes.boxes_scene([(centre - 3.0, centre + 3.0)], ["crate"])
+    kw = {"near": 0.5, "far": 100.0, "fov_y_deg": 60, "aspect": 1.5, "up": (0, 0, 1)}
+    camera = scenes.cam((0, 0, 0), (1, 0, 0), **kw)
+    turned = scenes.cam((0, 0, 0), (math.cos(-0.1745), math.sin(-0.1745), 0.0), **kw)   # 10 degrees away
+    with Culler(scene, resolution=(96, 64), ctx=ctx) as c:
+        assert not c.truth(camera)[0] and c.truth(turned)[0]                 # the premise
+        for env in (Envelope(0.0, 10.0), Envelope(0.0, 10.0, any_roll=False), Envelope(1.0, 12.0)):
+            assert c.cull(camera, envelope=env).state[0] == Visibility.VISIBLE, env
+
+
 def test_envelope_holds_at_the_display_resolution(ctx):
     """Queries at a quarter of the display: the views of the envelope, drawn at the
     display's resolution, see nothing the pass hides."""

@@ -19,17 +19,21 @@ step() {  # step NAME LIMIT_S COMMAND...: stdout to NAME.json (or .txt), stderr 
     echo "== $name rc=$rc $((SECONDS - t0)) s"; [ $rc -ne 0 ] && tail -4 "$RAW/$name.log"
     keep "$name.out" "$name.log"
 }
-[ -z "${SKIP_TESTS:-}" ] && step tests 150 python3 -m pytest -q -p no:cacheprovider -m "not blender and not gui" \
-    --ignore=tests/blender --ignore=tests/gui -W ignore
+# the whole engine suite takes over 150 s there (a context and its shaders per test): TESTS narrows it
+[ -z "${SKIP_TESTS:-}" ] && step tests 150 python3 -m pytest -q -p no:cacheprovider --tb=short -rf \
+    -m "not blender and not gui" --ignore=tests/blender --ignore=tests/gui -W ignore ${TESTS:-}
 [ -f "$RAW/tests.out" ] && tail -3 "$RAW/tests.out"
 for s in ${SCENES:-city assembly vessels cathedral isosurface}; do
     step "env-$s" 120 python3 -m core bench "$s" --strategies gpu --envelope 2,10 --frames 12 --json -q
 done
 OCC_ENVELOPE=numpy step env-city-numpy 120 python3 -m core bench city --strategies gpu --envelope 2,10 --frames 12 --json -q
-step profile-city 120 python3 tools/envelope_profile.py city --frames 8
-cat "$RAW/profile-city.out" | head -40
+for s in ${PROFILE_SCENES:-city}; do
+    step "profile-$s" 120 python3 tools/envelope_profile.py "$s" --frames 8
+    cat "$RAW/profile-$s.out"
+done
 for s in ${MOTION_SCENES:-city assembly}; do
     step "motion-$s" 120 python3 -m core motion "$s" --frames 24 --json -q
 done
 [ -z "${SKIP_XL:-}" ] && step motion-city-xl 180 python3 -m core motion city-xl --frames 24 --motions walk --json -q
+[ -n "${XL_BENCH:-}" ] && step env-city-xl 150 python3 -m core bench city-xl --strategies gpu --envelope 2,10 --frames 12 --json -q
 echo done
