@@ -113,16 +113,15 @@ class GpuEnvelope:
         groups = (-(-w // LOCAL), -(-h // LOCAL))
         tex.use(DEPTH_UNIT)
         a.bind_to_storage_buffer(BINDING["OUT_BINDING"])
+        ext.bind_to_storage_buffer(BINDING["EXT_BINDING"])           # the pass opens every pixel
         bp.run(*groups)
         ctx.memory_barrier(ALL_BARRIERS)
-        ext.clear(chunk=np.float32(np.inf).tobytes())                 # every pixel open
         calls = 18
         gp = self.grow
         for k, v in {**common, "u_dguard": float(np.float32(distance * nearest_guard)),
                      "u_d": float(np.float32(distance)), "u_d2": float(np.float32(distance ** 2)),
                      "u_slack": float(np.float32(1.0 + 1e-5)), "u_dt32": float(np.float32(dt))}.items():
             _set(gp, k, v)
-        ext.bind_to_storage_buffer(BINDING["EXT_BINDING"])
         for half in half_sizes:
             if half >= min(w, h):
                 break

@@ -3,7 +3,8 @@
 // than the nearest depth that covers, or beside a depth jump no continuous surface
 // makes: core/envelope.py's _jumps).  Writes (-z, z) per pixel, z = +inf for a break:
 // the window maxima of the next pass then say both "the nearest depth" and "a break in
-// the window" (+inf).
+// the window" (+inf).  It also opens every pixel of the extended depth (+inf): no
+// clear of that buffer from the CPU (a mapped write of the whole image).
 #include "envelope_common.glsl"
 layout(local_size_x = 8, local_size_y = 8) in;
 uniform sampler2D u_depth;
@@ -14,6 +15,7 @@ uniform float u_dt32;              // dt, float
 uniform float u_wtol;              // 1/z steps this close pass for one slope
 uniform int u_jumps;               // distance > 0: look for jumps
 layout(std430, binding = OUT_BINDING) writeonly buffer Out { vec2 zz[]; };
+layout(std430, binding = EXT_BINDING) writeonly buffer Ext { float ext[]; };
 
 bool depth_at(ivec2 p, out double z) {
     float d = texelFetch(u_depth, p, 0).r;
@@ -62,6 +64,7 @@ bool jump(ivec2 a, ivec2 e) {
 void main() {
     ivec2 p = ivec2(gl_GlobalInvocationID.xy);
     if (!inside(p)) return;
+    ext[at(p)] = INF;
     double z;
     if (!depth_at(p, z)) { zz[at(p)] = vec2(-INF, INF); return; }
     bool brk = false;
