@@ -411,15 +411,18 @@ def _beyond_every_far_plane(rel, view):
     ``theta`` off the axis, lies at least ``r cos(theta + turn)`` deep in each; over a box,
     its nearest distance and its widest angle (at a corner: the cone within an angle is
     convex) bound that from below."""
-    axis = -view.render.view[2, :3]
-    c = corners(rel)
-    dist = np.linalg.norm(c, axis=2)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        cos = np.where(dist > 0.0, (c @ axis) / dist, -1.0).min(axis=1)
-    theta = np.arccos(np.clip(cos, -1.0, 1.0)) + view.turn
+    far = view.far * (1.0 + tol.near_guard_rel)
+    out = np.zeros(len(rel), dtype=bool)
     nearest = np.linalg.norm(np.maximum(np.maximum(rel[:, MIN], -rel[:, MAX]), 0.0), axis=1)
-    return (theta < 0.5 * math.pi) & (nearest * np.cos(np.minimum(theta, 0.5 * math.pi))
-                                      > view.far * (1.0 + tol.near_guard_rel))
+    cand = np.flatnonzero(nearest > far)                       # only these can be (cos <= 1)
+    if not len(cand):
+        return out
+    axis = -view.render.view[2, :3]
+    c = corners(rel[cand])
+    dist = np.linalg.norm(c, axis=2)                           # > 0: beyond the far distance
+    theta = np.arccos(np.clip(((c @ axis) / dist).min(axis=1), -1.0, 1.0)) + view.turn
+    out[cand] = (theta < 0.5 * math.pi) & (nearest[cand] * np.cos(np.minimum(theta, 0.5 * math.pi)) > far)
+    return out
 
 
 def classify_boxes(rel, view, levels, depth_step_at, splits=SPLITS):
