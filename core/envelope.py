@@ -425,7 +425,7 @@ def _beyond_every_far_plane(rel, view):
     return out
 
 
-def classify_boxes(rel, view, levels, depth_step_at, splits=SPLITS):
+def classify_boxes(rel, view, levels, depth_step_at, splits=SPLITS, outside=None):
     """States of camera-relative boxes (already grown) from the envelope's
     :class:`EnvelopeView`: VISIBLE, OCCLUDED or VIEW_CULLED per box; ``levels``: the
     max pyramid of the extended depth image (:func:`_pyramid`).  A box's pixel
@@ -434,13 +434,17 @@ def classify_boxes(rel, view, levels, depth_step_at, splits=SPLITS):
     A box is tested by its nearest depth against the farthest covered depth over its
     rectangle; one that reaches behind that depth but starts before it is cut in
     eight and each half tested so (``splits`` times): a box just behind a wall seen
-    at a slant is not kept for the wall's far end."""
+    at a slant is not kept for the wall's far end.  ``outside``: boxes already known to
+    miss a frustum that holds the cull frustum (the render frustum's test); only the
+    others are tested against it."""
     k = len(rel)
     state = np.full(k, Visibility.VISIBLE, dtype=np.uint8)
     if not k:
         return state
-    outside, _ = classify(planes_from_matrix(view.cull.relative_view_projection()), rel)
-    outside |= _beyond_every_far_plane(rel, view)
+    outside = np.zeros(k, dtype=bool) if outside is None else outside.copy()
+    rest = np.flatnonzero(~outside)
+    out_rest, _ = classify(planes_from_matrix(view.cull.relative_view_projection()), rel[rest])
+    outside[rest] = out_rest | _beyond_every_far_plane(rel[rest], view)
     state[outside] = Visibility.VIEW_CULLED
     clip = view.render.relative_view_projection()
     size = np.asarray(view.size, dtype=np.float64)
@@ -523,7 +527,7 @@ class _Tester:
         self.culler, self.camera, self.envelope = culler, camera, envelope
         self.eye = camera.eye
         self.view = self.ext = self.levels = None
-        self.polygons = None
+        self.polygons = self.units = None
         self.orthographic = camera.is_orthographic
         if self.orthographic:
             return
@@ -542,6 +546,7 @@ class _Tester:
         rel = grown_boxes(ub, self.eye, envelope.distance, culler.scene_size)
         # only what can show in the square view: the same picture, less to draw
         out_units, _ = classify(planes_from_matrix(self.view.render.relative_view_projection()), rel)
+        self.units = (ub, rel, out_units)                  # the units' states reuse them
         shown = np.zeros(len(scene), dtype=bool)
         shown[culler.units.object[~out_units]] = True
         if occluders is not None:
@@ -563,10 +568,19 @@ class _Tester:
         self.levels = _pyramid(self.ext[y0:y1 + 1, x0:x1 + 1])   # the cull frustum's: rectangles read no margin
         stats.query_rect_pixels = int(w * h)
 
-    def states(self, boxes):
-        """VISIBLE, OCCLUDED or VIEW_CULLED for world boxes ``(k, 2, 3)``."""
+    def unit_states(self):
+        """:meth:`states` of the culler's units, from the bounds, grown boxes and render
+        frustum test the image was drawn with."""
+        if self.units is None:
+            return self.states(self.culler.unit_bounds())
+        return self.states(*self.units)
+
+    def states(self, boxes, rel=None, outside=None):
+        """VISIBLE, OCCLUDED or VIEW_CULLED for world boxes ``(k, 2, 3)`` (``rel``: their
+        grown camera-relative boxes; ``outside``: those known to miss the render frustum)."""
         env = self.envelope
-        rel = grown_boxes(boxes, self.eye, env.distance, self.culler.scene_size)
+        if rel is None:
+            rel = grown_boxes(boxes, self.eye, env.distance, self.culler.scene_size)
         state = np.full(len(boxes), Visibility.VISIBLE, dtype=np.uint8)
         if self.orthographic:
             if env.angle_deg == 0.0:
@@ -581,7 +595,7 @@ class _Tester:
         def step(zd):
             return zd * zd * (far - near) / (near * far * 2.0 ** tol.depth_bits)
 
-        state = classify_boxes(rel, self.view, self.levels, step)
+        state = classify_boxes(rel, self.view, self.levels, step, outside=outside)
         if env.distance > 0.0:
             test = np.flatnonzero(state == Visibility.VISIBLE)
             if self.polygons is None:
@@ -612,7 +626,7 @@ def envelope_pass(culler, camera, envelope, display=None, lights=None, occluders
     height = (display or culler.display or culler.resolution)[1]
     tester = _Tester(culler, camera, envelope, height, stats, occluders)
     valid_units = ~scene.invalid[culler.units.object]
-    unit_state = tester.states(culler.unit_bounds())
+    unit_state = tester.unit_states()
     unit_state[~valid_units] = Visibility.VISIBLE
     state = np.full(n, Visibility.VIEW_CULLED, dtype=np.uint8)
     np.minimum.at(state, culler.units.object, unit_state)     # an object: the most visible of its units
