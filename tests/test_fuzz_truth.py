@@ -21,6 +21,15 @@ def test_seeded_scenes_and_walks_have_no_false_negatives(ctx):
     assert occluded > seen > 0
 
 
+def test_seeded_envelope_passes_hide_nothing_a_view_of_the_envelope_sees(ctx):
+    """Envelope passes over seeded walks whose far planes may cut the scene, against seeded
+    views of each envelope (seeds 4 and 19 hid objects a turned view draws before its far
+    plane, before the far-plane rule)."""
+    passes, hidden, failures = fuzz_truth.envelope_search([0, 1, 2, 3, 4, 19], 8, ctx, report=lambda line: None)
+    assert failures == []
+    assert passes == 6 * 8 and hidden > 0
+
+
 def test_the_scenes_reach_the_extremes():
     """Far offsets, very thin slabs, tiny objects, one-sided triangles, rotations."""
     offsets, thin, tiny, rotated, tris = [], 0, 0, 0, 0

@@ -3,6 +3,7 @@ every strategy checked against the object-ID truth at the query resolution and,
 with ``display=``, at the display resolution.
 
     .venv/bin/python tools/fuzz_truth.py --seeds 0-99 --strategies gpu,auto,om_coherent
+    .venv/bin/python tools/fuzz_truth.py --seeds 0-99 --envelope     (envelope passes)
 
 Each seed draws a scene (rotated slabs and boxes of random size, some thin, some
 tiny, some far; a ground; a world offset up to 1e6), a query resolution (odd sizes
@@ -71,12 +72,13 @@ def scene_for(seed):
     return scene, offset, size
 
 
-def walk_for(seed, offset, size, frames):
-    """A seeded camera walk: small steps and turns, cuts, now and then an orthographic view."""
+def walk_for(seed, offset, size, frames, far_range=(3, 8)):
+    """A seeded camera walk: small steps and turns, cuts, now and then an orthographic view;
+    the far plane ``far_range`` times the scene's size (below 2: it cuts the scene)."""
     rng = np.random.default_rng(seed + 10_000)
     fov, aspect = rng.uniform(20, 110), rng.uniform(0.5, 2.5)
     near = size * 10.0 ** rng.uniform(-5, -2)
-    far = size * rng.uniform(3, 8)
+    far = size * rng.uniform(*far_range)
     eye = offset + np.r_[rng.uniform(-size, size, 2), rng.uniform(0.005, 0.3) * size]
     yaw = rng.uniform(0, 2 * np.pi)
     cams = []
@@ -129,13 +131,49 @@ def search(seeds, strategies, frames, ctx, report=print):
     return passes, seen, occluded, failures
 
 
+def envelope_search(seeds, frames, ctx, views=8, report=print):
+    """Envelope passes over every seed's walk (a seeded envelope per seed, far planes that
+    may cut the scene), each against the object-ID truth of ``views`` seeded views of its
+    envelope: ``(passes, hidden, [(seed, pass, envelope, missed names), ...])``."""
+    from core.envelope import Envelope, sample_views
+    passes, hidden, failures = 0, 0, []
+    for seed in seeds:
+        rng = np.random.default_rng(seed + 30_000)
+        res = (int(rng.integers(31, 330)), int(rng.integers(23, 200)))
+        scene, offset, size = scene_for(seed)
+        cams = walk_for(seed, offset, size, frames, far_range=(0.3, 4))
+        env = Envelope(size * 10.0 ** rng.uniform(-4, -1.5), rng.uniform(0, 20), any_roll=bool(rng.random() < 0.5))
+        with Culler(scene, res, ctx=ctx) as c:
+            for k, cam in enumerate(cams):
+                r = c.cull(cam, envelope=env)
+                passes += 1
+                hide = ~r.visible
+                hidden += int(hide.sum())
+                seen = np.zeros(len(scene), dtype=bool)
+                for view in sample_views(cam, env, views, rng):
+                    seen |= c.renderer.visible_truth(view)
+                missed = np.flatnonzero(seen & hide)
+                if len(missed):
+                    failures.append((seed, k, env, [scene.names[i] for i in missed[:8]]))
+                    report(f"FN seed {seed} envelope pass {k} {env}: {failures[-1][-1]}")
+    return passes, hidden, failures
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", default="0-19", help="e.g. 0-99 or 3,7,11")
     ap.add_argument("--strategies", default="gpu,auto,om_coherent,om_multi,two_pass")
     ap.add_argument("--frames", type=int, default=12)
+    ap.add_argument("--envelope", action="store_true",
+                    help="envelope passes (a seeded envelope per seed) against seeded views of it")
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
+    if args.envelope:
+        passes, hidden, failures = envelope_search(parse_seeds(args.seeds), args.frames, create_context(),
+                                                   report=lambda line: print(line, flush=True))
+        print(f"{passes} envelope passes ({hidden} objects hidden), {len(failures)} with false negatives, "
+              f"{time.perf_counter() - t0:.0f} s")
+        return 1 if failures else 0
     passes, seen, occluded, failures = search(parse_seeds(args.seeds), args.strategies.split(","), args.frames,
                                               create_context(), report=lambda line: print(line, flush=True))
     print(f"{passes} passes ({seen} truly visible, {occluded} culled as occluded), "
