@@ -162,12 +162,14 @@ def umbra_planes(polys, radius, near_eff=0.0):
     return normals, offsets
 
 
-def hidden_by_polygons(boxes, polys, distance, near_eff=0.0):
+def hidden_by_polygons(boxes, polys, distance, near_eff=0.0, depth_guard=None):
     """``(m,) bool``: boxes (camera-relative, ``(m, 2, 3)``) hidden from every eye
     within ``distance`` of the origin by at least one of the convex polygons
     ``(k, 4, 3)`` (camera-relative; see the module doc).  ``near_eff``: a polygon
     whose plane passes nearer the centre eye than this occludes nothing (an eye's near
-    plane may cut it).
+    plane may cut it).  ``depth_guard``: ``(m,)``, how far beyond a polygon's plane each
+    box must lie besides (a depth buffer draws a surface closer behind a polygon than its
+    rounding in front of it, or through it).
 
     The umbra is convex, so a box is in it when its corner nearest each bounding plane
     is: per box and plane one dot product, all of them one matrix product per chunk of
@@ -202,6 +204,8 @@ def hidden_by_polygons(boxes, polys, distance, near_eff=0.0):
         r[:, 0:3], r[:, 3:6] = b[:, MIN], b[:, MAX]
         r[:, 6] = tol.box_grow_rel * np.abs(b).max(axis=(1, 2))
         low = (r @ weights).reshape(len(b), 5, kk)
+        if depth_guard is not None:
+            low[:, 0] -= depth_guard[s:s + BOX_CHUNK, None]
         least = low[:, 0]
         for e in range(1, 5):
             np.minimum(least, low[:, e], out=least)

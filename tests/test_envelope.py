@@ -170,6 +170,17 @@ def test_a_square_hides_what_its_umbra_holds():
     assert hidden_by_polygons(box, square, 10.5).tolist() == [False]
 
 
+def test_a_box_within_the_depth_buffers_rounding_behind_a_square_is_not_hidden():
+    """The square hides a box 0.1 behind its plane from the ball; a depth buffer that
+    rounds by more than that draws the box through the square, so with that guard it
+    stays visible (fuzz seed 174: a box 0.1 behind a wall at 314, 0.7 a depth step)."""
+    square = np.array([[[-2, -2, -10], [2, -2, -10], [2, 2, -10], [-2, 2, -10]]], dtype=float)
+    box = np.array([[[-0.5, -0.5, -11], [0.5, 0.5, -10.1]]])
+    assert hidden_by_polygons(box, square, 0.5).tolist() == [True]
+    assert hidden_by_polygons(box, square, 0.5, depth_guard=np.array([0.05])).tolist() == [True]
+    assert hidden_by_polygons(box, square, 0.5, depth_guard=np.array([0.2])).tolist() == [False]
+
+
 def _edge_plane_slack(box, poly, radius):
     """The module doc's condition (2), corner by corner, edge by edge (the reference): the
     least distance from the eye to the plane through a corner of ``box`` and an edge of

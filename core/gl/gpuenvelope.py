@@ -27,7 +27,6 @@ import os
 import numpy as np
 
 from ..errors import OccError
-from ..tolerance import tol
 from . import shaders
 
 ATTACHMENT = "gpu_envelope"          # the renderer attachment's key
@@ -106,8 +105,7 @@ class GpuEnvelope:
         common = {"u_size": (w, h), "u_dt": dt, "u_cx0": 0.5 * w * dt, "u_cy0": tan_half}
         bp = self.breaks
         for k, v in {**common, "u_c1": 2.0 * near * far, "u_c2": far + near, "u_c3": far - near,
-                     "u_near_eff": float(near_eff), "u_dmax": max(distance, tol.tiny),
-                     "u_dt32": float(np.float32(dt)), "u_jumps": int(distance > 0.0),
+                     "u_near_eff": float(near_eff), "u_jumps": int(distance > 0.0),
                      "u_wtol": float(np.float32(slope_tolerance(near, far)))}.items():
             _set(bp, k, v)
         groups = (-(-w // LOCAL), -(-h // LOCAL))
