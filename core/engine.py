@@ -130,6 +130,10 @@ class Culler:
         t = time.perf_counter()
         self.scene = scene
         self.envelope_occluders = None     # what the next envelope pass draws (None: every object)
+        # each mesh's convex polygons (core.umbra), found by the envelope pass once per mesh of
+        # this scene: keyed by mesh index, so never by identity (Python reuses a freed array's
+        # id, and a memo that outlived its scene once lent an old mesh's faces to a new one)
+        self.mesh_polygons: dict[int, np.ndarray] = {}
         self.units = make_units(scene, self.hierarchy_builder, *self.chunking, cache=self.chunk_cache)
         self.scene_size = _scene_size(scene.bounds)
         self._warn_invalid()

@@ -475,7 +475,8 @@ def classify_boxes(rel, view, levels, depth_step_at, splits=SPLITS, outside=None
 def occluder_polygons(culler, eye):
     """Camera-relative convex polygons ``(k, 4, 3)`` of the objects largest on screen
     from ``eye`` (:data:`core.umbra.OBJECTS` objects, :data:`core.umbra.POLYGONS`
-    polygons); each mesh's polygons are found once and kept on the culler."""
+    polygons); each mesh's polygons are found once per scene build and kept on the
+    culler (:attr:`core.engine.Culler.mesh_polygons`)."""
     scene = culler.scene
     valid = np.flatnonzero(~scene.invalid)
     if not len(valid):
@@ -486,15 +487,13 @@ def occluder_polygons(culler, eye):
     with np.errstate(divide="ignore"):
         score = size / np.maximum(gap, tol.tiny)
     objs = valid[np.argsort(-score)[:umbra.OBJECTS]]
-    cache = culler.__dict__.setdefault("_polygons", {})
+    cache = culler.mesh_polygons
     local = []
     for o in objs:
         mi = int(scene.mesh_of[o])
-        v, f = scene.meshes[mi]
-        key = (mi, id(v), id(f))
-        if key not in cache:
-            cache[key] = umbra.convex_polygons(v, f)[0]
-        local.append(cache[key])
+        if mi not in cache:
+            cache[mi] = umbra.convex_polygons(*scene.meshes[mi])[0]
+        local.append(cache[mi])
     counts = np.array([len(p) for p in local])
     if not counts.sum():
         return np.zeros((0, 4, 3))

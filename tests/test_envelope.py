@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from core import Camera, Culler, OccError, Visibility
+from core import Camera, Culler, OccError, Scene, Visibility
 from core.bounds import corners
 from core.camera import look_at
 from core.envelope import Envelope, corner_half_angle, envelope_camera, sample_views
@@ -155,6 +155,32 @@ def test_a_box_mesh_gives_its_six_faces():
     polys, areas = convex_polygons(scenes.UNIT_BOX_V, scenes.UNIT_BOX_F)
     assert len(polys) == 6
     np.testing.assert_allclose(areas, 1.0)
+
+
+def test_a_rebuilt_scene_proves_with_its_own_meshes_polygons(ctx):
+    """The engine rebuilt for scenes whose wall mesh alternates between a wall that hides
+    the crate and a post that does not, each made of fresh arrays (as the add-on makes
+    them after an edit): every envelope pass proves with the current mesh's polygons.
+    Python reuses a freed array's id, and a memo keyed by ids that outlived its scene
+    lent the old wall's faces to the new post (workflow seed 7380: a cube hidden behind
+    its own old, larger faces)."""
+    camera = scenes.cam((0, 0, 0), (1, 0, 0), near=0.1, far=100, fov_y_deg=60, aspect=1.5)
+    faces = np.array(scenes.UNIT_BOX_F)                  # unchanged faces: the same array each time
+    crate = (np.array(scenes.UNIT_BOX_V), faces)
+
+    def scene(half):
+        wall = (np.array(scenes.UNIT_BOX_V, dtype=np.float64) - 0.5) * (0.5, 2 * half, 2 * half) + (5.25, 0, 0)
+        return Scene.from_arrays(["wall", "crate"], [(wall, faces), crate], np.array([0, 1]),
+                                 np.array([np.eye(4), scenes.box_matrix((9, -1, -1), (10, 1, 1))]))
+
+    walls = np.random.default_rng(5).random(24) < 0.5
+    with Culler(scene(30.0), resolution=(96, 64), ctx=ctx) as c:
+        for k, wide in enumerate(walls.tolist()):
+            if k or not wide:
+                c.replace_scene(scene(30.0 if wide else 0.2))
+            assert c.truth(camera)[1] != wide                           # the premise
+            state = c.cull(camera, envelope=(1.0, 5.0)).state[1]
+            assert state == (Visibility.OCCLUDED if wide else Visibility.VISIBLE), k
 
 
 def test_a_square_hides_what_its_umbra_holds():
