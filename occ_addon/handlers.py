@@ -34,6 +34,7 @@ def on_depsgraph_update(scene, depsgraph):
     evaluated, so reported), before the user can hide it again."""
     if SESSION.applying:
         return
+    SESSION.edited_elsewhere(scene, depsgraph)
     visibility.reconcile()
     if depsgraph.id_type_updated("SCENE") or depsgraph.id_type_updated("COLLECTION") \
             or localview.layer_switched():

@@ -102,6 +102,7 @@ class Session:
         self.bad_geometry = []     # of them, those left out for their vertices (known since the last build)
         self.layer = None          # (scene, view layer) of the last pass
         self.reread = False        # the next pass compares every transform (reread_transforms)
+        self.edited_away = False   # an edit reported while another layer was shown (edited_elsewhere)
         self.busy = None           # the label of a modal operator's work in steps (live passes wait)
         self.shown: Shown | None = None  # the view and motion the hidden set holds for
         self.read: Candidates | None = None   # the last pass's candidates (see engine_steps' reuse)
@@ -138,6 +139,15 @@ class Session:
         file has several view layers or scenes, trust no original ``matrix_world``
         another layer's evaluation may have left behind."""
         self.reread = True
+
+    def edited_elsewhere(self, scene, depsgraph) -> None:
+        """A depsgraph update not our own, from ``depsgraph``: where it evaluates another
+        scene or view layer than the last pass's, the edit may touch an object that layer
+        leaves out, which no evaluation reports, and a layer whose depsgraph is made
+        after the edit reports nothing at its first evaluation: the next pass in another
+        layer reads every cached geometry again (:meth:`candidates`)."""
+        if self.layer is not None and (scene.name, depsgraph.view_layer.name) != self.layer:
+            self.edited_away = True
 
     def left_layer(self, context) -> int:
         """The context shows another scene or view layer than the last pass's: what the
@@ -185,10 +195,13 @@ class Session:
             # the evaluation of a layer that holds the object, and a layer's first
             # evaluation reports its objects without their geometry changes (workflow seed
             # 7053: a vertex made NaN while the active layer left the object out, then a
-            # new layer).  Read again, every cached geometry the last engine did not hold.
-            held = set(self.held.uids.tolist()) if self.held is not None else set()
+            # new layer).  Read again, every cached geometry the last engine did not hold;
+            # and every one, where something was edited while another layer was shown: an
+            # object the last engine held, edited while left out there, is reported by no
+            # evaluation when this layer's depsgraph is new.
+            held = set(self.held.uids.tolist()) if self.held is not None and not self.edited_away else set()
             self.extractor.mark(geometry=[u for u in self.extractor.cache if u not in held])
-        self.layer, self.reread = layer, False
+        self.layer, self.reread, self.edited_away = layer, False, False
         cand = self.extractor.candidates(context, verify, every)
         if len(cand.give_back):
             visibility.release(np.isin(identity.uids(), cand.give_back))

@@ -46,6 +46,7 @@ CHECKS = {
         "instanced_child_wire_seen", "instanced_child_wire_truth",
         "instance_source_deleted_seen", "instance_source_deleted_truth",
         "edit_outside_the_layer_seen", "edit_outside_the_layer_truth",
+        "edit_while_another_layer_shown_seen", "edit_while_another_layer_shown_truth",
         "instance_member_deleted_seen", "instance_member_deleted_truth",
         "click_restarts_fresh", "click_restarts_same_answer", "click_restarts_truth", "bulk_map_is_its_dict",
         "large_mesh_triangles_in_place",

@@ -584,3 +584,38 @@ def edit_outside_the_layer():
           (r1, hid, r2, r3, hidden_by_addon("target")))
     promise("edit_outside_the_layer_truth")
     bpy.ops.occ.restore()
+
+
+def edit_while_another_layer_shown():
+    """As :func:`edit_outside_the_layer`, with no pass in the layer that leaves the wall
+    out: the wall is still held by the last engine (read in the first layer) when the
+    window shows a new layer, whose first evaluation reports nothing.  The wall made low
+    while unwatched must be read again: behind its old shape the target would be hidden."""
+    scene = new_scene()
+    box("target", (3, -1, 0), (4, 1, 1))
+    walls = bpy.data.collections.new("Walls")
+    scene.collection.children.link(walls)
+    wall = bpy.data.objects["wall"]
+    for c in list(wall.users_collection):
+        c.objects.unlink(wall)
+    walls.objects.link(wall)
+    update()
+    r1, _ = cull()                                        # the target hidden behind the wall
+    hid = hidden_by_addon("target")
+    other = scene.view_layers.new("Other")
+    other.layer_collection.children["Walls"].exclude = True
+    bpy.context.window.view_layer = other                 # no pass here: the wall stays held
+    update()
+    for v in wall.data.vertices:                          # the wall made low: the target in view
+        v.co.z = min(v.co.z, -1.5)
+    wall.data.update()
+    update()
+    third = scene.view_layers.new("Third")                # a new layer: its first evaluation
+    bpy.context.window.view_layer = third                 # reports no change
+    update()
+    r2, _ = cull()
+    check("edit_while_another_layer_shown_seen",
+          (r1, hid, r2, hidden_by_addon("target")) == ({"FINISHED"}, True, {"FINISHED"}, False),
+          (r1, hid, r2, hidden_by_addon("target")))
+    promise("edit_while_another_layer_shown_truth")
+    bpy.ops.occ.restore()
