@@ -38,7 +38,8 @@ CASES = (policy.user_hidden_objects, policy.dynamic_objects, cameras.camera_as_r
          localview.hides_in_one_view, localview.new_objects_drawn, localview.users_local_view,
          localview.undo_and_files, analysis.keyed_camera_composes, analysis.keyed_camera_refused,
          analysis.keyed_camera_analysis, session.bulk_map_is_its_dict,
-         session.large_mesh_triangles_in_place, session.edit_outside_the_layer, session.edit_while_another_layer_shown, visibility.records_read_once_a_pass,
+         session.large_mesh_triangles_in_place, session.edit_outside_the_layer,
+         session.edit_while_another_layer_shown, visibility.records_read_once_a_pass,
          localview.toggle_waits_for_engine,
          localview.failed_pass_keeps_selection)
 # Cases whose failure was a crash of Blender: each runs only when named (a process of its own).

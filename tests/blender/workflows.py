@@ -600,16 +600,17 @@ def mirror_undo_push(w):
 
 # --------------------------------------------------------------------------- truth
 
-def truth_camera(scene, depsgraph):
-    """The scene camera as Blender renders it: its projection, its world matrix with the
-    scale removed (Blender ignores a camera's scale; a negative one still mirrors).
-    None when the camera's axes are degenerate (a scale of 0)."""
+def truth_camera(scene, depsgraph, size=None):
+    """The scene camera as Blender renders it: its projection at the render size (or at
+    ``size``), its world matrix with the scale removed (Blender ignores a camera's scale;
+    a negative one still mirrors).  None when the camera's axes are degenerate (a scale
+    of 0)."""
     import numpy as np
 
     from core import Camera
     cam = scene.camera.evaluated_get(depsgraph)
     r = scene.render
-    w, h = render_size(scene)
+    w, h = render_size(scene) if size is None else size
     proj = np.array(cam.calc_matrix_camera(depsgraph, x=w, y=h, scale_x=r.pixel_aspect_x,
                                            scale_y=r.pixel_aspect_y), dtype=np.float64)
     m = np.array(cam.matrix_world, dtype=np.float64)
@@ -626,12 +627,15 @@ def render_size(scene):
             max(1, int(r.resolution_y * r.resolution_percentage / 100)))
 
 
-def camera_self_check(scene, depsgraph, camera):
+def camera_self_check(scene, depsgraph):
     """The truth camera against Blender's own ``world_to_camera_view`` on points in view:
-    a harness error if they disagree (the truth would be from another view)."""
+    a harness error if they disagree (the truth would be from another view).  Both at
+    the resolution before its percentage (``view_frame``'s: the render size's rounding
+    changes the aspect a little, e.g. 97x13 at 33 % renders 32x4)."""
     import numpy as np
     from bpy_extras.object_utils import world_to_camera_view
     from mathutils import Vector
+    camera = truth_camera(scene, depsgraph, (scene.render.resolution_x, scene.render.resolution_y))
     cam = scene.camera.evaluated_get(depsgraph)
     rng = np.random.default_rng(0)
     pts = rng.uniform(-8, 8, (16, 3))
@@ -683,7 +687,7 @@ def truth_visible(w):
         camera = truth_camera(scene, dg) if scene.camera else None
         if camera is None:
             return None, None
-        cam_ok = camera_self_check(scene, dg, camera)
+        cam_ok = camera_self_check(scene, dg)
         names, meshes, matrices, solid = [], [], [], []
         drawn = {}    # the depsgraph also evaluates what eye icons hide; Blender draws what visible_get says
         for inst in dg.object_instances:
@@ -1054,8 +1058,25 @@ def step_camera_lens(w, kind):
     d.clip_start, d.clip_end = rng.choice([(0.1, 100.0), (0.5, 14.0), (0.01, 1000.0)])
     d.shift_x, d.shift_y = rng.uniform(-0.3, 0.3), rng.uniform(-0.2, 0.2)
     d.sensor_fit = rng.choice(["AUTO", "HORIZONTAL", "VERTICAL"])
-    return (f"camera {d.type} lens {d.lens:.0f} clip {d.clip_start:g}-{d.clip_end:g} "
-            f"shift {d.shift_x:.2f},{d.shift_y:.2f}")
+    said = (f"camera {d.type} lens {d.lens:.0f} clip {d.clip_start:g}-{d.clip_end:g} "
+            f"shift {d.shift_x:.2f},{d.shift_y:.2f} fit {d.sensor_fit}")
+    if rng.random() < 0.5:
+        # the render size too (issue 30: a Cull after 160x60 -> 200x60 hid a seen object):
+        # wide, tall, tiny and odd sizes, percentages and pixel aspects; the truth is drawn
+        # at the render size (render_size), as the add-on culls
+        r = bpy.context.scene.render
+        r.resolution_x, r.resolution_y = rng.choice(RENDER_SIZES)
+        r.resolution_percentage = rng.choice([100, 100, 50, 33, 150])
+        r.pixel_aspect_x, r.pixel_aspect_y = rng.choice([(1, 1), (1, 1), (2, 1), (1, 2), (1.5, 1)])
+        said += (f", render {r.resolution_x}x{r.resolution_y} {r.resolution_percentage} % "
+                 f"aspect {r.pixel_aspect_x:g}:{r.pixel_aspect_y:g}")
+    return said
+
+
+# render sizes a camera_lens step may set (Blender keeps a side at 4 or more)
+RENDER_SIZES = ((160, 60), (200, 60), (200, 66), (201, 60), (300, 60), (100, 30), (400, 120), (60, 200),
+                (97, 13), (13, 97), (333, 4), (256, 4), (4, 256), (64, 5), (5, 64), (50, 8), (8, 50), (7, 4),
+                (4, 4), (199, 61), (320, 180))
 
 
 def step_frame(w, kind):
