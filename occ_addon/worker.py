@@ -117,6 +117,7 @@ class EngineThread:
                 ok, value = False, e
             del fn, args, kwargs, job
             _GC.ran()
+            release_free_memory()
             # the result last: once a waiter sees it, this thread only goes back to the
             # queue's wait (see guard_operator_calls)
             out._set(ok, value)
@@ -203,6 +204,31 @@ _GC = CollectorHold()
 
 
 _THREADS = weakref.WeakSet()
+
+
+_LIBC = []        # glibc's malloc_trim, once looked up (empty list: not looked up yet)
+
+
+def release_free_memory():
+    """Hand the memory a job freed back to the system (glibc's ``malloc_trim``; elsewhere
+    nothing).  A pass's temporaries are large numpy arrays; glibc serves them from its
+    arenas once its mmap threshold has risen, and keeps what they free for reuse:
+    without this, 600 live passes on the sample city took Blender from 661 to 1,229 MB
+    resident, with it from 633 to 920 MB (``tools/soak.py --only live --count live=600``);
+    a trim costs about 4 ms after an envelope pass on the city.  Runs on the engine thread
+    before the job's result is handed over (no Python on this thread after that: see
+    :func:`guard_operator_calls`).  Never raises."""
+    if not _LIBC:
+        trim = None
+        if sys.platform.startswith("linux"):
+            try:
+                trim = ctypes.CDLL("libc.so.6").malloc_trim
+                trim.argtypes, trim.restype = [ctypes.c_size_t], ctypes.c_int
+            except (OSError, AttributeError):      # not glibc (musl has no malloc_trim)
+                trim = None
+        _LIBC.append(trim)
+    if _LIBC[0] is not None:
+        _LIBC[0](0)
 
 
 def release_thread_gl():
