@@ -20,14 +20,19 @@ RECORD = np.dtype([("mvp", "<f4", (16,)), ("id", "<u4")])
 STREAM_ALIGN = 340                      # lcm(CMD_BYTES, RECORD.itemsize): a chunk starts on both
 
 
+def _counts_at(k):
+    """Where a batch of ``k`` boxes keeps its counters in its slot: after its boxes."""
+    return ceil_to(k * 24, SSBO_ALIGN)
+
+
 class _Slot:
-    """A query batch's own buffer: float32 boxes (lo, hi) at 0, uint counters after."""
+    """A query batch's own buffer, for batches of up to ``cap`` boxes: float32 boxes
+    (lo, hi) at 0, uint counters after them (:func:`_counts_at`)."""
 
     def __init__(self, ctx, progs, cap):
         self.cap = cap
         self.unfenced = False           # shader writes not yet behind a memory barrier
-        self.counts_at = ceil_to(cap * 24, SSBO_ALIGN)
-        self.buffer = ctx.buffer(reserve=self.counts_at + 4 * cap)
+        self.buffer = ctx.buffer(reserve=_counts_at(cap) + 4 * cap)
         # one vertex array per box program (sample counters, flags) on the same buffer
         self.vaos = {kind: ctx.vertex_array(p, [(self.buffer, "3f 3f/i", "in_lo", "in_hi")])
                      for kind, p in progs.items()}
@@ -89,20 +94,26 @@ class Renderer43(BaseRenderer):
 
     def _issue(self, boxes_rel, counts):
         k = len(boxes_rel)
-        cap = pow2(k)
-        free = self.free_slots.setdefault(cap, [])
-        slot = free.pop() if free else None
-        if slot is None:
-            slot = _Slot(self.ctx, self.box_progs, cap)
+        # the smallest free slot that holds the batch (a batch writes only its own boxes and
+        # counters): a new slot (a buffer and two vertex arrays) only for a batch larger
+        # than every free one, so the pool stops growing once it has served a scene's
+        # largest batches (tools/soak.py counts the GL objects alive after every cycle)
+        caps = [c for c, free in self.free_slots.items() if free and c >= k]
+        if caps:
+            slot = self.free_slots[min(caps)].pop()
+        else:
+            slot = _Slot(self.ctx, self.box_progs, pow2(k))
+            self.free_slots.setdefault(slot.cap, [])
             self.slots.append(slot)
+        cap, counts_at = slot.cap, _counts_at(k)
         if slot.unfenced:               # dropped unread: its shader writes must land before ours
             self.ctx.memory_barrier(GL_BUFFER_UPDATE_BARRIER_BIT)
             self.count_gl()
         slot.unfenced = True
-        blob = np.zeros(slot.counts_at + 4 * k, dtype=np.uint8)     # counters start at 0
+        blob = np.zeros(counts_at + 4 * k, dtype=np.uint8)          # counters start at 0
         blob[:24 * k] = boxes_rel.reshape(k, 6).astype(np.float32).view(np.uint8).ravel()
         slot.buffer.write(blob)
-        slot.buffer.bind_to_storage_buffer(0, offset=slot.counts_at, size=4 * k)
+        slot.buffer.bind_to_storage_buffer(0, offset=counts_at, size=4 * k)
         slot.vaos[counts].render(vertices=36, instances=k)
         self.count_gl(2, draws=1)
 
@@ -111,7 +122,7 @@ class Renderer43(BaseRenderer):
             # and the batch is only waited for when it is read.
             self.ctx.memory_barrier(GL_BUFFER_UPDATE_BARRIER_BIT)
             slot.unfenced = False
-            raw = slot.buffer.read(size=4 * k, offset=slot.counts_at)
+            raw = slot.buffer.read(size=4 * k, offset=counts_at)
             self.free_slots[cap].append(slot)
             self.count_gl(2, reads=1)
             return np.frombuffer(raw, dtype=np.uint32).astype(np.int64)
