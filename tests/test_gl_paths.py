@@ -119,34 +119,36 @@ def test_both_paths_give_identical_culling(ctx, strategy, monkeypatch):
     assert runs["4.3"] == runs["4.1"]
 
 
-def test_query_slots_serve_smaller_batches_without_new_buffers(ctx):
-    """4.3: a batch is served by the smallest free slot that holds it, so the pool stops
-    growing once it served the largest batch (the GL objects alive stay the same over a
-    long session); a smaller batch in a larger slot reads exactly its own counters, read
-    at once or pending beside other batches."""
+def test_query_slots_stay_one_per_batch_in_flight(ctx):
+    """4.3: the renderer is made with one query slot; a batch larger than every free
+    slot grows one in place (the same buffer and vertex arrays), a smaller one is served
+    by the smallest free slot that holds it, reading exactly its own counters.  A new
+    slot only for a batch issued while every slot holds a pending one, so the GL objects
+    alive stay the same over a long session whatever the batch sizes."""
     scene = random_scene(4)
     rng = np.random.default_rng(4)
     r = GLRenderer(scene, 37, 23, ctx=ctx, path="4.3")
     cam = Camera.look_at((0, -25, 12), (0, 0, 0), fov_y_deg=70, aspect=37 / 23, near=0.5, far=100)
     r.begin_frame(cam)
     r.draw(np.arange(30))
-    probes = np.sort(rng.uniform(-12, 12, (600, 2, 3)), axis=1) - cam.eye
+    first = list(r.slots)
+    glo = [(s.buffer.glo, {k: v.glo for k, v in s.vaos.items()}) for s in first]
+    probes = np.sort(rng.uniform(-12, 12, (1500, 2, 3)), axis=1) - cam.eye
     one = np.concatenate([r.query(probes[i:i + 1]) for i in range(len(probes))])  # one box a batch
     assert one.sum() > 0
-    r.query(probes)                                                  # the largest batch
-    slots = len(r.slots)
-    for k in (600, 3, 170, 400, 1, 70, 130, 600):
+    for k in (600, 3, 1500, 170, 400, 1, 70, 1300, 600):    # grown twice, in place
         assert np.array_equal(r.query(probes[:k]), one[:k]), k
-    assert len(r.slots) == slots
-    sizes = (90, 2, 310)
+    assert r.slots == first and r.slots[0].cap >= 1500
+    assert [(s.buffer.glo, {k: v.glo for k, v in s.vaos.items()}) for s in r.slots] == glo
+    sizes = (90, 2, 3000 // 2)
     pending = [(k, r.query_async(probes[-k:])) for k in sizes]      # pending at once: a slot each
     for k, q in reversed(pending):
         assert np.array_equal(q.result(), one[-k:]), k
-    grown = len(r.slots)
+    assert len(r.slots) == len(sizes)
     pending = [(k, r.query_async(probes[-k:])) for k in sizes[::-1]]
     for k, q in pending:
         assert np.array_equal(q.result(), one[-k:]), k
-    assert len(r.slots) == grown
+    assert len(r.slots) == len(sizes)
     r.release()
 
 

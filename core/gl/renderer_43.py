@@ -18,6 +18,7 @@ CMD_BYTES = 20                          # one DrawElementsIndirectCommand
 # Per-draw instance record of the stream: column-major MVP and object id.
 RECORD = np.dtype([("mvp", "<f4", (16,)), ("id", "<u4")])
 STREAM_ALIGN = 340                      # lcm(CMD_BYTES, RECORD.itemsize): a chunk starts on both
+FIRST_SLOT_BOXES = 256                  # the first query slot's boxes (grown in place for larger batches)
 
 
 def _counts_at(k):
@@ -32,10 +33,20 @@ class _Slot:
     def __init__(self, ctx, progs, cap):
         self.cap = cap
         self.unfenced = False           # shader writes not yet behind a memory barrier
-        self.buffer = ctx.buffer(reserve=_counts_at(cap) + 4 * cap)
+        self.buffer = ctx.buffer(reserve=self.nbytes(cap))
         # one vertex array per box program (sample counters, flags) on the same buffer
         self.vaos = {kind: ctx.vertex_array(p, [(self.buffer, "3f 3f/i", "in_lo", "in_hi")])
                      for kind, p in progs.items()}
+
+    @staticmethod
+    def nbytes(cap):
+        return _counts_at(cap) + 4 * cap
+
+    def grow(self, cap):
+        """New storage for ``cap`` boxes under the same buffer name: its vertex arrays
+        stay valid, no GL object is made (a dropped batch's writes go to the old storage)."""
+        self.buffer.orphan(self.nbytes(cap))
+        self.cap, self.unfenced = cap, False
 
 
 class Renderer43(BaseRenderer):
@@ -60,8 +71,13 @@ class Renderer43(BaseRenderer):
         self.id_vao = ctx.vertex_array(self.id_prog, [(self.vbo, "3f", "in_pos"),
                                                       (self.stream, "16f u/i", "in_mvp", "in_id")],
                                        index_buffer=self.ibo, index_element_size=4)
-        self.free_slots = {}           # capacity -> [_Slot], batches not pending
-        self.slots = []
+        # The query batches' slots, made with the renderer: a batch takes the smallest
+        # free slot that holds it, or grows the largest free one in place; a new slot
+        # only for a batch issued while every slot holds a pending one.  A pass reads
+        # each batch before the next, so a renderer keeps one slot and the GL objects
+        # alive stay the same pass after pass (tools/soak.py counts them every cycle).
+        self.slots = [_Slot(ctx, self.box_progs, FIRST_SLOT_BOXES)]
+        self.free_slots = list(self.slots)     # not holding a pending batch
 
     def _draw_units(self, units, ids):
         """One buffer write (commands and records) and one multi-draw."""
@@ -94,18 +110,20 @@ class Renderer43(BaseRenderer):
 
     def _issue(self, boxes_rel, counts):
         k = len(boxes_rel)
-        # the smallest free slot that holds the batch (a batch writes only its own boxes and
-        # counters): a new slot (a buffer and two vertex arrays) only for a batch larger
-        # than every free one, so the pool stops growing once it has served a scene's
-        # largest batches (tools/soak.py counts the GL objects alive after every cycle)
-        caps = [c for c, free in self.free_slots.items() if free and c >= k]
-        if caps:
-            slot = self.free_slots[min(caps)].pop()
+        free = self.free_slots
+        fits = [s for s in free if s.cap >= k]
+        if fits:
+            slot = min(fits, key=lambda s: s.cap)
+        elif free:
+            slot = max(free, key=lambda s: s.cap)
+            slot.grow(pow2(k))
+            self.count_gl()
         else:
             slot = _Slot(self.ctx, self.box_progs, pow2(k))
-            self.free_slots.setdefault(slot.cap, [])
             self.slots.append(slot)
-        cap, counts_at = slot.cap, _counts_at(k)
+            free.append(slot)
+        free.remove(slot)
+        counts_at = _counts_at(k)
         if slot.unfenced:               # dropped unread: its shader writes must land before ours
             self.ctx.memory_barrier(GL_BUFFER_UPDATE_BARRIER_BIT)
             self.count_gl()
@@ -123,10 +141,10 @@ class Renderer43(BaseRenderer):
             self.ctx.memory_barrier(GL_BUFFER_UPDATE_BARRIER_BIT)
             slot.unfenced = False
             raw = slot.buffer.read(size=4 * k, offset=counts_at)
-            self.free_slots[cap].append(slot)
+            self.free_slots.append(slot)
             self.count_gl(2, reads=1)
             return np.frombuffer(raw, dtype=np.uint32).astype(np.int64)
-        return read, lambda: self.free_slots[cap].append(slot)
+        return read, lambda: self.free_slots.append(slot)
 
     def _path_objects(self):
         objs = [self.stream]
