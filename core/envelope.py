@@ -250,7 +250,7 @@ def _jumps(z, ok, w_tol):
     surfaces narrower than a pixel can lie between the two centres, and a view of the
     envelope whose pixel centres fall elsewhere sees through it (a rule that let steps
     smaller than half a pixel of parallax pass for slopes hid objects that 1-3 pixels of
-    such views showed: ``tools/fuzz_truth.py --envelope``, seeds 88, 122, 163, 237)."""
+    such views showed: ``tools/checks/fuzz_truth.py --envelope``, seeds 88, 122, 163, 237)."""
     with np.errstate(divide="ignore"):
         w = np.where(ok, 1.0 / np.where(ok, z, 1.0), np.nan).astype(np.float32)
     out = np.zeros(z.shape, dtype=bool)

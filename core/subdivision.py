@@ -42,7 +42,7 @@ node's items then walk down its plan's levels together (:func:`_classify`) and m
 once, by label.  A 20 M
 triangle mesh moves its items about twice instead of once a level, and the Python
 work a node costs is spent once a plan: the 10 M-vertex grid's chunking took 16.7 s
-before, 8.9 s after, one after the other here (``tools/blender_scale.py engine --vertices
+before, 8.9 s after, one after the other here (``tools/bench/blender_scale.py engine --vertices
 10000000``; the same peak, 655 MB above the scene).
 """
 

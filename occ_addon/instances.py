@@ -43,7 +43,7 @@ def instanced_geometry(depsgraph, instancers, beyond: set | None = None):
         if not isinstance(ob, bpy.types.Object):
             # Blender 4.2 hands over an ID that is no object after a script removed one that
             # geometry nodes instanced, and the next step of its iteration crashes (workflow
-            # seed 7194; tools/gn_deleted_object_crash.py): the iteration ends here, and what
+            # seed 7194; tools/repro/gn_deleted_object_crash.py): the iteration ends here, and what
             # every instancer draws is unknown (kept visible, never an occluder)
             unknown.update(parts)
             break

@@ -2,7 +2,7 @@
 alone: an analysis then evaluates the scene once, not once a frame.
 
 A frame change (``scene.frame_set``) evaluates the whole dependency graph however little
-moves: 148 ms a frame at 28,845 objects (``tools/analyze_throughput.py``'s breakdown;
+moves: 148 ms a frame at 28,845 objects (``tools/bench/analyze_throughput.py``'s breakdown;
 ``perf`` puts it in Blender's ``schedule_node`` over every node).  A camera path over a static
 scene needs none of it: every other object is where it was, and the camera at frame
 ``f`` is its F-curves at ``f``, composed as Blender composes a transform.

@@ -90,7 +90,7 @@ class Watch:
 
 WATCH = Watch()
 
-# what became of live's passes since the add-on loaded (read by tools/gui_walk.py):
+# what became of live's passes since the add-on loaded (read by tools/bench/gui_walk.py):
 # begun; landed; dropped_left: the view had left its envelope when it finished;
 # dropped_WHAT: WHAT changed under it (:func:`_changed_under`)
 COUNTS = {"begun": 0, "landed": 0, "dropped_left": 0}

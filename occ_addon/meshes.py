@@ -28,7 +28,7 @@ def positions(mesh) -> np.ndarray:
 # copy costs next to nothing but its making (about 20 us), and the arrays a read un-shares
 # (positions, the corners' vertices: the Python API reads them as if to write them) go with
 # ``to_mesh_clear`` instead of staying beside the evaluated mesh (10 M-vertex grid,
-# ``tools/blender_scale.py --only grid --steps``: first cull's peak 1,405 MB above the
+# ``tools/bench/blender_scale.py --only grid --steps``: first cull's peak 1,405 MB above the
 # scene read from a copy, 1,672 MB read in place).  So a plain mesh of fewer than
 # ``COPY_VERTICES`` vertices is read in place (a 50,000-object scene would pay a second for
 # the copies), a larger one from a copy.  Before 4.0 a copy copies every vertex, edge and
@@ -95,7 +95,7 @@ def _triangles_in_place(mesh, n: int) -> np.ndarray | None:
     items in 4.1+, 16-byte ``MLoopTri`` before), so they are viewed where they lie, with
     the stride the items' addresses show, and mapped to vertices through the corners'
     vertex array (one bulk read): the whole mesh read takes 1.2 s instead of 6.6 s
-    (``tools/blender_scale.py --only grid --steps``).  Trusted only where the items are evenly spaced
+    (``tools/bench/blender_scale.py --only grid --steps``).  Trusted only where the items are evenly spaced
     and a spread of samples (first, last, seeded) reads the Python API's own ``loops``
     and ``vertices``; anything else: None."""
     tris = mesh.loop_triangles

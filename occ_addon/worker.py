@@ -20,7 +20,7 @@ keeps it for the thread until the thread releases it; Mesa frees a context
 destroyed while current only when it stops being current): the thread releases its
 EGL state before it ends (:func:`release_thread_gl`).  Without it every
 disable/enable of the add-on kept its last engine's context, about 20 MB
-(``tools/soak.py``, issue 30).
+(``tools/checks/soak.py``, issue 30).
 """
 
 import ctypes
@@ -167,7 +167,7 @@ class CollectorHold:
     cycle holding bpy objects, or walk a context override's dictionary while Blender
     reads it without the GIL inside another add-on's operator (``temp_override`` from
     a timer during a build).  Blender segfaulted so, its engine thread collecting inside
-    ``build_hierarchy`` while the main thread ran ``object.delete`` (``tools/override_stress.py``).
+    ``build_hierarchy`` while the main thread ran ``object.delete`` (``tools/checks/override_stress.py``).
     So the main thread turns the collector off when it hands over work (where it was
     on) and back on, on the main thread, once every job handed over has run: a
     collection then runs on the main thread, between Blender's operators.  Reference
@@ -214,7 +214,7 @@ def release_free_memory():
     nothing).  A pass's temporaries are large numpy arrays; glibc serves them from its
     arenas once its mmap threshold has risen, and keeps what they free for reuse:
     without this, 600 live passes on the sample city took Blender from 661 to 1,229 MB
-    resident, with it from 633 to 920 MB (``tools/soak.py --only live --count live=600``);
+    resident, with it from 633 to 920 MB (``tools/checks/soak.py --only live --count live=600``);
     a trim costs about 4 ms after an envelope pass on the city.  Runs on the engine thread
     before the job's result is handed over (no Python on this thread after that: see
     :func:`guard_operator_calls`).  Never raises."""
@@ -264,10 +264,10 @@ class _OperatorGuard:
 
     Blender 4.2 and 5.0 read a ``temp_override``'s dictionary without holding Python's
     lock inside an operator; any other Python thread running Python then crashes Blender
-    (``tools/override_thread_crash.py``: plain bpy and a plain ``threading.Thread``,
+    (``tools/repro/override_thread_crash.py``: plain bpy and a plain ``threading.Thread``,
     every run crashes within the first calls on 4.2 and 5.0.1; 5.2 runs them all).  The
     engine thread runs Python while it builds or culls, and another add-on's operator
-    cannot be held back otherwise (``tools/override_stress.py``), so the call Blender's
+    cannot be held back otherwise (``tools/checks/override_stress.py``), so the call Blender's
     ``bpy.ops`` makes (``bpy.ops._op_call``) is wrapped: the wait costs nothing while the
     engine is idle, and blocks the caller until the engine's job ends while it works.
     Installed at registration, taken out at unregistration (or, where something wrapped

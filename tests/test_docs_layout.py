@@ -12,7 +12,7 @@ LAYOUT = os.path.join(ROOT, "docs", "development.md")
 PAGES = sorted([os.path.join(ROOT, "README.md"), os.path.join(ROOT, "CHANGELOG.md")]
                + glob.glob(os.path.join(ROOT, "docs", "*.md")))
 PACKAGES = ("core", "occ_addon", "sample_scenes")     # every module, however deep
-TOP_LEVEL = ("tools", "tests")                        # every entry of the folder itself
+TOP_LEVEL = ("tools", "tools/bench", "tools/checks", "tools/repro", "tests")   # every entry of each folder itself
 SKIP = {"__pycache__"}
 
 
@@ -22,8 +22,8 @@ def _read(path):
 
 
 def _modules():
-    """Every ``.py`` under the packages, and every entry of tools/ and tests/, as a
-    repository path (``core/cull/gpu.py``, ``tests/blender/``)."""
+    """Every ``.py`` under the packages, and every entry of tools/, of its sorted
+    folders and of tests/, as a repository path (``core/cull/gpu.py``, ``tests/blender/``)."""
     found = []
     for package in PACKAGES:
         for folder, dirs, files in os.walk(os.path.join(ROOT, package)):
@@ -102,7 +102,7 @@ def test_links_are_checked_at_all():
     """The link check finds the README's links into docs/ (a parser that finds none passes
     everything)."""
     links = _links(_read(os.path.join(ROOT, "README.md")))
-    assert "tools/gui_city.png" in links
+    assert "docs/gui_city.png" in links
     assert any(link.startswith("docs/correctness.md#") for link in links)
 
 

@@ -1,4 +1,4 @@
-"""tools/fuzz_truth.py, the seeded search for false negatives, on a few seeds: every
+"""tools/checks/fuzz_truth.py, the seeded search for false negatives, on a few seeds: every
 strategy keeps every truly visible object (query and display resolution), and the
 scenes it draws do hide things (a search that culls nothing proves nothing)."""
 
@@ -9,7 +9,7 @@ import numpy as np
 
 from tests.cli_helpers import ROOT
 
-sys.path.insert(0, os.path.join(ROOT, "tools"))
+sys.path.insert(0, os.path.join(ROOT, "tools", "checks"))
 import fuzz_truth  # noqa: E402
 
 

@@ -1,4 +1,4 @@
-"""tools/gpu_stages.py: every stage of a gpu pass is timed, on the small city."""
+"""tools/bench/gpu_stages.py: every stage of a gpu pass is timed, on the small city."""
 
 import os
 import subprocess
@@ -11,7 +11,7 @@ from tests.cli_helpers import ROOT
 
 @pytest.mark.skipif(os.environ.get("OCC_GL") == "4.1", reason="the gpu pass needs the 4.3 path")
 def test_every_stage_is_timed():
-    p = subprocess.run([sys.executable, os.path.join(ROOT, "tools", "gpu_stages.py"), "city-small", "--empty",
+    p = subprocess.run([sys.executable, os.path.join(ROOT, "tools", "bench", "gpu_stages.py"), "city-small", "--empty",
                         "--resolution", "160x90"], cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stderr
     assert "gpu median" in p.stdout and "vfc median" in p.stdout

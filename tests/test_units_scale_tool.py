@@ -1,4 +1,4 @@
-"""tools/blender_scale.py: its grid and its engine mode on a small grid (the Blender
+"""tools/bench/blender_scale.py: its grid and its engine mode on a small grid (the Blender
 mode needs minutes; docs/performance.md's figures come from it)."""
 
 import json
@@ -9,7 +9,7 @@ import sys
 import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, os.path.join(ROOT, "tools"))
+sys.path.insert(0, os.path.join(ROOT, "tools", "bench"))
 
 from blender_scale import grid_arrays  # noqa: E402
 
@@ -25,7 +25,7 @@ def test_grid_arrays():
 
 def test_engine_mode_reports_phases_and_no_false_negatives(tmp_path):
     out = tmp_path / "engine.json"
-    p = subprocess.run([sys.executable, os.path.join(ROOT, "tools", "blender_scale.py"), "engine",
+    p = subprocess.run([sys.executable, os.path.join(ROOT, "tools", "bench", "blender_scale.py"), "engine",
                         "--vertices", "4000", "--chunk-triangles", "64", "--turns", "2", "--json", str(out)],
                        cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stdout + p.stderr
@@ -40,7 +40,7 @@ def test_engine_mode_traces_numpy_peaks(tmp_path):
     """--numpy: each engine phase's peak of traced allocations, above what was held
     before the engine; the chunking's peak holds at least its triangle boxes."""
     out = tmp_path / "engine.json"
-    p = subprocess.run([sys.executable, os.path.join(ROOT, "tools", "blender_scale.py"), "engine",
+    p = subprocess.run([sys.executable, os.path.join(ROOT, "tools", "bench", "blender_scale.py"), "engine",
                         "--vertices", "40000", "--chunk-triangles", "256", "--turns", "1", "--numpy",
                         "--json", str(out)], cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stdout + p.stderr
@@ -59,7 +59,7 @@ def test_blender_mode_steps_of_the_first_cull(tmp_path):
     --steps times the first cull's extraction and engine steps, each with its peak;
     the first cull's peak is the highest of its steps' and nothing is hidden wrongly."""
     out = tmp_path / "blender.json"
-    p = subprocess.run([sys.executable, os.path.join(ROOT, "tools", "blender_scale.py"), "--only", "grid",
+    p = subprocess.run([sys.executable, os.path.join(ROOT, "tools", "bench", "blender_scale.py"), "--only", "grid",
                         "--vertices", "20000", "--turns", "1", "--steps", "--json", str(out)],
                        cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, p.stdout + p.stderr

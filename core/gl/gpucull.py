@@ -220,7 +220,7 @@ class GpuCull:
         """One pass from the frame's camera (the renderer's ``begin_frame`` done):
         returns the word of every unit, ``(n,) uint32`` (module doc).  ``stage``:
         called with each stage's name once its GL work is issued (a profiler's hook,
-        tools/gpu_stages.py)."""
+        tools/bench/gpu_stages.py)."""
         r, ctx, n = self.r, self.ctx, self.n
         done = stage or _nothing
         r.activate()

@@ -75,7 +75,7 @@ class Renderer43(BaseRenderer):
         # free slot that holds it, or grows the largest free one in place; a new slot
         # only for a batch issued while every slot holds a pending one.  A pass reads
         # each batch before the next, so a renderer keeps one slot and the GL objects
-        # alive stay the same pass after pass (tools/soak.py counts them every cycle).
+        # alive stay the same pass after pass (tools/checks/soak.py counts them every cycle).
         self.slots = [_Slot(ctx, self.box_progs, FIRST_SLOT_BOXES)]
         self.free_slots = list(self.slots)     # not holding a pending batch
 

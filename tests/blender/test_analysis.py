@@ -12,7 +12,7 @@ pytestmark = needs_bpy
 
 # Cases whose steps crash Blender 4.2 without the add-on: run on Blender 5 only.
 BLENDER5_ONLY = {"hair_undo_two_layers": "Blender 4.2 crashes on these steps without the add-on "
-                                         "(tools/blender42_hair_undo_crash.py)"}
+                                         "(tools/repro/blender42_hair_undo_crash.py)"}
 
 
 def bpy_major():

@@ -18,8 +18,8 @@ import pytest
 
 from .harness import PYTHON, ROOT, build_zip, needs_bpy
 
-sys.path.insert(0, os.path.join(ROOT, "tools"))
-from crash_campaign import signal_name  # noqa: E402  (tools/: the campaign's reading of a crash)
+sys.path.insert(0, os.path.join(ROOT, "tools", "checks"))
+from crash_campaign import signal_name  # noqa: E402  (tools/checks/: the campaign's reading of a crash)
 
 SCRIPT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "workflows.py")
 SEEDS = (1, 2, 3)
@@ -197,7 +197,7 @@ def test_harness_without_addon(tmp_path):
 # and shown, the second scene shown, hair and geometry-nodes instance sources moved,
 # emitters deleted and the deletion undone and redone, files reverted, and the user's
 # steps with "Never Visible".  Each seed in its own process, so that a crash is a
-# crash of that seed.  Passed on bpy 5.0.1 (tools/crash_campaign.py finds more).
+# crash of that seed.  Passed on bpy 5.0.1 (tools/checks/crash_campaign.py finds more).
 CRASH_SEEDS = ((101, "AUTO"), (161, "AUTO"), (5003, "VIEW"))
 CRASH_KINDS = ("view_layer", "scene_switch", "instance_move", "emitter_undo", "redo", "revert", "analyze",
                "nv_move", "nv_add", "nv_duplicate")

@@ -33,7 +33,7 @@ shown, a second scene shown, instance sources of hair (object and collection) an
 geometry nodes moved, an emitter deleted and the deletion undone (and redone), a
 file reverted.  A seed that crashes Blender ends its process (rc -11 / 139); with
 ``--progress FILE`` each step is written there before it runs, so the crashing step
-is known (tests/blender/test_workflows.py and tools/crash_campaign.py read it).
+is known (tests/blender/test_workflows.py and tools/checks/crash_campaign.py read it).
 
 The truth is computed independently of the add-on's extractor: the evaluated
 depsgraph's object instances (instances included), their evaluated triangles
@@ -47,7 +47,7 @@ Reproduce one seed:  python tests/blender/workflows.py --seed N [--steps 300]
 (builds the extension zip and installs it in a temporary user folder first).
 Does a crash need the add-on?  ... --seed N --steps S --plain  (the same step kinds, the
 add-on never installed, its steps skipped: each step draws from a generator of its own).
-Many seeds, one process each, crashes counted:  python tools/crash_campaign.py --help
+Many seeds, one process each, crashes counted:  python tools/checks/crash_campaign.py --help
 """
 
 import argparse
@@ -1949,7 +1949,7 @@ def main():
     if bpy.app.version < (5, 0, 0):
         KNOWN_UNFIXED["emitter_undo"] = (
             "Blender 4.2 crashes on its own after an emitter's delete and undo with a second view layer "
-            "shown, whatever else happens (tools/blender42_hair_undo_crash.py, no add-on: 3 of 3 runs); "
+            "shown, whatever else happens (tools/repro/blender42_hair_undo_crash.py, no add-on: 3 of 3 runs); "
             "the step kind runs on Blender 5.x only")
     out = {"seeds": {}, "not_exercised": NOT_EXERCISED, "known_unfixed": KNOWN_UNFIXED}
     if not (args.validate or args.plain):

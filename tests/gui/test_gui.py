@@ -1,5 +1,5 @@
 """The add-on in a real Blender window: Debian's Blender 3.4 under Xvfb, loaded
-as a legacy add-on from this checkout, driven by ``tools/gui_benchmark.py`` on
+as a legacy add-on from this checkout, driven by ``tools/bench/gui_benchmark.py`` on
 the small city (one cull through the real operator, the real panel and overlay
 drawn, live passes, redraws timed).  Timings are recorded, never asserted.
 
@@ -14,7 +14,7 @@ import pytest
 
 from tests.gui.window import GUI_MARKS, ROOT, blender_env, run_in_window
 
-BENCH = os.path.join(ROOT, "tools", "gui_benchmark.py")
+BENCH = os.path.join(ROOT, "tools", "bench", "gui_benchmark.py")
 
 pytestmark = GUI_MARKS
 

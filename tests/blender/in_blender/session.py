@@ -509,7 +509,7 @@ def hair_undo_two_layers():
 def foreign_overrides_during_a_job():
     """Another add-on's operators, called through ``temp_override`` while the engine
     thread runs Python: Blender 4.2 and 5.0 crash at once without the add-on's guard
-    (they read the override's dictionary without the GIL; ``tools/override_thread_crash.py``
+    (they read the override's dictionary without the GIL; ``tools/repro/override_thread_crash.py``
     shows it with a plain thread, no add-on); each call now waits for the engine's job.
     Blender 5.2 makes operators functions of their own and needs no guard."""
     import time

@@ -1,15 +1,15 @@
 #!/usr/bin/env bash
 # The envelope pass and live mode's motions on a lent NVIDIA machine (the device tool), in
-# one call; carry .gl and .whl as for tools/gpu_bench.sh.  Each step has its own time limit
+# one call; carry .gl and .whl as for tools/bench/gpu_bench.sh.  Each step has its own time limit
 # and appends to $OUT/raw.tar as soon as it ends, so a call cut short still returns what ran:
 #   1. the engine's tests without Blender, on NVIDIA's GL (the GPU envelope's own tests too);
 #   2. `bench SCENE --strategies gpu --envelope 2,10 --frames 12` per sample scene (the
 #      envelope's image work as compute passes, OCC_ENVELOPE=auto), the city again with
 #      OCC_ENVELOPE=numpy, and a profile of the city's envelope passes;
 #   3. `python -m core motion SCENE --frames 24` (passes land after their measured time).
-# Then `python3 tools/gpu_table.py --envelope DIR` (DIR: raw.tar unpacked) writes the tables.
+# Then `python3 tools/bench/gpu_table.py --envelope DIR` (DIR: raw.tar unpacked) writes the tables.
 set -uo pipefail
-source tools/gpu_setup.sh
+source tools/bench/gpu_setup.sh
 RAW=/tmp/env_raw; mkdir -p "$RAW"
 keep() { tar -rf "$OUT/raw.tar" -C "$RAW" "$@" 2>/dev/null; }
 step() {  # step NAME LIMIT_S COMMAND...: stdout to NAME.json (or .txt), stderr to NAME.log
@@ -28,7 +28,7 @@ for s in ${SCENES:-city assembly vessels cathedral isosurface}; do
 done
 OCC_ENVELOPE=numpy step env-city-numpy 120 python3 -m core bench city --strategies gpu --envelope 2,10 --frames 12 --json -q
 for s in ${PROFILE_SCENES:-city}; do
-    step "profile-$s" 120 python3 tools/envelope_profile.py "$s" --frames 8
+    step "profile-$s" 120 python3 tools/bench/envelope_profile.py "$s" --frames 8
     cat "$RAW/profile-$s.out"
 done
 for s in ${MOTION_SCENES:-city assembly}; do

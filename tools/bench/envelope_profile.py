@@ -1,6 +1,6 @@
 """Where an envelope pass's time goes, stage by stage, on this machine's GL:
 
-    .venv/bin/python tools/envelope_profile.py [SCENE] [--frames N] [--envelope D,A]
+    .venv/bin/python tools/bench/envelope_profile.py [SCENE] [--frames N] [--envelope D,A]
 
 Culls SCENE's path (default ``city``, 640x360) with ``--envelope`` (default ``2,10``) the
 way ``bench --envelope`` does (the first frame fresh, then the culler's memory of the
@@ -19,7 +19,7 @@ import time
 
 import numpy as np
 
-sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
 
 from core import Culler  # noqa: E402
 from core import envelope as E

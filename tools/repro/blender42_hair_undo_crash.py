@@ -3,8 +3,8 @@ emitter's delete and undo, with a second view layer shown.  Unlike
 ``../shared/repro/blender_hair_undo_two_layers.py`` (Blender 4.2 and 5.0), no object is
 moved or tagged: adding an object after the second layer is shown is enough.
 
-    .venv-bpy42/bin/python tools/blender42_hair_undo_crash.py   # exit 139 or 134 in 2 runs of 3
-    .venv/bin/python tools/blender42_hair_undo_crash.py         # bpy 5.0.1: "NO CRASH" (3 of 3)
+    .venv-bpy42/bin/python tools/repro/blender42_hair_undo_crash.py   # exit 139 or 134 in 2 runs of 3
+    .venv/bin/python tools/repro/blender42_hair_undo_crash.py         # bpy 5.0.1: "NO CRASH" (3 of 3)
 
 The seeded workflows' seed 829 (``--hide-in VIEW``, bpy 4.2) crashes in the same frame
 change after the same steps (its emitter deleted, an undo back past the deletion),

@@ -1,6 +1,6 @@
-"""Markdown tables from the JSON files tools/gpu_bench.sh writes (``bench --json`` per scene).
+"""Markdown tables from the JSON files tools/bench/gpu_bench.sh writes (``bench --json`` per scene).
 
-    python tools/gpu_table.py OUT_DIR
+    python tools/bench/gpu_table.py OUT_DIR
 
 One table of median frame milliseconds (strategies as columns, scenes as rows), one of
 every strategy against vfc and the oracle, and the baseline's figures where present.

@@ -2,9 +2,9 @@
 a process of its own, so that a crash of Blender ends one seed only and is counted as
 a crash (issue 30).
 
-    .venv/bin/python tools/crash_campaign.py --seeds 1000:1100 [--steps 300] [--jobs 2]
+    .venv/bin/python tools/checks/crash_campaign.py --seeds 1000:1100 [--steps 300] [--jobs 2]
         [--hide-in VIEW] [--minutes 40] [--plain-check] [--skip KIND,..] [--json OUT.json]
-    .venv-bpy42/bin/python tools/crash_campaign.py --seeds 1:20      (another bpy: its python)
+    .venv-bpy42/bin/python tools/checks/crash_campaign.py --seeds 1:20      (another bpy: its python)
 
 Per seed: ``pass``, ``fail`` (an invariant broke: the step, its kind, the first
 problem), ``crash`` (the process died of a signal, rc -11 / 139: the step it was in,
@@ -34,7 +34,7 @@ import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor, as_completed
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 WORKFLOWS = os.path.join(ROOT, "tests", "blender", "workflows.py")
 MARK = "OCC_WORKFLOWS "
 

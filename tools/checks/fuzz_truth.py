@@ -2,8 +2,8 @@
 every strategy checked against the object-ID truth at the query resolution and,
 with ``display=``, at the display resolution.
 
-    .venv/bin/python tools/fuzz_truth.py --seeds 0-99 --strategies gpu,auto,om_coherent
-    .venv/bin/python tools/fuzz_truth.py --seeds 0-99 --envelope     (envelope passes)
+    .venv/bin/python tools/checks/fuzz_truth.py --seeds 0-99 --strategies gpu,auto,om_coherent
+    .venv/bin/python tools/checks/fuzz_truth.py --seeds 0-99 --envelope     (envelope passes)
 
 Each seed draws a scene (rotated slabs and boxes of random size, some thin, some
 tiny, some far; a ground; a world offset up to 1e6), a query resolution (odd sizes
@@ -19,7 +19,7 @@ import time
 
 import numpy as np
 
-sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
 
 from core import Camera, Culler, Scene, Visibility  # noqa: E402
 from core.gl.context import create_context  # noqa: E402

@@ -1,6 +1,6 @@
 """A long session of the add-on in real Blender (bpy from PyPI, headless), issue 30:
 
-    .venv/bin/python tools/soak.py [--scene city] [--scale 1.0] [--only live,cull,...]
+    .venv/bin/python tools/checks/soak.py [--scene city] [--scale 1.0] [--only live,cull,...]
                                    [--json OUT] [--work DIR] [--keep]
 
 Installs the extension as a user does (``tools/build_extension.py --no-wheels``, then
@@ -75,9 +75,9 @@ import bpy  # noqa: E402
 import mathutils  # noqa: E402
 import numpy as np  # noqa: E402
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, ROOT)
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(ROOT, "tools"))
 from blender_scene import build_scene  # noqa: E402
 from build_extension import plain_zip  # noqa: E402
 

@@ -1,6 +1,6 @@
 """Time the add-on's live cull pass headless, with ``bpy`` from PyPI:
 
-    .venv/bin/python tools/live_pass.py [SCENE] [--frames N] [--json OUT]
+    .venv/bin/python tools/bench/live_pass.py [SCENE] [--frames N] [--json OUT]
 
 Registers the add-on from this checkout, builds SCENE (default ``city``) as
 Blender objects, runs one pass from the first camera of its path (the engine is
@@ -25,9 +25,9 @@ import time
 import bpy
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, ROOT)
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(ROOT, "tools"))
 from blender_scene import build_scene  # noqa: E402
 
 PKG = "occlusion_culled_viewport"

@@ -1,12 +1,12 @@
 """Another add-on's operators, called from its timer through ``bpy.context.temp_override``,
 while the add-on's engine thread builds and culls (real bpy, headless), issue 30:
 
-    .venv/bin/python tools/override_stress.py [--runs 3] [--cycles 40] [--objects 20000]
+    .venv/bin/python tools/checks/override_stress.py [--runs 3] [--cycles 40] [--objects 20000]
                                               [--minutes M] [--json OUT]
 
 Each run is a process of its own (a crash ends one run and is counted, rc and the
 stack ``faulthandler`` printed).  A run installs the extension as a user does, builds
-``tools/blender_scale.py``'s rows of cubes behind a wall (``--objects``; the scene
+``tools/bench/blender_scale.py``'s rows of cubes behind a wall (``--objects``; the scene
 camera, Hide In: This View, so the add-on hides in its own local view of the file's 3D
 view), culls once, then per cycle: adds a cube (the engine must be rebuilt) and drives
 the steps a window's modal operator drives from its timer events (``Stepped.modal``):
@@ -26,7 +26,7 @@ step (``occ.cull``) and every other cycle ``occ.restore``.
 What it covers: the operators run on Blender's main thread while the engine thread
 runs Python (the build, a cull): Blender 4.2 and 5.0 read a ``temp_override``'s
 dictionary without Python's lock there and crash when another Python thread runs
-(``tools/override_thread_crash.py``, no add-on).  The add-on's guard on ``bpy.ops``
+(``tools/repro/override_thread_crash.py``, no add-on).  The add-on's guard on ``bpy.ops``
 (``worker._OperatorGuard``) makes every such call wait for the engine's job, so the
 ``during`` counts are 0; no crash in N calls is evidence, not proof.  It does not
 cover a real window's event loop (timers and modal handlers interleaved by Blender,
@@ -45,7 +45,7 @@ import tempfile
 import time
 import traceback
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 MARK = "OCC_STRESS "
 EXT_ID = "occlusion_culled_viewport"
 MOD = f"bl_ext.user_default.{EXT_ID}"
@@ -56,7 +56,7 @@ DISPLAY = (1280, 720)
 def child(args):
     import bpy
     import numpy as np
-    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    sys.path[:0] = [os.path.join(ROOT, "tools"), os.path.join(ROOT, "tools", "bench")]
     from blender_scale import build_rows
     from build_extension import plain_zip
 

@@ -1,6 +1,6 @@
 """Time each stage of the ``gpu`` strategy's pass (core/gl/gpucull.py) on this machine:
 
-    .venv/bin/python tools/gpu_stages.py city [--empty]
+    .venv/bin/python tools/bench/gpu_stages.py city [--empty]
 
 Runs the sample scene's path (or, with ``--empty``, 40 passes from its first eye
 looking straight up, where nothing is in the frustum) and waits for the GL after
@@ -19,7 +19,7 @@ import time
 
 import numpy as np
 
-sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
 
 from core import Camera, Culler, load_scene  # noqa: E402
 from core.gl import gpucull as G  # noqa: E402

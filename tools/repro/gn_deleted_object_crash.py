@@ -2,8 +2,8 @@
 instances after a script removes (``bpy.data.objects.remove``) the object a
 geometry-nodes Object Info node instances.
 
-    .venv/bin/python tools/gn_deleted_object_crash.py             # segfaults (bpy 5.0.1, 4.2.0)
-    .venv/bin/python tools/gn_deleted_object_crash.py --operator  # the Delete operator instead: no crash
+    .venv/bin/python tools/repro/gn_deleted_object_crash.py             # segfaults (bpy 5.0.1, 4.2.0)
+    .venv/bin/python tools/repro/gn_deleted_object_crash.py --operator  # the Delete operator instead: no crash
 
 The steps: a mesh whose geometry-nodes modifier instances object ``Source`` (Object
 Info, as instance) on three points, evaluated; ``Source`` removed by a script; the view

@@ -5,7 +5,7 @@
 # Every figure is a median over the sample path, baseline and current code on the same card
 # in the same call.  Writes $OUT/gpu.md (tables) and $OUT/raw.tgz (every bench --json and log).
 set -uo pipefail
-source tools/gpu_setup.sh
+source tools/bench/gpu_setup.sh
 RAW=/tmp/gpu_raw; mkdir -p "$RAW"
 SCENES=${SCENES:-city assembly vessels cathedral isosurface city-xl}
 FRAMES=${FRAMES:-}
@@ -22,5 +22,5 @@ for s in $SCENES; do
 done
 echo "== GL backend (python -m core.lab.gl_bench --scene city)"
 [ -z "${SKIP_GLBENCH:-}" ] && { timeout 120 python3 -m core.lab.gl_bench --scene city > "$RAW/glbench.txt" 2>&1; tail -25 "$RAW/glbench.txt"; }
-python3 tools/gpu_table.py "$RAW" | tee "$OUT/gpu.md"
+python3 tools/bench/gpu_table.py "$RAW" | tee "$OUT/gpu.md"
 tar -czf "$OUT/raw.tgz" -C "$RAW" .

@@ -1,7 +1,7 @@
-"""The engine's pass of a Cull click, outside Blender: ``tools/blender_scale.py``'s rows of
+"""The engine's pass of a Cull click, outside Blender: ``tools/bench/blender_scale.py``'s rows of
 cubes behind a wall, culled as the add-on's engine culls them.
 
-    .venv/bin/python tools/click_pass.py [--objects 50000] [--passes 20] [--steady]
+    .venv/bin/python tools/bench/click_pass.py [--objects 50000] [--passes 20] [--steady]
                                          [--query-pixels] [--profile TOP]
 
 A click restarts the strategy (``cull(fresh=True)``: a new engine's first pass, the
@@ -26,7 +26,7 @@ import time
 
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, ROOT)
 
 import core  # noqa: E402

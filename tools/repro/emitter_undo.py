@@ -1,7 +1,7 @@
 """Plain bpy, no add-on: does Blender itself crash on a frame change after a hair
 emitter's delete and undo (the crash the seeded workflows found; README Limits)?
 
-    .venv/bin/python tools/emitter_undo.py SEED        (or .venv-bpy42/bin/python ...)
+    .venv/bin/python tools/repro/emitter_undo.py SEED        (or .venv-bpy42/bin/python ...)
 
 Ten boxes and a hair emitter instancing a box, then 200 seeded steps: deletes, adds,
 moves and mesh edits (each with an undo push), undos, and frame changes.  Prints

@@ -1,6 +1,6 @@
 """Live mode while the user walks, in a real Blender window (Debian's Blender 3.4 under Xvfb):
 
-    .venv/bin/python tools/gui_walk.py [SCENE] [--seconds 20] [--speed 1.4]   (-small: the small variant)
+    .venv/bin/python tools/bench/gui_walk.py [SCENE] [--seconds 20] [--speed 1.4]   (-small: the small variant)
 
 runs Blender in an Xvfb window with this checkout as a legacy add-on (as ``tests/gui``
 does), loads the sample scene, and walks the viewport along the scene's camera path at a
@@ -9,14 +9,14 @@ live mode off and once with it on.  Counts the frames Blender drew (a draw handl
 3D view), the objects drawn per frame and the live passes that landed, and prints one
 JSON object.  A pass that held Blender's main thread shows as fewer frames with live on.
 
-Inside Blender (``--python tools/gui_walk.py -- OUT_JSON SCENE SECONDS SPEED``) it is the walk itself.
+Inside Blender (``--python tools/bench/gui_walk.py -- OUT_JSON SCENE SECONDS SPEED``) it is the walk itself.
 """
 
 import os
 import sys
 import time
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 ADDON = "occlusion_culled_viewport"
 
 

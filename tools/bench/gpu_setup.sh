@@ -1,4 +1,4 @@
-# Sourced by the device scripts (tools/gpu_bench.sh, tools/gpu_envelope_bench.sh) on a lent
+# Sourced by the device scripts (tools/bench/gpu_bench.sh, tools/bench/gpu_envelope_bench.sh) on a lent
 # NVIDIA machine: unpacks the carried GL loader .debs (.gl), installs the carried wheels (.whl:
 # moderngl, glcontext, trimesh for the machine's Python), points EGL at NVIDIA's driver and
 # checks that a 4.3 context can be made.

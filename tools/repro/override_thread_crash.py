@@ -1,7 +1,7 @@
 """Plain bpy, no add-on: a Python thread that runs Python code while the main thread
 calls operators through ``bpy.context.temp_override`` (issue 30's stress check):
 
-    .venv/bin/python tools/override_thread_crash.py [--runs 4] [--calls 3000] [--idle | --no-thread]
+    .venv/bin/python tools/repro/override_thread_crash.py [--runs 4] [--calls 3000] [--idle | --no-thread]
 
 Each run is a process of its own: the main thread builds a few hundred cubes, then
 calls a rotation of common operators (``object.duplicate``, ``object.delete``,

@@ -1,7 +1,7 @@
 """Run inside a real Blender window (e.g. Debian's Blender 3.4 under Xvfb):
 
     xvfb-run -a -s "-screen 0 1600x900x24" blender --enable-event-simulate \
-        --python tools/gui_benchmark.py -- OUT_DIR [SCENE]   (a sample name, -small for its small variant)
+        --python tools/bench/gui_benchmark.py -- OUT_DIR [SCENE]   (a sample name, -small for its small variant)
 
 with the add-on installed as a legacy add-on (BLENDER_USER_SCRIPTS/addons/
 occlusion_culled_viewport) and moderngl, glcontext and trimesh importable
@@ -18,7 +18,7 @@ import bpy
 import mathutils
 import numpy as np
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # tools/: blender_scene
 from blender_scene import build_scene, drive_in_window, view3d  # noqa: E402
 
 ARGS = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []

@@ -1,6 +1,6 @@
 """What hiding costs Blender itself, without the add-on: plain bpy, N objects.
 
-    .venv/bin/python tools/blender_hide_cost.py [--objects 50000] [--repeat 3] [--by-view-size]
+    .venv/bin/python tools/bench/blender_hide_cost.py [--objects 50000] [--repeat 3] [--by-view-size]
 
 Builds N one-triangle objects sharing one mesh, then times the depsgraph
 update (``view_layer.update()``) that follows each kind of visibility change

@@ -1,7 +1,7 @@
 """Scale scenes in real Blender (bpy from PyPI) and in the engine alone, timed phase by phase.
 
-    .venv/bin/python tools/blender_scale.py [--quick] [--objects N] [--vertices V] [--only S,..]
-    .venv/bin/python tools/blender_scale.py engine [--vertices V] [--profile OUT] [--numpy]
+    .venv/bin/python tools/bench/blender_scale.py [--quick] [--objects N] [--vertices V] [--only S,..]
+    .venv/bin/python tools/bench/blender_scale.py engine [--vertices V] [--profile OUT] [--numpy]
 
 Blender mode builds the add-on's zip (``tools/build_extension.py --no-wheels``),
 installs it into an isolated ``BLENDER_USER_RESOURCES`` (as the Blender tests
@@ -42,7 +42,7 @@ import tracemalloc
 
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 EXT_ID = "occlusion_culled_viewport"
 MB = 2**20
 

@@ -1,7 +1,7 @@
 """Throughput of scripted camera-path analysis on city-xl (28,845 objects), headless and
 in Blender (bpy), in one process and in two: a timing script, not a test.
 
-    .venv/bin/python tools/analyze_throughput.py [--frames 300] [--work DIR] [--jobs2-frames N]
+    .venv/bin/python tools/bench/analyze_throughput.py [--frames 300] [--work DIR] [--jobs2-frames N]
                                                 [--only headless,bpy] [--json OUT]
 
 1. A camera path of ``--frames`` frames over city-xl, interpolated from the sample's own
@@ -41,7 +41,7 @@ import time
 
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 EXT_ID = "occlusion_culled_viewport"
 MODULE = f"bl_ext.user_default.{EXT_ID}"
 SCENE = "city-xl"

@@ -1,8 +1,8 @@
 """Time the add-on's kinds of pass headless (bpy from PyPI), on a sample scene:
 
-    .venv/bin/python tools/measure_passes.py [SCENE] [--frames N]
+    .venv/bin/python tools/bench/measure_passes.py [SCENE] [--frames N]
 
-Registers the add-on from this checkout (as tools/live_pass.py does), builds
+Registers the add-on from this checkout (as tools/bench/live_pass.py does), builds
 SCENE (default ``city``) as Blender objects, then times along its camera path:
 a live pass after a small view change (caches trusted, temporal memory kept), a
 fresh pass (what a Cull click does: the strategy starts fresh and every object
@@ -18,7 +18,7 @@ import time
 import bpy
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, ROOT)
 sys.path.insert(0, os.path.join(ROOT, "tools"))
 import live_pass  # noqa: E402

@@ -1,8 +1,8 @@
 """Saves made while the engine thread builds (real bpy): the reproducer of a crash.
 
-    BLENDER_USER_RESOURCES=$(mktemp -d) .venv/bin/python tools/save_during_build.py [OBJECTS] [SAVES]
+    BLENDER_USER_RESOURCES=$(mktemp -d) .venv/bin/python tools/repro/save_during_build.py [OBJECTS] [SAVES]
 
-Builds the rows scene of ``tools/blender_scale.py`` (default 30,000 objects), culls once
+Builds the rows scene of ``tools/bench/blender_scale.py`` (default 30,000 objects), culls once
 in the window's 3D view (the add-on's own local view), then SAVES times (default 8):
 adds an object (the next pass rebuilds the engine), starts the modal first steps the
 way a window drives them, and saves while the engine thread builds.  The save's handler
@@ -19,7 +19,8 @@ import time
 
 import bpy
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+TOOLS = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path[:0] = [TOOLS, os.path.join(TOOLS, "bench")]
 from blender_scale import EXT_ID, build_rows  # noqa: E402
 from build_extension import plain_zip  # noqa: E402
 
