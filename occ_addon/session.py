@@ -21,7 +21,7 @@ from ..core.envelope import Envelope
 from ..core.motion import AT_REST, AtRest, LivePolicy
 from ..core.settings import MAX_RESOLUTION, preset, query_resolution
 from ..core.units import ChunkCache
-from . import identity, localview, policy, shading, visibility
+from . import identity, localview, policy, shading, visibility, worker
 from .cameras import hide_view
 from .extract import Candidates, Extractor
 from .kinds import Kind
@@ -242,9 +242,7 @@ class Session:
             else:
                 if old is not None:
                     self.worker.submit(old.close)
-                job = self.worker.submit(Culler, scene, resolution, strategy=strategy,
-                                         chunk_triangles=CHUNK_TRIANGLES, chunk_cache=self.chunks,
-                                         display=display, query_pixels=False)
+                job = self.worker.submit(_built, scene, resolution, strategy, self.chunks, display)
             try:
                 self._meanwhile()                     # (a pass's: see cull)
                 yield job
@@ -501,6 +499,18 @@ class Session:
             self.shown = shown_by(result, pending.camera)
             self.version += 1
             return result, objects
+
+
+def _built(scene, resolution, strategy, chunks, display):
+    """On the engine thread: a new engine for ``scene`` on the thread's own GL context
+    (:func:`.worker.thread_gl_context`); where the build fails, the context goes too
+    (the next engine starts on a fresh one)."""
+    try:
+        return Culler(scene, resolution, strategy=strategy, chunk_triangles=CHUNK_TRIANGLES, chunk_cache=chunks,
+                      display=display, query_pixels=False, ctx=worker.thread_gl_context())
+    except BaseException:
+        worker.drop_thread_gl_context()
+        raise
 
 
 def _replaced(culler, scene, strategy):

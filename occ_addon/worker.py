@@ -21,6 +21,12 @@ destroyed while current only when it stops being current): the thread releases i
 EGL state before it ends (:func:`release_thread_gl`).  Without it every
 disable/enable of the add-on kept its last engine's context, about 20 MB
 (``tools/checks/soak.py``, issue 30).
+
+The thread keeps one context for its whole life (:func:`thread_gl_context`): every
+engine built on it, after an undo, a file load or a resize too, draws on that context,
+and the thread releases it before it ends.  A context made and released per engine kept
+memory each time (moderngl's and the driver's: the soak's undo phase, two new engines a
+cycle, grew about 20 MB over 200 undo/redo pairs).
 """
 
 import ctypes
@@ -31,6 +37,30 @@ import sys
 import threading
 import weakref
 from typing import NamedTuple
+
+_LOCAL = threading.local()        # the engine thread's own GL context (thread_gl_context)
+
+
+def thread_gl_context():
+    """On the engine thread: its GL context, made at the first engine and kept until the
+    thread ends (module doc).  Engines built with it leave it open when they close."""
+    ctx = getattr(_LOCAL, "ctx", None)
+    if ctx is None:
+        from ..core.gl import create_context  # the engine's GL, made on the thread that uses it
+        ctx = _LOCAL.ctx = create_context()
+    return ctx
+
+
+def drop_thread_gl_context():
+    """On the engine thread: release its context (the thread ends, or an engine failed
+    on it and the next one starts on a fresh context).  Never raises."""
+    ctx, _LOCAL.ctx = getattr(_LOCAL, "ctx", None), None
+    if ctx is not None:
+        from ..core.gl import release_context
+        try:
+            release_context(ctx)
+        except Exception:  # a broken context: the thread's end frees what is left  # noqa: BLE001
+            pass
 
 
 class Progress(NamedTuple):
@@ -108,6 +138,7 @@ class EngineThread:
         while True:
             job = jobs.get()
             if job is None:
+                drop_thread_gl_context()
                 release_thread_gl()
                 return
             fn, args, kwargs, out = job

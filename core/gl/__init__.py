@@ -9,7 +9,7 @@ shaders (``core/gl/glsl/``, loaded by :mod:`.shaders`).
 
 from ..settings import check_resolution
 from .context import choose_path, create_context
-from .renderer import BaseRenderer, PendingQuery, Renderer
+from .renderer import BaseRenderer, PendingQuery, Renderer, release_context
 from .renderer_41 import Renderer41
 from .renderer_43 import Renderer43
 
@@ -29,4 +29,4 @@ def GLRenderer(scene, width: int, height: int, ctx=None, units=None, display=Non
     return r
 
 
-__all__ = ["GLRenderer", "PendingQuery", "Renderer", "create_context"]
+__all__ = ["GLRenderer", "PendingQuery", "Renderer", "create_context", "release_context"]

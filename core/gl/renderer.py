@@ -90,6 +90,14 @@ def pow2(x, least=64):
     return max(least, 1 << int(np.ceil(np.log2(max(x, 1)))))
 
 
+
+def release_context(ctx) -> None:
+    """Release ``ctx`` and everything made on it, with the renderers' state kept for it
+    (that state holds a framebuffer that holds the context: the weak key alone would
+    keep every context this process made)."""
+    _CONTEXT_STATE.pop(ctx, None)
+    ctx.release()
+
 class PendingQuery:
     """A query batch issued and not read yet; :meth:`result` reads it back once.
 
@@ -577,10 +585,7 @@ class BaseRenderer:
         created it: that frees them all)."""
         self.activate()
         if self.own_ctx:
-            # the per-context state holds a framebuffer that holds the context: the weak
-            # key alone would keep every context this process made
-            _CONTEXT_STATE.pop(self.ctx, None)
-            self.ctx.release()
+            release_context(self.ctx)
             return
         for a in reversed(list(self._attachments.values())):
             a.release()

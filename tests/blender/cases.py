@@ -28,6 +28,7 @@ CASES = (policy.user_hidden_objects, policy.dynamic_objects, cameras.camera_as_r
          analysis.report_path_and_progress,
          session.modal_steps,
          session.instanced_child_edited, session.instance_source_deleted, session.click_restarts,
+         session.engine_context_outlives_undo,
          policy.instance_wire_member_analyzed, policy.bystander_emitter_members_analyzed,
          policy.emitter_wire_instances_analyzed, policy.gn_bounds_instances_analyzed,
          policy.wire_collection_instance,

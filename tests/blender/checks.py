@@ -49,6 +49,7 @@ CHECKS = {
         "edit_while_another_layer_shown_seen", "edit_while_another_layer_shown_truth",
         "instance_member_deleted_seen", "instance_member_deleted_truth",
         "click_restarts_fresh", "click_restarts_same_answer", "click_restarts_truth", "bulk_map_is_its_dict",
+        "engine_context_outlives_undo",
         "large_mesh_triangles_in_place",
     ],
     "visibility": ["user_hide_kept_by_restore", "user_hide_kept_by_pass", "records_read_once_a_pass"],

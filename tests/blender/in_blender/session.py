@@ -378,6 +378,30 @@ def click_restarts():
     promise("click_restarts_truth")
 
 
+def engine_context_outlives_undo():
+    """An undo or redo drops the engine (Blender may hand back the same ids with other
+    contents); the next one is built on the engine thread's own GL context, not on a
+    new one: a context made and released per engine kept memory every time
+    (``tools/checks/soak.py``'s undo phase)."""
+    scene = new_scene()
+    for k in range(6):
+        box(f"u{k}", (2 + 2.0 * k, -1, 0), (3 + 2.0 * k, 1, 1 + k % 2))
+    update()
+    session = addon("session").SESSION
+    bpy.ops.ed.undo_push(message="boxes")
+    cull()
+    ctx = session.culler.renderer.ctx
+    scene.objects["u0"].location.z += 0.5
+    update()
+    bpy.ops.ed.undo_push(message="moved")
+    contexts = []
+    for op in (bpy.ops.ed.undo, bpy.ops.ed.redo):
+        op()
+        r, err = cull()
+        contexts.append((r, session.culler is not None and session.culler.renderer.ctx is ctx, err[-200:]))
+    check("engine_context_outlives_undo", contexts == [({"FINISHED"}, True, "")] * 2, contexts)
+
+
 def bulk_map_is_its_dict():
     """kinds.BulkMap (what each object is, whether it is dynamic: looked up in bulk)
     answers as the dict it mirrors through a seeded run of sets, re-sets, pops and
