@@ -522,6 +522,7 @@ def _replaced(culler, scene, strategy):
             culler.set_strategy(strategy)
     except BaseException:  # half replaced: the session dropped it, nothing else will close it
         culler.close()
+        worker.drop_thread_gl_context()           # (as _built: the next engine on a fresh context)
         raise
     return culler
 

@@ -599,6 +599,7 @@ class BaseRenderer:
         # Unbind our framebuffer first: moderngl re-binds "the current one" after
         # creating the next, and a deleted name there is GL_INVALID_OPERATION.
         self.ctx.detect_framebuffer(0).use()
+        self._state.clear()            # the context outlives this renderer: nothing of ours is bound
         for o in objs:
             if o is not None:
                 o.release()
