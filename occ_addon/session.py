@@ -369,8 +369,9 @@ class Session:
         for: live mode checks every redraw against it).  ``show_only``: it shows what
         it finds visible and hides nothing new (what stays hidden is hidden in this
         pass too, so it holds for its envelope)."""
-        return self.finish(context, self.begin(context, camera, display, fresh, progress, restart, envelope,
-                                               show_only))
+        with identity.one_pass():     # one call, nothing of the user's between the halves: one read of the records
+            return self.finish(context, self.begin(context, camera, display, fresh, progress, restart, envelope,
+                                                   show_only))
 
     def begin(self, context, camera: Camera, display: Size, fresh: bool = False, progress: Callable | None = None,
               restart: bool = False, envelope: Envelope | AtRest | None = None, show_only: bool = False,
