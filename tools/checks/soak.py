@@ -12,7 +12,8 @@ camera on the scene's camera path and runs, at ``--scale`` 1 (the issue's sizes)
   timers), the scene camera moved along the path before each;
 - ``cull``: 500 Cull/Restore cycles (``occ.cull``, ``occ.restore``) from changing views;
 - ``undo_control``: 200 undo/redo pairs without the add-on's operations (an edit,
-  ``ed.undo``, ``ed.redo``): Blender's own undo memory;
+  ``ed.undo``, ``ed.redo``): Blender's own undo memory, reported and not a target (with
+  no engine job, nothing calls ``malloc_trim``, and glibc keeps what Blender freed);
 - ``undo``: 200 undo/redo pairs (an edit and a Cull, ``ed.undo``, a Cull, ``ed.redo``,
   a Cull, Restore); its trend target counts only the rise beyond ``undo_control``'s;
 - ``toggle``: 50 disable/enable cycles of the extension (live on and a live pass before
@@ -336,12 +337,13 @@ class Soak:
         return False
 
     # -- phases
-    def run(self, name, cycles, body, step=0, control=None):
+    def run(self, name, cycles, body, step=0, control=None, judged=True):
         """Run ``body(k)`` ``cycles`` times; registrations compared after every cycle, GL
         objects and memory at the samples, with the state after the first cycle as
         the phase's own "before".  ``step``: the path views a cycle moves (warm-up takes
         the whole path, see the module's doc); ``control``: the phase that ran the same
-        cycles without the add-on's operations, whose fitted rise is Blender's own."""
+        cycles without the add-on's operations, whose fitted rise is Blender's own;
+        ``judged``: False for such a control, whose memory is reported, not a target."""
         print(f"--- {name}: {cycles} cycles", flush=True)
         every = max(1, cycles // 25)
         warm = max(1, cycles // 10, min(self.path.cycles(step), cycles // 2))
@@ -393,6 +395,8 @@ class Soak:
             "gl_before": ref_gl, "gl_after": end["gl"],
             "stale_contexts": end["stale_contexts"] - start["stale_contexts"],
         }
+        if not judged:
+            return
         self.check(f"{name}_rss_growth_after_warmup", growth <= GROWTH_MB, f"{growth:.1f} MB (budget {GROWTH_MB})")
         own = self.phases.get(control, {}).get("trend_rise_mb", 0.0) if control else 0.0
         blender = f"; {control}, without the add-on's operations: {own:.1f} MB" if control in self.phases else ""
@@ -445,7 +449,10 @@ class Soak:
             if cull is not nothing:
                 self.op("occ.restore")
                 self.nothing_hidden("undo_nothing_hidden_after_restore", f"cycle {k}")
-        self.run(name, cycles, body, control="undo_control" if cull is not nothing else None)
+        if cull is nothing:
+            self.run(name, cycles, body, judged=False)
+        else:
+            self.run(name, cycles, body, control="undo_control")
 
     def undo_control(self, cycles):
         self.undo_cycles("undo_control", cycles, nothing)
@@ -529,7 +536,8 @@ def table(rows, cols):
 def report(out):
     phases = [{"phase": n, **{k: v for k, v in p.items() if not k.startswith("gl_")},
                "gl": sum((p["gl_after"] or {}).values())} for n, p in out["phases"].items()]
-    print("\nphases (memory in MB; warm: after the phase's first tenth; rise: of a line fitted after it)")
+    print("\nphases (memory in MB; warm: after warm-up; rise: of a line fitted after it; "
+          "undo_control: reported, not a target)")
     print(table(phases, ["phase", "cycles", "seconds", "errors", "rss_start_mb", "rss_warm_mb", "rss_end_mb",
                          "growth_mb", "trend_rise_mb", "trend_mb_per_1000", "gl", "stale_contexts"]))
     rows = [{**r, "rss": f"{r['rss_mb']:.0f}", "handlers": sum(r["handlers"].values()),
