@@ -140,7 +140,7 @@ def test_query_slots_stay_one_per_batch_in_flight(ctx):
         assert np.array_equal(r.query(probes[:k]), one[:k]), k
     assert r.slots == first and r.slots[0].cap >= 1500
     assert [(s.buffer.glo, {k: v.glo for k, v in s.vaos.items()}) for s in r.slots] == glo
-    sizes = (90, 2, 3000 // 2)
+    sizes = (90, 2, 1500)
     pending = [(k, r.query_async(probes[-k:])) for k in sizes]      # pending at once: a slot each
     for k, q in reversed(pending):
         assert np.array_equal(q.result(), one[-k:]), k

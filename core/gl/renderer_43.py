@@ -111,18 +111,16 @@ class Renderer43(BaseRenderer):
     def _issue(self, boxes_rel, counts):
         k = len(boxes_rel)
         free = self.free_slots
-        fits = [s for s in free if s.cap >= k]
-        if fits:
-            slot = min(fits, key=lambda s: s.cap)
-        elif free:
-            slot = max(free, key=lambda s: s.cap)
-            slot.grow(pow2(k))
-            self.count_gl()
+        if free:
+            fits = [s for s in free if s.cap >= k]
+            slot = min(fits, key=lambda s: s.cap) if fits else max(free, key=lambda s: s.cap)
+            free.remove(slot)
+            if slot.cap < k:
+                slot.grow(pow2(k))
+                self.count_gl()
         else:
             slot = _Slot(self.ctx, self.box_progs, pow2(k))
             self.slots.append(slot)
-            free.append(slot)
-        free.remove(slot)
         counts_at = _counts_at(k)
         if slot.unfenced:               # dropped unread: its shader writes must land before ours
             self.ctx.memory_barrier(GL_BUFFER_UPDATE_BARRIER_BIT)
