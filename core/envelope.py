@@ -280,10 +280,149 @@ def extended_depth(depth, camera, envelope, near_eff=0.0):
     (the envelope's square view; 1 = nothing drawn).  ``near_eff``: surfaces nearer
     than this cover nothing (an eye of the envelope may clip them with its near plane).
     The reference of :mod:`core.gl.gpuenvelope`, which computes the same in the same
-    precision and order."""
+    precision and order.
+
+    Most images cover few pixels or none (every window wide enough for its parallax
+    holds an empty pixel or a silhouette): :func:`cover_plan` bounds, on blocks of
+    pixels, where and up to which window any pixel may be covered, and the windows are
+    computed there only; the result is the same, pixel for pixel."""
+    rows, cols = depth.shape
+    out = np.full((rows, cols), np.inf)
+    plan = cover_plan(depth, camera, envelope.distance, near_eff)
+    if plan is None:
+        return out
+    (y0, y1, x0, x1), last = plan
+    m = last + 3                    # a window reaches ``last`` pixels, a break's test 2 more
+    ys, xs = slice(max(0, y0 - m), min(rows, y1 + m)), slice(max(0, x0 - m), min(cols, x1 + m))
+    sub = _extended_depth(depth[ys, xs], camera, envelope, near_eff, (ys.start, xs.start, rows, cols), last)
+    out[y0:y1, x0:x1] = sub[y0 - ys.start:y1 - ys.start, x0 - xs.start:x1 - xs.start]
+    return out
+
+
+BLOCK = 4                   # cover_plan's blocks: BLOCK x BLOCK pixels
+PLAN_SLACK = 1e-4           # cover_plan's relative slack over the image's float32 rounding
+
+
+def _need(nearest, t, h, distance, dt):
+    """The window half-size (pixels) that holds the parallax of a window whose nearest
+    depth is ``nearest``, at tangent distance ``t`` of its pixel; inf where none does
+    (the image's rule in float64, its last factor of slack left out)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ta = distance / np.sqrt(nearest * nearest - distance ** 2)
+        tt = t + h * dt * math.sqrt(2.0)
+        denom = 1.0 - tt * ta
+        r = (tt + ta) / np.where(denom > 1e-6 * (1.0 - PLAN_SLACK), denom, np.nan)
+        need = ta * (1.0 + r * r) / dt + 1.0
+    far_enough = nearest > distance * NEAREST_GUARD * (1.0 - PLAN_SLACK)
+    return np.where(np.isfinite(need) & far_enough, need, np.inf)
+
+
+def _blocks(a, reduce):
+    """``reduce`` (``np.minimum`` or ``np.maximum``) over BLOCK x BLOCK blocks of ``a``,
+    whose sides are multiples of BLOCK."""
+    a = reduce(reduce(a[0::4], a[1::4]), reduce(a[2::4], a[3::4]))
+    return reduce(reduce(a[:, 0::4], a[:, 1::4]), reduce(a[:, 2::4], a[:, 3::4]))
+
+
+def cover_plan(depth, camera, distance, near_eff=0.0):
+    """Where :func:`extended_depth` may cover a pixel of ``depth``: ``((y0, y1, x0, x1),
+    last)``, the pixel rectangle outside which none is covered and the largest window
+    half-size that may cover one; None when no pixel is covered.  Proven on blocks of
+    ``BLOCK x BLOCK`` pixels.
+
+    A pixel is covered at window half-size ``h`` only when its window holds no break and
+    holds its parallax at the window's nearest depth.  For ``h >= BLOCK - 1`` the window
+    of every pixel of a block holds the whole blocks within ``(h + 1) / BLOCK - 1`` of
+    it: a break (an empty or too-near pixel) in one of them opens every pixel of the
+    block, and the nearest depth over them is no nearer than the window's, so the
+    parallax it needs (at the block's smallest tangent distance) is no more than any of
+    its pixels needs.  Smaller windows are bounded by the lens's far depth, at the
+    centre (where they may cover, the whole image is planned).  Depth jumps are breaks
+    the blocks leave out: fewer breaks, a weaker test, never a wrong one.  The image's
+    float32 rounds what its rule computes: the bounds pass with :data:`PLAN_SLACK` to
+    spare."""
     near, far, tan_half = _lens(camera)
     rows, cols = depth.shape
-    s = min(rows, cols)
+    sizes = [h for h in HALF_SIZES if h < min(rows, cols)]
+    if not sizes:
+        return None
+    dt = 2.0 * tan_half / rows
+
+    def z_of(w):                                     # the image's own formula, increasing in w
+        ndc = 2.0 * np.asarray(w, dtype=np.float64) - 1.0
+        with np.errstate(divide="ignore"):
+            return 2.0 * near * far / (far + near - ndc * (far - near))
+
+    small = np.array([h for h in sizes if h < BLOCK - 1])
+    if len(small) and (_need(far, 0.0, small, distance, dt) <= small * (1.0 + PLAN_SLACK)).any():
+        return (0, rows, 0, cols), sizes[-1]
+    br, bc = -(-rows // BLOCK), -(-cols // BLOCK)
+    # the block's nearest depth, 0 where it holds a break (0 passes no test); a block the
+    # border cuts holds one (a window there reaches past the border)
+    nearest = np.zeros((br, bc))
+    whole = np.asarray(depth)[:rows - rows % BLOCK, :cols - cols % BLOCK]
+    lo, hi = _blocks(whole, np.minimum), _blocks(whole, np.maximum)
+    zlo = z_of(lo)
+    nearest[:lo.shape[0], :lo.shape[1]] = np.where((hi < 1.0) & (zlo > near_eff), zlo, 0.0)
+    # the smallest tangent distance of a block's pixel centres
+    ay = np.abs((np.arange(br * BLOCK) + 0.5) * dt - tan_half).reshape(br, BLOCK).min(axis=1)
+    ax = np.abs((np.arange(bc * BLOCK) + 0.5) * dt - 0.5 * cols * dt).reshape(bc, BLOCK).min(axis=1)
+    t = np.sqrt(ax[None, :] ** 2 + ay[:, None] ** 2)
+    k = 0
+    may = np.zeros((br, bc), dtype=bool)
+    last = None
+    for h in sizes:
+        if h < BLOCK - 1:
+            continue
+        reach = (h + 1) // BLOCK - 1                  # whole blocks every pixel's window holds
+        while k < reach:                              # the nearest over 2k + 1 blocks, k <= reach
+            step = min(k + 1, reach - k)
+            nearest = _shift_min(_shift_min(nearest, step, 0), step, 1)
+            k += step
+        cells = np.flatnonzero(nearest.ravel() > distance * NEAREST_GUARD * (1.0 - PLAN_SLACK))
+        if not len(cells):
+            break                                     # windows only grow: none is far enough now
+        here = cells[_need(nearest.ravel()[cells], t.ravel()[cells], h, distance, dt) <= h * (1.0 + PLAN_SLACK)]
+        if len(here):
+            may.ravel()[here] = True
+            last = h
+    if last is None:
+        return None
+    by, bx = np.flatnonzero(may.any(axis=1)), np.flatnonzero(may.any(axis=0))
+    return (int(by[0]) * BLOCK, min(rows, (int(by[-1]) + 1) * BLOCK),
+            int(bx[0]) * BLOCK, min(cols, (int(bx[-1]) + 1) * BLOCK)), last
+
+
+def _shift_min(a, k, axis):
+    """``min`` of ``a`` and its copies shifted by ``k`` either way along ``axis``, 0 past
+    the border."""
+    out = a.copy()
+    n = a.shape[axis]
+    if k >= n:
+        out[...] = 0.0
+        return out
+    lo = [slice(None)] * 2
+    hi = [slice(None)] * 2
+    lo[axis], hi[axis] = slice(k, None), slice(None, n - k)
+    np.minimum(out[tuple(lo)], a[tuple(hi)], out=out[tuple(lo)])
+    np.minimum(out[tuple(hi)], a[tuple(lo)], out=out[tuple(hi)])
+    edge = [slice(None)] * 2
+    edge[axis] = slice(0, k)
+    out[tuple(edge)] = 0.0
+    edge[axis] = slice(n - k, None)
+    out[tuple(edge)] = 0.0
+    return out
+
+
+def _extended_depth(depth, camera, envelope, near_eff, window=None, last=None):
+    """:func:`extended_depth` with every window computed, of ``depth`` or (``window =
+    (y0, x0, rows, cols)``) of the part of a ``rows x cols`` image from pixel ``(y0,
+    x0)`` that ``depth`` is, with windows up to half-size ``last``: exact where every
+    such window and a break's test (2 pixels) stay within the part."""
+    near, far, tan_half = _lens(camera)
+    rows, cols = depth.shape
+    y0, x0, full_rows, full_cols = window or (0, 0, rows, cols)
+    s = min(full_rows, full_cols)
     d = depth.astype(np.float64)                       # float64 here: 1/z steps are compared below
     ok = d < 1.0
     ndc = 2.0 * d - 1.0
@@ -293,9 +432,9 @@ def extended_depth(depth, camera, envelope, near_eff=0.0):
     ok &= z > near_eff
     z = np.where(ok, z, np.inf)
     # tangent-plane coordinates of pixel centres; one pixel = dt of tangent
-    dt = 2.0 * tan_half / rows                          # square pixels in tangent units
-    cy = (np.arange(rows) + 0.5) * dt - tan_half
-    cx = (np.arange(cols) + 0.5) * dt - 0.5 * cols * dt
+    dt = 2.0 * tan_half / full_rows                     # square pixels in tangent units
+    cy = (np.arange(y0, y0 + rows) + 0.5) * dt - tan_half
+    cx = (np.arange(x0, x0 + cols) + 0.5) * dt - 0.5 * full_cols * dt
     t = np.sqrt(cx[None, :] * cx[None, :] + cy[:, None] * cy[:, None]).astype(np.float32)
     brk = ~ok
     if envelope.distance > 0.0:
@@ -308,7 +447,7 @@ def extended_depth(depth, camera, envelope, near_eff=0.0):
     zhi = np.where(brk, np.inf, z).astype(np.float32)
     open_ = np.ones(z.shape, dtype=bool)
     for h in HALF_SIZES:                               # each window from the one before
-        if h >= s:
+        if h >= s or (last is not None and h > last):
             break
         zlo = _grow(zlo, h, np.inf)
         zhi = _grow(zhi, h, np.inf)
@@ -419,7 +558,8 @@ def _beyond_every_far_plane(rel, view):
 def classify_boxes(rel, view, levels, depth_step_at, splits=SPLITS, outside=None):
     """States of camera-relative boxes (already grown) from the envelope's
     :class:`EnvelopeView`: VISIBLE, OCCLUDED or VIEW_CULLED per box; ``levels``: the
-    max pyramid of the extended depth image (:func:`_pyramid`).  A box's pixel
+    max pyramid of the extended depth image (:func:`_pyramid`), None where the image
+    covers no pixel (the frustum's states only).  A box's pixel
     rectangle is clipped to the cull square: no view of the envelope sees past it.
 
     A box is tested by its nearest depth against the farthest covered depth over its
@@ -437,6 +577,8 @@ def classify_boxes(rel, view, levels, depth_step_at, splits=SPLITS, outside=None
     out_rest, _ = classify(planes_from_matrix(view.cull.relative_view_projection()), rel[rest])
     outside[rest] = out_rest | _beyond_every_far_plane(rel[rest], view)
     state[outside] = Visibility.VIEW_CULLED
+    if levels is None:
+        return state
     clip = view.render.relative_view_projection()
     size = np.asarray(view.size, dtype=np.float64)
     near, _, _ = _lens(view.render)
@@ -555,7 +697,8 @@ class _Tester:
         stats.gl_calls = renderer.counters["gl_calls"]
         stats.blocking_reads = renderer.counters["blocking_reads"]
         (x0, y0), (x1, y1) = self.view.lo, self.view.hi
-        self.levels = _pyramid(self.ext[y0:y1 + 1, x0:x1 + 1])   # the cull frustum's: rectangles read no margin
+        inner = self.ext[y0:y1 + 1, x0:x1 + 1]              # the cull frustum's: rectangles read no margin
+        self.levels = _pyramid(inner) if inner.min() < np.inf else None
         stats.query_rect_pixels = int(w * h)
 
     def unit_states(self):

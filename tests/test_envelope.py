@@ -421,3 +421,60 @@ def test_a_result_carries_the_envelope_it_holds_for(ctx):
         assert c.cull(cams[0], envelope=env).envelope == env
         assert c.cull(cams[0], envelope=(0.5, 5.0)).envelope == Envelope(0.5, 5.0)
         assert c.cull(cams[0], lights=[]).envelope is None        # no lights, no envelope: a point pass
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 5])
+def test_the_cover_plan_leaves_the_extended_depth_as_every_window_makes_it(ctx, seed):
+    """extended_depth computes windows only where cover_plan says a pixel may be covered:
+    on random cities' envelope images (plans of nothing, a part, the whole image) it is
+    every window's image (_extended_depth), pixel for pixel."""
+    from core.envelope import _extended_depth, cover_plan, extended_depth
+    scene, cams, _ = scenes.random_city(seed, 250)
+    kinds, covered = set(), 0
+    with Culler(scene, resolution=(161, 91), ctx=ctx) as c:
+        for camera in cams[:4]:
+            for env, near_eff in ((Envelope(0.0, 0.0), 0.0), (Envelope(0.02, 2.0), 0.1), (Envelope(0.5, 5.0), 0.6),
+                                  (Envelope(2.0, 10.0), 2.2), (Envelope(0.3, 20.0, any_roll=False), 0.4)):
+                view = envelope_camera(camera, env, 91)
+                if view is None:
+                    continue
+                depth = c.renderer.read_texture_depth(c.renderer.envelope_depth(view.render, view.size))
+                plan = cover_plan(depth, view.render, env.distance, near_eff)
+                kinds.add("none" if plan is None else "whole" if plan[0] == (0, *depth.shape[:1], 0, depth.shape[1])
+                          else "part")
+                want = _extended_depth(depth, view.render, env, near_eff)
+                got = extended_depth(depth, view.render, env, near_eff)
+                assert np.array_equal(got, want), (seed, env)
+                if plan is None:
+                    assert np.isinf(want).all()
+                else:
+                    (y0, y1, x0, x1), last = plan
+                    outside = np.ones(depth.shape, dtype=bool)
+                    outside[y0:y1, x0:x1] = False
+                    assert np.isinf(want[outside]).all()
+                covered += int(np.isfinite(want).sum())
+    assert covered > 0 and {"part", "whole"} <= kinds, kinds
+
+
+@pytest.mark.parametrize("shape", [(3, 3), (5, 7), (64, 66), (130, 97)])
+def test_the_cover_plan_on_a_flat_wall_and_on_an_empty_image(shape):
+    """A wall square to the axis fills the image: pixels far enough from the border are
+    covered and the plan holds them; an empty image covers nothing.  Sides that are no
+    multiple of the plan's blocks, and images smaller than one block."""
+    from core.camera import perspective
+    from core.envelope import _extended_depth, cover_plan, extended_depth
+    rows, cols = shape
+    camera = Camera(np.eye(4), perspective(60.0, cols / rows, 0.1, 100.0))
+    near, far = 0.1, 100.0
+    z = 50.0
+    ndc = (far + near - 2.0 * near * far / z) / (far - near)
+    wall = np.full(shape, np.float32(0.5 * ndc + 0.5))
+    for env in (Envelope(0.05, 1.0), Envelope(0.0, 0.0)):
+        want = _extended_depth(wall, camera, env, 0.0)
+        assert np.array_equal(extended_depth(wall, camera, env, 0.0), want)
+        if min(shape) > 8:
+            assert np.isfinite(want).any()
+        empty = np.ones(shape, dtype=np.float32)
+        # a window of 3 x 3 holds no parallax (D > 0): only the blocks are read
+        assert cover_plan(empty, camera, env.distance) is None or env.distance == 0.0
+        assert np.isinf(extended_depth(empty, camera, env, 0.0)).all()

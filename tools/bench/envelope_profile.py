@@ -1,8 +1,10 @@
 """Where an envelope pass's time goes, stage by stage, on this machine's GL:
 
-    .venv/bin/python tools/bench/envelope_profile.py [SCENE] [--frames N] [--envelope D,A]
+    .venv/bin/python tools/bench/envelope_profile.py [SCENE] [--frames N] [--envelope D,A|rest]
+        [--resolution WxH]
 
-Culls SCENE's path (default ``city``, 640x360) with ``--envelope`` (default ``2,10``) the
+Culls SCENE's path (default ``city``, 640x360) with ``--envelope`` (default ``2,10``;
+``rest``: live mode's envelope at rest, :meth:`core.motion.LivePolicy.rest`) the
 way ``bench --envelope`` does (the first frame fresh, then the culler's memory of the
 occluders), and times the stages of ``core.envelope``'s pass by wrapping them: the depth
 image (the draw), the extended depth (GPU compute passes or numpy, with its read-back),
@@ -24,6 +26,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspa
 from core import Culler  # noqa: E402
 from core import envelope as E
 from core.lab.jobs import load_job  # noqa: E402
+from core.motion import LivePolicy  # noqa: E402
 
 STAGES = {  # label: (module object, attribute)
     "depth image (draw)": None,
@@ -68,11 +71,13 @@ def main(argv=None):
     ap.add_argument("scene", nargs="?", default="city")
     ap.add_argument("--frames", type=int, default=8)
     ap.add_argument("--envelope", default="2,10")
+    ap.add_argument("--resolution", default="640x360")
     args = ap.parse_args(argv)
     scene, cameras, _ = load_job(args.scene, None, args.frames)
-    env = E.Envelope.parse(args.envelope)
+    resolution = tuple(int(v) for v in args.resolution.lower().split("x"))
     rows = collections.defaultdict(list)
-    with Culler(scene, resolution=(640, 360)) as c:
+    with Culler(scene, resolution=resolution) as c:
+        env = LivePolicy().rest(c.scene_size) if args.envelope == "rest" else E.Envelope.parse(args.envelope)
         renderer = c.renderer
         device = renderer.device
         gpu = renderer.gpu_envelope()
@@ -105,7 +110,8 @@ def main(argv=None):
             for label in STAGES:
                 rows[label].append(1e3 * times[label])
             rows["whole pass"].append(1e3 * total)
-    print(f"{args.scene}, --envelope {args.envelope}, {len(cameras)} passes, 640x360, "
+    print(f"{args.scene}, --envelope {args.envelope} ({env.distance:.3g}, {env.angle_deg:g}), {len(cameras)} passes, "
+          f"{args.resolution}, "
           f"{device}; image work: {'GPU compute' if gpu is not None else 'numpy'}")
     print("| stage | median ms | max ms |")
     print("|---|---|---|")
