@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 from .bounds import MAX, MIN
 from .camera import Camera
 from .cull import DEFAULT_STRATEGY, REGISTRY, CullPass, CullResult, PassStats, Visibility, make_strategy
-from .envelope import Envelope, envelope_pass
+from .envelope import Envelope, ImageSchedule, envelope_pass
 from .errors import OccError
 from .hierarchy import build_hierarchy
 from .scene import Scene
@@ -130,6 +130,7 @@ class Culler:
         t = time.perf_counter()
         self.scene = scene
         self.envelope_occluders = None     # what the next envelope pass draws (None: every object)
+        self.envelope_image = ImageSchedule()   # whether it draws its image at all
         # each mesh's convex polygons (core.umbra), found by the envelope pass once per mesh of
         # this scene: keyed by mesh index, so never by identity (Python reuses a freed array's
         # id, and a memo that outlived its scene once lent an old mesh's faces to a new one)
@@ -234,6 +235,7 @@ class Culler:
         what it learnt that could cost accuracy (:meth:`core.cull.Strategy.forget`), or,
         with ``everything``, all of it (the next pass is a new engine's first)."""
         self.envelope_occluders = None
+        self.envelope_image.reset()
         if everything:
             self.strategy.reset()
         else:
@@ -300,6 +302,7 @@ class Culler:
         if envelope is not None or lights:
             if fresh:
                 self.envelope_occluders = None
+                self.envelope_image.reset()
             return self._envelope_cull(camera, (0.0, 0.0) if envelope is None else envelope, lights)
         if fresh:
             self.strategy.reset()
@@ -322,7 +325,11 @@ class Culler:
     def _envelope_cull(self, camera, envelope, lights=None):
         if not isinstance(envelope, Envelope):
             envelope = Envelope(*envelope)
-        state, stats = envelope_pass(self, camera, envelope, lights=lights, occluders=self.envelope_occluders)
+        image = self.envelope_image.draws()
+        state, stats = envelope_pass(self, camera, envelope, lights=lights, occluders=self.envelope_occluders,
+                                     image=image)
+        if stats.envelope_image_hidden is not None:
+            self.envelope_image.drew(stats.envelope_image_hidden)
         # the next envelope pass draws as occluders only what this one did not prove hidden
         self.envelope_occluders = state != Visibility.OCCLUDED
         self._count(state, stats)

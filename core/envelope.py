@@ -655,9 +655,10 @@ class _Tester:
     extended depth image and the big polygons (built once a pass, asked twice: the
     objects' units, then the shadows of those found hidden)."""
 
-    def __init__(self, culler, camera, envelope, height, stats, occluders=None):
+    def __init__(self, culler, camera, envelope, height, stats, occluders=None, image=True):
         self.culler, self.camera, self.envelope = culler, camera, envelope
         self.eye = camera.eye
+        self.stats = stats
         self.view = self.ext = self.levels = None
         self.polygons = self.units = None
         self.orthographic = camera.is_orthographic
@@ -679,6 +680,10 @@ class _Tester:
         # only what can show in the square view: the same picture, less to draw
         out_units, _ = classify(planes_from_matrix(self.view.render.relative_view_projection()), rel)
         self.units = (ub, rel, out_units)                  # the units' states reuse them
+        if not image:
+            stats.envelope_occluders = 0
+            return
+        stats.envelope_image_hidden = 0
         shown = np.zeros(len(scene), dtype=bool)
         shown[culler.units.object[~out_units]] = True
         if occluders is not None:
@@ -729,6 +734,8 @@ class _Tester:
             return zd * zd * (far - near) / (near * far * 2.0 ** tol.depth_bits)
 
         state = classify_boxes(rel, self.view, self.levels, step, outside=outside)
+        if self.levels is not None:
+            self.stats.envelope_image_hidden += int((state == Visibility.OCCLUDED).sum())
         if env.distance > 0.0:
             test = np.flatnonzero(state == Visibility.VISIBLE)
             if self.polygons is None:
@@ -745,7 +752,37 @@ class _Tester:
         return state
 
 
-def envelope_pass(culler, camera, envelope, display=None, lights=None, occluders=None):
+class ImageSchedule:
+    """Which envelope passes draw the image.  The image proves what the big polygons do
+    not (occluders fused from many objects, non-convex ones) where a surface is
+    continuous over a window wider than its parallax; in many views it covers no pixel
+    and its draw is most of the pass (the city at 4,30 on llvmpipe: 87 of 120 ms).  A
+    pass without it proves less, never more: it is sound.  After a pass whose image hid
+    nothing, the next ``wait`` passes go without (1, 2, 4 up to :data:`MAX_WAIT`); one
+    that hides something, a fresh pass or a new scene draws it again every pass."""
+
+    MAX_WAIT = 8
+
+    def __init__(self):
+        self.wait = self.left = 0
+
+    def draws(self):
+        """Whether the next pass draws the image (and counts it as asked)."""
+        if self.left > 0:
+            self.left -= 1
+            return False
+        return True
+
+    def drew(self, hidden):
+        """The image of the pass just made proved ``hidden`` units hidden."""
+        self.wait = 0 if hidden else min(max(1, 2 * self.wait), self.MAX_WAIT)
+        self.left = self.wait
+
+    def reset(self):
+        self.wait = self.left = 0
+
+
+def envelope_pass(culler, camera, envelope, display=None, lights=None, occluders=None, image=True):
     """States ``(n,) uint8`` and stats of the objects of ``culler``'s scene for every
     view of ``envelope`` around ``camera`` (see the module doc).  ``lights``
     (:class:`core.lights.Light`): an object stays VISIBLE while its shadow from one
@@ -758,13 +795,15 @@ def envelope_pass(culler, camera, envelope, display=None, lights=None, occluders
     surface is real; an object left out only lets what stands behind it show, so the
     pass hides less, never more.  An object proven hidden from every view of the last
     envelope adds no first-hit pixel from a view inside it, so leaving it out costs
-    nothing there and saves most of the draw (the city: 0.32 s of 1.1 s)."""
+    nothing there and saves most of the draw (the city: 0.32 s of 1.1 s).  ``image``:
+    False leaves the image out (the frustum and the polygons prove alone;
+    :class:`ImageSchedule`)."""
     t0 = time.perf_counter()
     scene = culler.scene
     n = len(scene)
     stats = PassStats()
     height = (display or culler.display or culler.resolution)[1]
-    tester = _Tester(culler, camera, envelope, height, stats, occluders)
+    tester = _Tester(culler, camera, envelope, height, stats, occluders, image)
     valid_units = ~scene.invalid[culler.units.object]
     unit_state = tester.unit_states()
     unit_state[~valid_units] = Visibility.VISIBLE
@@ -823,5 +862,5 @@ def _rotation(axis, angle):
     return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
 
 
-__all__ = ["Envelope", "EnvelopeView", "envelope_pass", "envelope_camera", "extended_depth", "sample_views",
+__all__ = ["Envelope", "EnvelopeView", "ImageSchedule", "envelope_pass", "envelope_camera", "extended_depth", "sample_views",
            "corner_half_angle"]

@@ -478,3 +478,40 @@ def test_the_cover_plan_on_a_flat_wall_and_on_an_empty_image(shape):
         # a window of 3 x 3 holds no parallax (D > 0): only the blocks are read
         assert cover_plan(empty, camera, env.distance) is None or env.distance == 0.0
         assert np.isinf(extended_depth(empty, camera, env, 0.0)).all()
+
+
+def test_the_image_schedule_waits_longer_after_each_useless_image():
+    from core.envelope import ImageSchedule
+    s = ImageSchedule()
+    drawn = []
+    for hidden in [0] * 6 + [3] + [0] * 3:
+        while not s.draws():
+            drawn.append(False)
+        drawn.append(True)
+        s.drew(hidden)
+    # six useless images: waits of 1, 2, 4, 8, 8, 8; one that hides: no wait; then 1, 2
+    runs = "".join("d" if d else "." for d in drawn)
+    assert runs == "d.d..d....d" + "........d" * 3 + "d.d..d", runs
+    s.reset()
+    assert s.draws()
+
+
+def test_passes_without_the_image_hide_nothing_any_view_sees_and_a_fresh_pass_draws_it(ctx):
+    """A random city's path with the 2,10 envelope: the passes that leave the image out
+    (after one whose image hid nothing) still hide nothing a view of the envelope sees;
+    a fresh pass draws the image again."""
+    scene, cams, _ = scenes.random_city(8, 300)
+    env = Envelope(2.0, 10.0)
+    rng = np.random.default_rng(8)
+    skipped = 0
+    with Culler(scene, resolution=(160, 90), ctx=ctx) as c:
+        for camera in cams:
+            r = c.cull(camera, envelope=env)
+            skipped += r.stats.envelope_image_hidden is None
+            assert not (_seen_from(c, sample_views(camera, env, 8, rng)) & ~r.visible).any()
+        c.envelope_image.wait = c.envelope_image.left = 4
+        assert c.cull(cams[0], envelope=env, fresh=True).stats.envelope_image_hidden is not None
+        c.envelope_image.left = 4
+        c.forget()
+        assert c.cull(cams[0], envelope=env).stats.envelope_image_hidden is not None
+    assert skipped > 0

@@ -128,7 +128,9 @@ def test_an_envelope_pass_draws_only_what_the_last_did_not_prove_hidden(ctx):
             for v in sample_views(camera, env, 8, rng):
                 seen |= c.truth(v)
             assert not (seen & ~r.visible).any()
+        c.envelope_image.reset()                                                 # this pass draws its image
         again = c.cull(cams[-1], envelope=env)
+        assert again.stats.envelope_image_hidden is not None
         assert again.stats.envelope_occluders < first.stats.envelope_occluders   # fewer drawn
         hidden = np.flatnonzero(~again.visible)
         assert len(hidden)

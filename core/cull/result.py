@@ -63,6 +63,7 @@ class PassStats:
     envelope_angle_deg: float | None = None
     envelope_any_roll: bool | None = None
     envelope_occluders: int | None = None     # objects drawn into the envelope's image
+    envelope_image_hidden: int | None = None  # boxes its image proved hidden (None: not drawn)
     # the answer
     objects: int = 0
     visible: int = 0
