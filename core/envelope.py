@@ -862,5 +862,5 @@ def _rotation(axis, angle):
     return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
 
 
-__all__ = ["Envelope", "EnvelopeView", "ImageSchedule", "envelope_pass", "envelope_camera", "extended_depth", "sample_views",
-           "corner_half_angle"]
+__all__ = ["Envelope", "EnvelopeView", "ImageSchedule", "envelope_pass", "envelope_camera", "extended_depth",
+           "sample_views", "corner_half_angle"]
