@@ -287,7 +287,7 @@ class Culler:
         return out
 
     def cull(self, camera: Camera, truth: NDArray[np.bool_] | None = None, fresh: bool = False,
-             envelope=None, lights=None) -> CullResult:
+             envelope=None, lights=None, probe: bool = True) -> CullResult:
         """One culling pass from ``camera``; ``truth`` is needed by the oracle only;
         ``fresh``: forget what earlier passes taught the strategy (its answer is
         then that of a new engine's first pass); ``envelope``: ``(D, A)`` or a
@@ -297,13 +297,15 @@ class Culler:
         The strategy does not change that answer, only the point pass's.
         ``lights``: :class:`core.lights.Light` of a lit view: an object also stays
         while its shadow may fall on something seen (an envelope pass, of ``(0, 0)``
-        when no envelope is given)."""
+        when no envelope is given).  ``probe``: an envelope pass may draw its image only
+        to learn whether it helps (:class:`core.envelope.ImageSchedule`; False during
+        motion)."""
         n = len(self.scene)
         if envelope is not None or lights:
             if fresh:
                 self.envelope_occluders = None
                 self.envelope_image.reset()
-            return self._envelope_cull(camera, (0.0, 0.0) if envelope is None else envelope, lights)
+            return self._envelope_cull(camera, (0.0, 0.0) if envelope is None else envelope, lights, probe)
         if fresh:
             self.strategy.reset()
         if self.hierarchy is None:
@@ -322,10 +324,10 @@ class Culler:
         assert len(state) == n
         return CullResult(state, stats, cp.om.grid.copy())
 
-    def _envelope_cull(self, camera, envelope, lights=None):
+    def _envelope_cull(self, camera, envelope, lights=None, probe=True):
         if not isinstance(envelope, Envelope):
             envelope = Envelope(*envelope)
-        image = self.envelope_image.draws()
+        image = self.envelope_image.draws(probe)
         state, stats = envelope_pass(self, camera, envelope, lights=lights, occluders=self.envelope_occluders,
                                      image=image)
         if stats.envelope_image_hidden is not None:

@@ -759,15 +759,19 @@ class ImageSchedule:
     and its draw is most of the pass (the city at 4,30 on llvmpipe: 87 of 120 ms).  A
     pass without it proves less, never more: it is sound.  After a pass whose image hid
     nothing, the next ``wait`` passes go without (1, 2, 4 up to :data:`MAX_WAIT`); one
-    that hides something, a fresh pass or a new scene draws it again every pass."""
+    that hides something, a fresh pass or a new scene draws it again every pass.  A pass
+    that may not probe (during motion, where a pass's time sizes the next envelopes)
+    draws it only while the last image hid something, and counts no wait down."""
 
     MAX_WAIT = 8
 
     def __init__(self):
         self.wait = self.left = 0
 
-    def draws(self):
+    def draws(self, probe=True):
         """Whether the next pass draws the image (and counts it as asked)."""
+        if not probe:
+            return self.wait == 0
         if self.left > 0:
             self.left -= 1
             return False

@@ -323,6 +323,9 @@ class Session:
         culler, objects = yield from self.engine_steps(context, res, strategy or context.scene.occ.strategy,
                                                        verify=fresh or restart, display=shown, reuse=reuse)
         culler.set_options(options)
+        # a pass during motion draws the envelope's image only while it helps: its time
+        # sizes the next passes' envelopes
+        probe = envelope is None or envelope is AT_REST
         if envelope is AT_REST:
             envelope = POLICY.rest(culler.scene_size)
         lights = lights or None
@@ -330,7 +333,7 @@ class Session:
             culler.forget(everything=True)
         elif fresh:
             culler.forget()
-        return self.worker.submit(culler.cull, camera, envelope=envelope, lights=lights), objects
+        return self.worker.submit(culler.cull, camera, envelope=envelope, lights=lights, probe=probe), objects
 
     def _meanwhile(self) -> None:
         """While the engine thread builds or culls (a pass that will enter the add-on's own

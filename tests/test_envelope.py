@@ -492,6 +492,12 @@ def test_the_image_schedule_waits_longer_after_each_useless_image():
     # six useless images: waits of 1, 2, 4, 8, 8, 8; one that hides: no wait; then 1, 2
     runs = "".join("d" if d else "." for d in drawn)
     assert runs == "d.d..d....d" + "........d" * 3 + "d.d..d", runs
+    # during motion: only while the last image hid something, and no wait counted down
+    assert not s.draws(probe=False) and s.left == 4
+    s.drew(2)
+    assert s.draws(probe=False) and s.draws(probe=False)
+    s.drew(0)
+    assert not s.draws(probe=False)
     s.reset()
     assert s.draws()
 

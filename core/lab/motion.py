@@ -105,9 +105,9 @@ def replay(culler, views, policy=None, latency_s=None):
     tris = np.asarray(culler.scene.triangle_counts, dtype=np.int64)
     nothing = np.zeros(len(bounds), dtype=bool)
 
-    def run(view, envelope):
+    def run(view, envelope, probe=False):
         t = time.perf_counter()
-        r = culler.cull(view, envelope=envelope)
+        r = culler.cull(view, envelope=envelope, probe=probe)
         ms = 1e3 * (time.perf_counter() - t)
         pass_ms.append(ms)
         return ~r.visible, (view, r.envelope), (latency_s if latency_s is not None else ms / 1e3)
@@ -115,7 +115,7 @@ def replay(culler, views, policy=None, latency_s=None):
     pass_ms, rows = [], []
     loop.look(views[0], 0.0)
     loop.start(views[0], 0.0, envelope=loop.policy.rest(culler.scene_size))
-    hidden, shown, took = run(views[0], loop.flight.envelope)       # the view at rest: hidden before it moves
+    hidden, shown, took = run(views[0], loop.flight.envelope, probe=True)   # at rest: hidden before it moves
     loop.land(shown, views[0], took)
     flight = None                        # (hidden, shown, when it lands) of the pass in flight
     for k, view in enumerate(views):
