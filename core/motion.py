@@ -50,7 +50,7 @@ class LivePolicy:
     # the envelope lasts this many pass times after the pass lands, at the measured speed
     # (the next pass starts once the displayed set would not outlast one: it lands in time)
     hold_passes: float = 1.0
-    hold_min_s: float = 0.1      # and at least this long
+    hold_min_s: float = 0.05     # and at least this long (a redraw and a half at 30 Hz)
     margin_steps: float = 2.0    # and this many steps of the last motion beyond that
     # the envelope at rest: the first step of a motion must stay inside it (the guard cannot
     # change the redraw it runs before).  0.6 % of the scene and 10 degrees hold an orbit at

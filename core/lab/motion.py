@@ -144,7 +144,12 @@ def replay(culler, views, policy=None, latency_s=None):
 
 
 def run_motion(culler, cameras, names=MOTIONS, latency_s=None, policy=None, progress=None):
-    """Every motion of :data:`MOTIONS` from ``cameras``: a report row each."""
+    """Every motion of :data:`MOTIONS` from ``cameras``: a report row each.  One pass
+    at rest before them, not counted, warms the engine (its first pass after a build
+    finds each mesh's polygons and compiles the GL's programs), as ``bench`` does: a
+    replay's own pass at rest is timed and sizes its first envelopes."""
+    rest = (policy or LiveLoop().policy).rest(culler.scene_size)
+    culler.cull(cameras[0], envelope=rest, fresh=True)
     report = {}
     for name in names:
         views = motions(cameras, culler.scene_size, name)
