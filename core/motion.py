@@ -146,6 +146,7 @@ class Flight:
     view: object
     envelope: object
     started: float
+    rest: bool = False          # made with a given envelope (at rest): its time sizes no motion's
 
 
 class LiveLoop:
@@ -162,8 +163,10 @@ class LiveLoop:
       turn until then leaves such a pass a chance to hold (:meth:`LivePolicy.reachable`);
       :meth:`start` sizes its envelope (the measured motion over the pass's time);
     - :meth:`land`: the pass in flight finished; its set is shown only if the view is
-      still inside its envelope (with room for the next step).  A pass's time (start to
-      landing, the slowest of the last few) sizes the next envelope.
+      still inside its envelope (with room for the next step).  A pass's time during
+      motion (start to landing, the slowest of the last few) sizes the next envelope; a
+      pass at rest is other work (a small envelope, the image probed: the city-xl's took
+      0.9 s on llvmpipe where its passes during motion took 35 ms) and sizes none.
     """
 
     LATENCIES = 3
@@ -196,15 +199,17 @@ class LiveLoop:
     def start(self, view, now, scene_size=None, envelope=None):
         """A pass starts from ``view``: its envelope, the measured motion's over the pass's
         time (``envelope`` given, e.g. :data:`AT_REST`: that one)."""
+        rest = envelope is not None
         if envelope is None:
             envelope = self.tracker.envelope(self.policy, self.latency(), scene_size)
-        self.flight = Flight(view, envelope, now)
+        self.flight = Flight(view, envelope, now, rest)
         return envelope
 
     def land(self, shown, view, now):
         """The pass in flight finished at ``now``; ``shown``: the camera and envelope its set
         holds for.  Whether its set may be shown for ``view``."""
-        self.latencies = (self.latencies + [max(now - self.flight.started, 0.0)])[-self.LATENCIES:]
+        if not self.flight.rest:
+            self.latencies = (self.latencies + [max(now - self.flight.started, 0.0)])[-self.LATENCIES:]
         self.flight = None
         return self.holds(shown, view)
 

@@ -92,3 +92,6 @@ def test_a_pass_lands_only_where_the_view_stayed_inside_its_envelope():
         loop.start(view, 3.0, scene_size=100.0)
         loop.land((view, env), view, 3.0 + t)
     assert np.isclose(loop.latency(), 0.1)                       # the slowest of the last three
+    loop.start(view, 4.0, envelope=LivePolicy().rest(100.0))
+    loop.land((view, env), view, 6.0)
+    assert np.isclose(loop.latency(), 0.1)                       # a pass at rest sizes no motion's
