@@ -205,22 +205,27 @@ def envelope_camera(camera, envelope, query_height):
 def _shift_max(a, h, axis, fill):
     """``max`` over a window of half-size ``h`` built from one of half-size ``(h - 1) / 2``:
     the array and its two copies shifted by ``(h + 1) / 2``, ``fill`` past the border."""
-    k = (h + 1) // 2
+    return _shift(a, (h + 1) // 2, axis, fill, np.maximum)
+
+
+def _shift(a, k, axis, fill, reduce):
+    """``reduce`` (``np.maximum`` or ``np.minimum``) of ``a`` and its two copies shifted by
+    ``k`` along ``axis``, ``fill`` past the border."""
     out = a.copy()
     n = a.shape[axis]
     if k >= n:
-        out[...] = np.maximum(out, fill)
+        out[...] = reduce(out, fill)
         return out
     lo = [slice(None)] * a.ndim
     hi = [slice(None)] * a.ndim
     lo[axis], hi[axis] = slice(k, None), slice(None, n - k)
-    np.maximum(out[tuple(lo)], a[tuple(hi)], out=out[tuple(lo)])
-    np.maximum(out[tuple(hi)], a[tuple(lo)], out=out[tuple(hi)])
+    reduce(out[tuple(lo)], a[tuple(hi)], out=out[tuple(lo)])
+    reduce(out[tuple(hi)], a[tuple(lo)], out=out[tuple(hi)])
     edge = [slice(None)] * a.ndim
     edge[axis] = slice(0, k)
-    np.maximum(out[tuple(edge)], fill, out=out[tuple(edge)])
+    reduce(out[tuple(edge)], fill, out=out[tuple(edge)])
     edge[axis] = slice(n - k, None)
-    np.maximum(out[tuple(edge)], fill, out=out[tuple(edge)])
+    reduce(out[tuple(edge)], fill, out=out[tuple(edge)])
     return out
 
 
@@ -319,9 +324,15 @@ def _need(nearest, t, h, distance, dt):
 
 def _blocks(a, reduce):
     """``reduce`` (``np.minimum`` or ``np.maximum``) over BLOCK x BLOCK blocks of ``a``,
-    whose sides are multiples of BLOCK."""
-    a = reduce(reduce(a[0::4], a[1::4]), reduce(a[2::4], a[3::4]))
-    return reduce(reduce(a[:, 0::4], a[:, 1::4]), reduce(a[:, 2::4], a[:, 3::4]))
+    whose sides are multiples of BLOCK: strided rows, then columns (a reduce over the
+    axes of a 4-d view is several times slower)."""
+    rows = a[0::BLOCK]
+    for i in range(1, BLOCK):
+        rows = reduce(rows, a[i::BLOCK])
+    out = rows[:, 0::BLOCK]
+    for i in range(1, BLOCK):
+        out = reduce(out, rows[:, i::BLOCK])
+    return out
 
 
 def cover_plan(depth, camera, distance, near_eff=0.0):
@@ -377,7 +388,7 @@ def cover_plan(depth, camera, distance, near_eff=0.0):
         reach = (h + 1) // BLOCK - 1                  # whole blocks every pixel's window holds
         while k < reach:                              # the nearest over 2k + 1 blocks, k <= reach
             step = min(k + 1, reach - k)
-            nearest = _shift_min(_shift_min(nearest, step, 0), step, 1)
+            nearest = _shift(_shift(nearest, step, 0, 0.0, np.minimum), step, 1, 0.0, np.minimum)
             k += step
         cells = np.flatnonzero(nearest.ravel() > distance * NEAREST_GUARD * (1.0 - PLAN_SLACK))
         if not len(cells):
@@ -391,27 +402,6 @@ def cover_plan(depth, camera, distance, near_eff=0.0):
     by, bx = np.flatnonzero(may.any(axis=1)), np.flatnonzero(may.any(axis=0))
     return (int(by[0]) * BLOCK, min(rows, (int(by[-1]) + 1) * BLOCK),
             int(bx[0]) * BLOCK, min(cols, (int(bx[-1]) + 1) * BLOCK)), last
-
-
-def _shift_min(a, k, axis):
-    """``min`` of ``a`` and its copies shifted by ``k`` either way along ``axis``, 0 past
-    the border."""
-    out = a.copy()
-    n = a.shape[axis]
-    if k >= n:
-        out[...] = 0.0
-        return out
-    lo = [slice(None)] * 2
-    hi = [slice(None)] * 2
-    lo[axis], hi[axis] = slice(k, None), slice(None, n - k)
-    np.minimum(out[tuple(lo)], a[tuple(hi)], out=out[tuple(lo)])
-    np.minimum(out[tuple(hi)], a[tuple(lo)], out=out[tuple(hi)])
-    edge = [slice(None)] * 2
-    edge[axis] = slice(0, k)
-    out[tuple(edge)] = 0.0
-    edge[axis] = slice(n - k, None)
-    out[tuple(edge)] = 0.0
-    return out
 
 
 def _extended_depth(depth, camera, envelope, near_eff, window=None, last=None):
