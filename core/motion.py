@@ -62,11 +62,28 @@ class LivePolicy:
     def envelope(self, speed, turn_deg_s, latency_s, step_move, step_turn_deg, scene_size):
         """The envelope of a pass that lands ``latency_s`` from now, the view moving at
         ``speed`` (scene units per second) and turning ``turn_deg_s``."""
-        horizon = latency_s + max(self.hold_passes * latency_s, self.hold_min_s)
+        horizon = latency_s + self.hold_s(latency_s)
         d = max(speed * horizon + self.margin_steps * step_move, self.rest_rel * scene_size)
         a = max(turn_deg_s * horizon + self.margin_steps * step_turn_deg, self.rest_deg)
         # the turn measured is the frame's (roll included): a narrower view than any roll
         return Envelope(d, min(a, MAX_ANGLE_DEG), any_roll=False)
+
+    def hold_s(self, latency_s):
+        """How long a set made during motion is shown before the next one replaces it (or
+        the view leaves it): the hold after landing that :meth:`envelope` sizes."""
+        return max(self.hold_passes * latency_s, self.hold_min_s)
+
+    def worth(self, hidden_share, latency_s, update_ms):
+        """Whether a set made during motion pays for Blender's update: while the user
+        navigates the view redraws back to back, so a set hiding ``hidden_share`` of the
+        triangles saves about that share of the redraw time it is shown for
+        (:meth:`hold_s`), and costs its own update (``update_ms``, the last measured; None:
+        none yet, it lands) plus the one that ends its hold (the next set, or showing all).
+        A set that saves less than that is not shown: the redraws meanwhile draw what they
+        drew, and Blender's main thread keeps the time."""
+        if update_ms is None:
+            return True
+        return 1e3 * self.hold_s(latency_s) * hidden_share >= 2.0 * update_ms
 
     def reachable(self, turn_deg_s, latency_s, step_turn_deg):
         """Whether a pass that lands ``latency_s`` from now can hold when it lands: the turn
@@ -163,7 +180,10 @@ class LiveLoop:
       turn until then leaves such a pass a chance to hold (:meth:`LivePolicy.reachable`);
       :meth:`start` sizes its envelope (the measured motion over the pass's time);
     - :meth:`land`: the pass in flight finished; its set is shown only if the view is
-      still inside its envelope (with room for the next step).  A pass's time during
+      still inside its envelope (with room for the next step) and, during motion, its
+      saving pays for Blender's update (:meth:`LivePolicy.worth`; the update measured
+      after each set that changed something, :meth:`updated`).  A set not worth it ends
+      the passes of this motion: the next starts at rest.  A pass's time during
       motion (start to landing, the slowest of the last few) sizes the next envelope; a
       pass at rest is other work (a small envelope, the image probed: the city-xl's took
       0.9 s on llvmpipe where its passes during motion took 35 ms) and sizes none.
@@ -176,6 +196,12 @@ class LiveLoop:
         self.tracker = MotionTracker()
         self.flight: Flight | None = None
         self.latencies: list[float] = []
+        self.update_ms: float | None = None      # Blender's update after the last set that changed something
+        self.paused = False                      # a set during this motion was not worth its update
+
+    def updated(self, blender_ms):
+        """A set was shown that changed what is hidden; Blender's update took ``blender_ms``."""
+        self.update_ms = float(blender_ms)
 
     def look(self, view, now):
         self.tracker.observe(view, now)
@@ -191,7 +217,7 @@ class LiveLoop:
 
     def due(self, shown, view):
         t = self.tracker
-        if self.flight is not None or not self.policy.reachable(max(t.turns), self.latency(), t.step[1]):
+        if self.flight is not None or self.paused or not self.policy.reachable(max(t.turns), self.latency(), t.step[1]):
             return False
         return shown is None or shown[0] is None or not t.lasts(self.policy, shown[0], shown[1], view,
                                                                   self.latency())
@@ -200,17 +226,25 @@ class LiveLoop:
         """A pass starts from ``view``: its envelope, the measured motion's over the pass's
         time (``envelope`` given, e.g. :data:`AT_REST`: that one)."""
         rest = envelope is not None
+        if rest:
+            self.paused = False
         if envelope is None:
             envelope = self.tracker.envelope(self.policy, self.latency(), scene_size)
         self.flight = Flight(view, envelope, now, rest)
         return envelope
 
-    def land(self, shown, view, now):
+    def land(self, shown, view, now, hidden_share=None):
         """The pass in flight finished at ``now``; ``shown``: the camera and envelope its set
-        holds for.  Whether its set may be shown for ``view``."""
-        if not self.flight.rest:
+        holds for; ``hidden_share``: of the scene's triangles, what it hides (None: not
+        known, no saving weighed).  Whether its set may be shown for ``view``."""
+        rest = self.flight.rest
+        if not rest:
             self.latencies = (self.latencies + [max(now - self.flight.started, 0.0)])[-self.LATENCIES:]
         self.flight = None
+        if not rest and hidden_share is not None and not self.policy.worth(hidden_share, self.latency(),
+                                                                             self.update_ms):
+            self.paused = True
+            return False
         return self.holds(shown, view)
 
     def drop(self):

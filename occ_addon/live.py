@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
-from ..core import OccError
+from ..core import OccError, Visibility
 from ..core.camera import camera_cut
 from ..core.motion import AT_REST, LiveLoop, MotionTracker
 from . import bus, overlay, visibility
@@ -92,6 +92,7 @@ WATCH = Watch()
 
 # what became of live's passes since the add-on loaded (read by tools/bench/gui_walk.py):
 # begun; landed; dropped_left: the view had left its envelope when it finished;
+# dropped_not_worth: a set during motion that would not pay for Blender's update;
 # dropped_WHAT: WHAT changed under it (:func:`_changed_under`)
 COUNTS = {"begun": 0, "landed": 0, "dropped_left": 0}
 
@@ -221,11 +222,11 @@ def _land(context, camera, display, now):
         failed = None
     why = _changed_under(context, display, flight, pending) if failed is None else "failed"
     shown = shown_by(result, pending.camera) if failed is None else None
-    lands = LOOP.land(shown, camera, now) and shown is not None
+    lands = LOOP.land(shown, camera, now, _hidden_share(result)) and shown is not None
     if failed is not None:
         SESSION.finish(context, pending)              # raises the engine's error (the tick reports it)
     if why is not None or not lands:
-        key = f"dropped_{why or 'left'}"
+        key = f"dropped_{why or ('not_worth' if LOOP.paused and not flight.rest else 'left')}"
         COUNTS[key] = COUNTS.get(key, 0) + 1
         SESSION.discard()
         if flight.rest and WATCH.changed_at is None and WATCH.dirty_at is None:
@@ -233,10 +234,23 @@ def _land(context, camera, display, now):
         return False
     SESSION.finish(context, pending)
     COUNTS["landed"] += 1
+    if SESSION.last is not None and SESSION.last.changed:
+        LOOP.updated(SESSION.last.blender_ms)         # what the next set during motion must pay for
     track(context)
     if flight.rest:
         WATCH.passed = (pending.camera, pending.display)
     return True
+
+
+def _hidden_share(result):
+    """Of the engine's triangles, the share ``result`` finds hidden (what its set may
+    save of a redraw, :meth:`..core.motion.LivePolicy.worth`); None: no answer."""
+    culler = SESSION.culler
+    if result is None or culler is None or len(result.state) != len(culler.scene):
+        return None
+    tri = culler.scene.triangle_counts
+    total = int(tri.sum())
+    return float(tri[result.state != Visibility.VISIBLE].sum()) / total if total else 0.0
 
 
 def _changed_under(context, display, flight, pending):

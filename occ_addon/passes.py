@@ -3,11 +3,13 @@ pass's latency estimate) and the view its hidden set holds for (live mode checks
 every redraw against it)."""
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import NamedTuple
 
 import numpy as np
 
 from ..core import Camera, CullResult, PassStats, Visibility
+from ..core.bounds import transform_boxes
 from ..core.envelope import Envelope
 
 
@@ -32,7 +34,9 @@ class LastPass:
     """The last applied pass over the engine's ``k`` objects.
 
     state: ``(k,) uint8`` :class:`..core.Visibility`; protected: ``(k,) bool`` never
-    hidden (:mod:`.policy`); bounds: ``(k, 2, 3)`` world boxes; occupancy: the
+    hidden (:mod:`.policy`); local_boxes: ``(k, 2, 3)`` the objects' boxes in their own
+    space and matrices: ``(k, 4, 4)`` their world matrices then (:attr:`bounds`, the world
+    boxes, are made from them when asked: the overlay, not every pass); occupancy: the
     occupancy map ``(rows, cols) bool`` or None; stats: the engine's figures
     (:attr:`..core.CullResult.stats`); ms: the whole pass, Blender's update included;
     blender_ms: of it, Blender's own updates (the edits pending before the pass, and
@@ -47,7 +51,8 @@ class LastPass:
 
     state: np.ndarray
     protected: np.ndarray
-    bounds: np.ndarray
+    local_boxes: np.ndarray
+    matrices: np.ndarray
     occupancy: np.ndarray | None
     stats: PassStats
     ms: float
@@ -55,6 +60,11 @@ class LastPass:
     changed: int = 0
     triangles_hidden: int = 0
     rule: str = ""
+
+    @cached_property
+    def bounds(self) -> np.ndarray:
+        """``(k, 2, 3)`` the objects' world boxes at the pass."""
+        return transform_boxes(self.local_boxes, self.matrices) if len(self.matrices) else np.zeros((0, 2, 3))
 
     @property
     def hidden(self) -> np.ndarray:

@@ -497,7 +497,9 @@ class Session:
             changed = visibility.COUNT["changed"] - before
             # the pass's time, from its first read until it landed (Blender's update included)
             hidden = culled & ~protected
-            self.last = LastPass(state, protected, self.culler.scene.bounds, result.occupancy, result.stats,
+            scene = self.culler.scene
+            self.last = LastPass(state, protected, scene.mesh_bounds[scene.mesh_of], scene.matrices.copy(),
+                                 result.occupancy, result.stats,
                                  1e3 * (time.perf_counter() - pending.started), 1e3 * blender_s, changed,
                                  int(self.culler.scene.triangle_counts[hidden].sum()), pending.rule.why)
             self.shown = shown_by(result, pending.camera)

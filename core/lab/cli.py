@@ -171,16 +171,22 @@ def cmd_motion(args):
     resolution = parse_resolution(args.resolution)
     if args.latency is not None and not (math.isfinite(args.latency) and 0.0 < args.latency <= 10.0):
         raise OccError(f"--latency must be between 0 and 10 seconds, got {args.latency}")
+    if args.update_ms is not None and not (math.isfinite(args.update_ms) and 0.0 <= args.update_ms <= 1e4):
+        raise OccError(f"--update-ms must be between 0 and 10000, got {args.update_ms}")
     scene, cameras, title = load_job(args.scene, args.camera, args.frames)
     with Culler(scene, resolution) as culler, \
             Progress(len(names), f"motion {title}", unit="motion", quiet=args.quiet) as progress:
         report = run_motion(culler, cameras, names, args.latency,
-                            progress=lambda n, r: progress.step(f"{n}: {r['false_negatives']} FN"))
+                            progress=lambda n, r: progress.step(f"{n}: {r['false_negatives']} FN"),
+                            update_ms=args.update_ms)
     if args.json:
-        _dump_json({"scene": title, "objects": len(scene), "latency_s": args.latency, "motions": report})
+        _dump_json({"scene": title, "objects": len(scene), "latency_s": args.latency,
+                    "update_ms": args.update_ms, "motions": report})
     else:
         landing = ("passes land when they finish (measured)" if args.latency is None
                    else f"FIXED LATENCY: every pass taken to last {1e3 * args.latency:.0f} ms, not measured")
+        if args.update_ms is not None:
+            landing += f"; Blender's update after a change taken as {args.update_ms:g} ms"
         print(format_motion(report, f"== {title}: {len(scene)} objects, a look every 1/30 s, {landing} =="))
 
 
@@ -377,6 +383,9 @@ def build_parser():
     m.add_argument("--latency", type=float, default=None,
                    help="take every pass to last this many seconds instead of its measured time (a fixed "
                         "latency: counts that do not depend on this machine's speed, but not what a user gets)")
+    m.add_argument("--update-ms", type=float, default=None,
+                   help="Blender's update after each change of the hidden set, in ms (live mode measures it; "
+                        "default: not modelled): a set during motion is shown only where it pays for it")
     m.add_argument("--json", action="store_true", help="the report as JSON on stdout")
     m.add_argument("--quiet", "-q", action="store_true", help=QUIET_HELP)
     m.set_defaults(func=cmd_motion)

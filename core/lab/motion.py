@@ -85,7 +85,7 @@ def frustum_mask(camera, bounds):
     return ~outside
 
 
-def replay(culler, views, policy=None, latency_s=None):
+def replay(culler, views, policy=None, latency_s=None, update_ms=None):
     """Replay ``views`` (a look every :data:`STEP_S` of wall time) as live mode runs them,
     through its own decisions (:class:`core.motion.LiveLoop`): a pass at rest hides before
     the motion; at every step a pass in flight that has finished lands (its set is shown
@@ -97,13 +97,18 @@ def replay(culler, views, policy=None, latency_s=None):
     a pass lands at the first step after its measured time (or ``latency_s`` when given:
     a fixed latency, so the counts do not depend on this machine's speed).  The time is
     the engine's pass only: the add-on's reads before it and Blender's update after a
-    hide hold Blender's main thread on top, in Blender.
+    hide hold Blender's main thread on top, in Blender.  ``update_ms``: Blender's update
+    after every set that changes what is hidden, as live mode measures it (None: not
+    modelled): a set during motion then lands only where it pays for it
+    (:meth:`core.motion.LivePolicy.worth`).
 
     Returns per drawn step rows and the pass times (ms)."""
     loop = LiveLoop(policy)
     bounds = culler.scene.bounds
     tris = np.asarray(culler.scene.triangle_counts, dtype=np.int64)
     nothing = np.zeros(len(bounds), dtype=bool)
+
+    total = max(int(tris.sum()), 1)
 
     def run(view, envelope, probe=False):
         t = time.perf_counter()
@@ -112,18 +117,30 @@ def replay(culler, views, policy=None, latency_s=None):
         pass_ms.append(ms)
         return ~r.visible, (view, r.envelope), (latency_s if latency_s is not None else ms / 1e3)
 
+    def share(h):
+        return float(tris[h].sum()) / total if update_ms is not None else None
+
+    def shows(h):
+        nonlocal hidden
+        if update_ms is not None and not np.array_equal(h, hidden):
+            loop.updated(update_ms)
+        hidden = h
+
     pass_ms, rows = [], []
     loop.look(views[0], 0.0)
     loop.start(views[0], 0.0, envelope=loop.policy.rest(culler.scene_size))
-    hidden, shown, took = run(views[0], loop.flight.envelope, probe=True)   # at rest: hidden before it moves
+    hidden = nothing
+    h, shown, took = run(views[0], loop.flight.envelope, probe=True)   # at rest: hidden before it moves
     loop.land(shown, views[0], took)
+    shows(h)
     flight = None                        # (hidden, shown, when it lands) of the pass in flight
     for k, view in enumerate(views):
         now = k * STEP_S
         loop.look(view, now)
         if flight is not None and now >= flight[2] - 1e-9:
-            if loop.land(flight[1], view, now):
-                hidden, shown = flight[0], flight[1]
+            if loop.land(flight[1], view, now, share(flight[0])):
+                shown = flight[1]
+                shows(flight[0])
             flight = None
         truth = culler.truth(view)
         drawn = frustum_mask(view, bounds)
@@ -143,7 +160,7 @@ def replay(culler, views, policy=None, latency_s=None):
     return rows, pass_ms
 
 
-def run_motion(culler, cameras, names=MOTIONS, latency_s=None, policy=None, progress=None):
+def run_motion(culler, cameras, names=MOTIONS, latency_s=None, policy=None, progress=None, update_ms=None):
     """Every motion of :data:`MOTIONS` from ``cameras``: a report row each.  One pass
     at rest before them, not counted, warms the engine (its first pass after a build
     finds each mesh's polygons and compiles the GL's programs), as ``bench`` does: a
@@ -153,7 +170,7 @@ def run_motion(culler, cameras, names=MOTIONS, latency_s=None, policy=None, prog
     report = {}
     for name in names:
         views = motions(cameras, culler.scene_size, name)
-        rows, pass_ms = replay(culler, views, policy, latency_s)
+        rows, pass_ms = replay(culler, views, policy, latency_s, update_ms)
 
         def total(key, rows=rows):
             return sum(r[key] for r in rows)

@@ -6,8 +6,10 @@ runs Blender in an Xvfb window with this checkout as a legacy add-on (as ``tests
 does), loads the sample scene, and walks the viewport along the scene's camera path at a
 constant pace of wall time (``--speed`` scene units a second; a timer sets the view at every event-loop turn), once with
 live mode off and once with it on.  Counts the frames Blender drew (a draw handler of the
-3D view), the objects drawn per frame and the live passes that landed, and prints one
-JSON object.  A pass that held Blender's main thread shows as fewer frames with live on.
+3D view), the time each draw of the 3D view took (from its PRE_VIEW to its POST_PIXEL
+handler), the objects drawn per frame, live mode's own time on the main thread (its
+timer's ticks) and the live passes that landed, and prints one JSON object.  A pass
+that held Blender's main thread shows as fewer frames with live on.
 
 Inside Blender (``--python tools/bench/gui_walk.py -- OUT_JSON SCENE SECONDS SPEED``) it is the walk itself.
 """
@@ -83,9 +85,32 @@ def inside(out_path, scene_name, seconds, speed):
         objs = bpy.data.objects
         drawn = []
 
+        draw_ms, began, drawn_tris = [], [], []
+        tris = dict(zip(scene.names, scene.triangle_counts.tolist(), strict=True))
+
+        def pre():
+            if bpy.context.region_data == rv3d:
+                began[:] = [time.perf_counter()]
+
         def count():
             if bpy.context.region_data == rv3d:
-                drawn.append(sum(1 for o in objs if o.visible_in_viewport_get(space)))
+                if began:
+                    draw_ms.append(1e3 * (time.perf_counter() - began[0]))
+                shown = [o.name for o in objs if o.visible_in_viewport_get(space)]
+                drawn.append(len(shown))
+                drawn_tris.append(sum(tris.get(n, 0) for n in shown))
+
+        # live mode's own time on the main thread: its timer's ticks (reads, landing, hiding)
+        ticks = []
+        plain_tick = live._tick
+
+        def timed_tick():
+            t = time.perf_counter()
+            try:
+                return plain_tick()
+            finally:
+                ticks.append(1e3 * (time.perf_counter() - t))
+        live._tick = timed_tick
 
         def view_at(u):
             """The path's view at ``u`` in [0, 1] (linear between its frames)."""
@@ -99,6 +124,7 @@ def inside(out_path, scene_name, seconds, speed):
 
         def walk(on):
             handle = bpy.types.SpaceView3D.draw_handler_add(count, (), "WINDOW", "POST_PIXEL")
+            handle_pre = bpy.types.SpaceView3D.draw_handler_add(pre, (), "WINDOW", "PRE_VIEW")
             drawn.clear()
             rv3d.view_matrix = mathutils.Matrix(view_at(0.0).tolist())
             before = sess.version
@@ -109,6 +135,9 @@ def inside(out_path, scene_name, seconds, speed):
                 while sess.version == before and time.perf_counter() - t < 300.0:   # the first pass, at rest
                     yield
             drawn.clear()
+            drawn_tris.clear()
+            draw_ms.clear()
+            ticks.clear()
             start = time.perf_counter()
             landed_at_start = sess.version
             counts_at_start = dict(live.COUNTS)
@@ -129,12 +158,19 @@ def inside(out_path, scene_name, seconds, speed):
                 yield
             took = time.perf_counter() - start
             bpy.types.SpaceView3D.draw_handler_remove(handle, "WINDOW")
+            bpy.types.SpaceView3D.draw_handler_remove(handle_pre, "WINDOW")
+            tick_ms = list(ticks)
             if on:
                 with bpy.context.temp_override(**ctx):
                     live.stop(bpy.context)
                     bpy.ops.occ.restore()
             return {"frames": len(drawn), "fps": len(drawn) / took,
                     "objects_drawn_mean": float(np.mean(drawn)) if drawn else None,
+                    "triangles_drawn_mean": float(np.mean(drawn_tris)) if drawn_tris else None,
+                    "draw_ms_median": float(np.median(draw_ms)) if draw_ms else None,
+                    "draw_s_total": float(np.sum(draw_ms)) / 1e3,
+                    "live_ticks": len(tick_ms), "live_tick_s_total": float(np.sum(tick_ms)) / 1e3,
+                    "live_tick_ms_max": float(np.max(tick_ms)) if tick_ms else 0.0,
                     "passes_landed_walking": sess.version - landed_at_start,
                     "passes_landed": sess.version - before,
                     "live_passes_walking": {k: v - counts_at_start.get(k, 0) for k, v in live.COUNTS.items()}}

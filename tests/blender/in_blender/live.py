@@ -188,6 +188,9 @@ def passes_land_only_unchanged():
     got = {}
     got["begun"] = begun()
     got["landed"] = (live.settle(), hidden_by_addon("target"))
+    # the set changed what is hidden: its update is the one the next set during motion must pay for
+    last = session.SESSION.last
+    got["update_measured"] = last.changed > 0 and live.LOOP.update_ms == last.blender_ms
     # a landed pass left nothing for Blender's next update to report (a figure written to
     # the scene would: a window evaluates it after the pass, and the bus would call it
     # the user's change, dropping the next pass in flight); nor does a Cull click
@@ -230,7 +233,7 @@ def passes_land_only_unchanged():
     got["undone_next"] = ("Error" not in err.getvalue(), hidden_but_seen())
     live.stop(bpy.context)
     bpy.ops.occ.restore()
-    want = {"begun": True, "landed": (True, True), "quiet": 0, "left_quiet": (0, [], None),
+    want = {"begun": True, "landed": (True, True), "update_measured": True, "quiet": 0, "left_quiet": (0, [], None),
             "moved_begun": True, "moved": (False, [], []),
             "moved_next": (True, []), "deleted_begun": True, "deleted": (False, []),
             "undone_begun": True, "undone": (False, True), "undone_next": (True, [])}
