@@ -77,13 +77,13 @@ class LivePolicy:
         """Whether a set made during motion pays for Blender's update: while the user
         navigates the view redraws back to back, so a set hiding ``hidden_share`` of the
         triangles saves about that share of the redraw time it is shown for
-        (:meth:`hold_s`), and costs its own update (``update_ms``, the last measured; None:
-        none yet, it lands) plus the one that ends its hold (the next set, or showing all).
-        A set that saves less than that is not shown: the redraws meanwhile draw what they
-        drew, and Blender's main thread keeps the time."""
+        (:meth:`hold_s`: during motion the next set lands about then), and costs its own
+        update (``update_ms``, the last measured; None: none yet, it lands), which holds
+        Blender's main thread.  A set that saves less than that is not shown: the redraws
+        meanwhile draw what they drew, and the main thread keeps the time."""
         if update_ms is None:
             return True
-        return 1e3 * self.hold_s(latency_s) * hidden_share >= 2.0 * update_ms
+        return 1e3 * self.hold_s(latency_s) * hidden_share >= update_ms
 
     def reachable(self, turn_deg_s, latency_s, step_turn_deg):
         """Whether a pass that lands ``latency_s`` from now can hold when it lands: the turn

@@ -184,3 +184,78 @@ def test_written_report_reads_back_and_an_edit_is_refused(tmp_path):
     (tmp_path / "r.json").write_text(json.dumps(edited))
     with pytest.raises(OccError, match="'objects' does not match its frames"):
         read_report(path)
+
+
+@pytest.fixture(scope="module")
+def baked(tmp_path_factory):
+    """``--bake`` reports of frames 0:6 of the small city: whole, and chunks 0:3 and 3:6."""
+    d = tmp_path_factory.mktemp("bake")
+    return {"dir": d, "whole": analyze(d / "whole", "--frames", "0:6", "--bake"),
+            "c1": analyze(d / "c1", "--frames", ":3", "--bake"), "c2": analyze(d / "c2", "--frames", "3:6", "--bake")}
+
+
+def test_baked_chunks_merge_to_the_whole_bake_and_never_to_a_point_report(baked, runs):
+    d = baked["dir"]
+    p = run("merge", str(baked["c1"]), str(baked["c2"]), "--out", str(d / "merged"))
+    assert p.returncode == 0, p.stderr
+    assert files(d / "merged") == files(baked["whole"])
+    report = json.loads((d / "merged" / "report.json").read_text())
+    assert report["source"]["settings"]["within_frame"] is True
+    p = run("merge", str(baked["c1"]), str(runs["c2"]), "--out", str(d / "mixed"))
+    assert p.returncode == 2 and "within_frame" in p.stderr and not (d / "mixed").exists()
+
+
+def test_a_baked_frame_keeps_everything_seen_on_the_way_to_the_next_frame(baked, runs):
+    """Every view between two path frames (the eye on the segment, the frame turned part of
+    the way) sees only what the baked frame keeps; a point pass of the frame's own view
+    keeps less (the check can fail)."""
+    import numpy as np
+
+    import sample_scenes
+    from core import Camera, Culler, load_scene
+    from core.camera import cameras_from_json
+    from core.lab.analyze import frame_envelope
+    scene = load_scene(str(sample_scenes.scene_path("city", small=True)))
+    cams = cameras_from_json(sample_scenes.default_camera_path("city", small=True))
+    frames = json.loads((baked["whole"] / "report.json").read_text())["frames"]
+    point = json.loads((runs["whole"] / "report.json").read_text())["frames"]
+    names = list(scene.names)
+    missed, point_missed = [], 0
+    with Culler(scene, (160, 90)) as culler:
+        for i in range(5):
+            a, b = cams[i], cams[i + 1]
+            env = frame_envelope(cams, i)
+            kept = set(frames[i]["visible"])
+            ra, rb = a.view[:3, :3].T, b.view[:3, :3].T    # camera-to-world axes
+            rel = rb @ ra.T                                 # the turn from one frame to the next
+            angle = np.arccos(np.clip((np.trace(rel) - 1.0) / 2.0, -1.0, 1.0))
+            axis = np.array([rel[2, 1] - rel[1, 2], rel[0, 2] - rel[2, 0], rel[1, 0] - rel[0, 1]])
+            axis = axis / max(np.linalg.norm(axis), 1e-300)
+            k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+            for t in np.linspace(0.0, 1.0, 6):
+                eye = (1.0 - t) * a.eye + t * b.eye
+                rot = (np.eye(3) + np.sin(t * angle) * k + (1.0 - np.cos(t * angle)) * (k @ k)) @ ra
+                view = np.eye(4)
+                view[:3, :3] = rot.T
+                view[:3, 3] = -rot.T @ eye
+                between = Camera.from_matrices(view, a.projection)
+                assert env is None or env.holds(a, between)
+                seen = {names[k] for k in np.flatnonzero(culler.truth(between))}
+                missed += sorted(seen - kept)
+                point_missed += len(seen - set(point[i]["visible"]))
+    assert missed == []
+    assert point_missed > 0
+
+
+def test_a_frame_envelope_holds_for_no_lens_change_and_no_wide_turn():
+    import numpy as np
+
+    from core import Camera
+    from core.lab.analyze import frame_envelope
+    a = Camera.look_at((0, 0, 0), (1, 0, 0), (0, 0, 1), 60.0)
+    assert frame_envelope([a], 0) is None                           # the last frame: its own view
+    assert frame_envelope([a, a], 0) is None                        # no motion: its own view
+    assert frame_envelope([a, Camera.look_at((0, 0, 0), (1, 0, 0), (0, 0, 1), 50.0)], 0) is False
+    assert frame_envelope([a, Camera.look_at((0, 0, 0), (-1, 0.1, 0), (0, 0, 1), 60.0)], 0) is False
+    env = frame_envelope([a, Camera.look_at((1, 0, 0), (2, 1, 0), (0, 0, 1), 60.0)], 0)
+    assert np.isclose(env.distance, 1.0) and np.isclose(env.angle_deg, 45.0) and not env.any_roll

@@ -73,19 +73,49 @@ class Plan:
     """An analysis checked and ready: the scene file, its title, the whole camera path,
     the frames ``[a, b)``, the engine's settings and the chunks of ``--jobs``."""
 
-    def __init__(self, scene_spec, camera, frames, resolution, display, strategy, jobs=1):
+    def __init__(self, scene_spec, camera, frames, resolution, display, strategy, jobs=1, bake=False):
         path, sample = resolve_scene(scene_spec)
         self.path = path
         self.title = scene_spec if sample else os.path.basename(path)
         self.cameras = resolve_cameras(camera, sample)
         self.a, self.b = parse_frames(frames, len(self.cameras))
         self.resolution, self.display, self.strategy = tuple(resolution), display, strategy
+        self.bake = bool(bake)
         pieces = np.array_split(np.arange(self.a, self.b), min(int(jobs), self.b - self.a))
         self.chunks = [(int(p[0]), int(p[-1]) + 1) for p in pieces]
 
     def settings(self) -> dict:
         return {"strategy": self.strategy, "resolution": list(self.resolution),
-                "display": list(self.display) if self.display else None, "rule": RULE, "frame_step": 1}
+                "display": list(self.display) if self.display else None, "rule": RULE, "frame_step": 1,
+                "within_frame": self.bake}
+
+
+# an envelope wider than this proves little and the envelope allows less than 90 degrees
+MAX_FRAME_TURN_DEG = 60.0
+
+
+def frame_envelope(cameras: list[Camera], i: int):
+    """The envelope a baked frame ``i`` of the path ``cameras`` holds for: every view the
+    camera passes through until the next frame, taken as moving straight from one eye to
+    the next and turning along the shortest rotation between the two frames (the
+    envelope around frame ``i``'s camera of that distance and turn, roll included).
+    None: the path's last frame (its own view only); ``False``: no envelope holds (the
+    lens changes, or the camera turns more than :data:`MAX_FRAME_TURN_DEG`): the frame
+    hides nothing."""
+    from ..camera import view_change
+    from ..envelope import Envelope
+    if i + 1 >= len(cameras):
+        return None
+    a, b = cameras[i], cameras[i + 1]
+    if not np.array_equal(a.projection, b.projection):
+        return False
+    move, turn = view_change(a, b)
+    if turn > MAX_FRAME_TURN_DEG:
+        return False
+    if move == 0.0 and turn == 0.0:
+        return None
+    # a hair beyond the end views: float rounding of the end frame itself stays inside
+    return Envelope(move * (1.0 + 1e-9) + 1e-12, min(turn * (1.0 + 1e-9) + 1e-9, 89.0), any_roll=False)
 
 
 def analyze_chunk(plan: Plan, a: int, b: int, progress=None) -> dict:
@@ -98,7 +128,11 @@ def analyze_chunk(plan: Plan, a: int, b: int, progress=None) -> dict:
     per_frame = []
     with Culler(scene, plan.resolution, strategy=plan.strategy, display=plan.display) as culler:
         for i in range(a, b):
-            state = culler.cull(plan.cameras[i], fresh=True).state
+            envelope = frame_envelope(plan.cameras, i) if plan.bake else None
+            if envelope is False:                 # no envelope holds: every object stays
+                state = np.full(len(names), Visibility.VISIBLE, dtype=np.uint8)
+            else:
+                state = culler.cull(plan.cameras[i], fresh=True, envelope=envelope).state
             visible = [names[k] for k in np.flatnonzero(state == Visibility.VISIBLE)]
             per_frame.append({"frame": i, "visible": visible})
             if progress is not None:

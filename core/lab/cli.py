@@ -112,7 +112,7 @@ def cmd_analyze(args):
     from .analyze import Plan, run_analyze
     resolution = parse_resolution(args.resolution)
     display = _display(args, resolution)
-    plan = Plan(args.scene, args.camera, args.frames, resolution, display, args.strategy, args.jobs)
+    plan = Plan(args.scene, args.camera, args.frames, resolution, display, args.strategy, args.jobs, args.bake)
     run_analyze(plan, args.out, quiet=args.quiet)
 
 
@@ -340,6 +340,10 @@ def build_parser():
     a.add_argument("--display", help="display resolution WxH: queries at --resolution, conservative at this one")
     a.add_argument("--out", metavar="DIR", help=f"write DIR/{ANALYSIS_REPORT} and DIR/report.csv "
                    "(default: the JSON on stdout)")
+    a.add_argument("--bake", action="store_true",
+                   help="each frame's set holds for the camera's whole motion until the next path frame "
+                        "(an envelope pass a frame; a lens change between two frames keeps every object): "
+                        "what a baked shot may hide per frame")
     a.add_argument("--jobs", type=positive_int, default=1,
                    help="split the frames into N contiguous chunks, one process each, merged at the end")
     a.add_argument("--quiet", "-q", action="store_true", help=QUIET_HELP)
