@@ -182,8 +182,8 @@ class LiveLoop:
     - :meth:`land`: the pass in flight finished; its set is shown only if the view is
       still inside its envelope (with room for the next step) and, during motion, its
       saving pays for Blender's update (:meth:`LivePolicy.worth`; the update measured
-      after each set that changed something, :meth:`updated`).  A set not worth it ends
-      the passes of this motion: the next starts at rest.  A pass's time during
+      after each set that changed something, :meth:`updated`).  Where no set could pay
+      (the update outlasts a hold), the passes of this motion end: the next starts at rest.  A pass's time during
       motion (start to landing, the slowest of the last few) sizes the next envelope; a
       pass at rest is other work (a small envelope, the image probed: the city-xl's took
       0.9 s on llvmpipe where its passes during motion took 35 ms) and sizes none.
@@ -197,7 +197,7 @@ class LiveLoop:
         self.flight: Flight | None = None
         self.latencies: list[float] = []
         self.update_ms: float | None = None      # Blender's update after the last set that changed something
-        self.paused = False                      # a set during this motion was not worth its update
+        self.paused = False                      # no set during this motion can pay for its update
 
     def updated(self, blender_ms):
         """A set was shown that changed what is hidden; Blender's update took ``blender_ms``."""
@@ -243,7 +243,9 @@ class LiveLoop:
         self.flight = None
         if not rest and hidden_share is not None and not self.policy.worth(hidden_share, self.latency(),
                                                                              self.update_ms):
-            self.paused = True
+            # where not even a set hiding everything would pay, passes during this motion only
+            # cost the main thread their reads: none until the next rest
+            self.paused = not self.policy.worth(1.0, self.latency(), self.update_ms)
             return False
         return self.holds(shown, view)
 

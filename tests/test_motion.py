@@ -108,9 +108,13 @@ def test_a_set_during_motion_lands_only_where_its_saving_pays_for_blenders_updat
     loop = LiveLoop(policy)
     view = moving(loop, speed=3.0)
     env = loop.start(view, 1.0, scene_size=100.0)
+    loop.updated(30.0)                                           # 3,000 objects: 30 ms an update
+    assert not loop.land((view, env), view, 1.2, hidden_share=0.1)   # 0.2 s x 10 % < 30 ms
+    assert not loop.paused and loop.due(None, view)             # another set may pay
+    env = loop.start(view, 1.3, scene_size=100.0)
     loop.updated(400.0)                                          # 50,000 objects: 0.4 s an update
-    assert not loop.land((view, env), view, 1.2, hidden_share=0.9)   # 0.2 s x 90 % < 0.4 s
-    assert loop.paused and not loop.due(None, view)             # no more passes during this motion
+    assert not loop.land((view, env), view, 1.5, hidden_share=0.9)   # 0.2 s x 90 % < 0.4 s
+    assert loop.paused and not loop.due(None, view)             # none can: no more passes this motion
     loop.start(view, 2.0, envelope=policy.rest(100.0))          # ... until one at rest
     assert not loop.paused
     assert loop.land((view, env), view, 3.0, hidden_share=0.0)   # at rest a set always lands
