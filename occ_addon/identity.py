@@ -39,22 +39,11 @@ def one_pass():
             _memo = None
 
 
-def _count(objs, memo) -> int:
-    """``len(objs)``: a walk of Blender's list (3 ms at 50,000 objects), once a pass within
-    :func:`one_pass` (``memo``: its record; nothing in a pass adds or removes an object)."""
-    if memo is None:
-        return len(objs)
-    n = memo.get("count")
-    if n is None:
-        n = memo["count"] = len(objs)
-    return n
-
-
 def flags(prop, collection=None):
     """``(n,) bool`` of a boolean property over ``collection`` (default ``bpy.data.objects``)."""
     objs = bpy.data.objects if collection is None else collection
     memo = _memo if collection is None and prop in RECORDS else None
-    n = _count(objs, _memo if collection is None else None)
+    n = len(objs)                                  # (a walk of Blender's list: once)
     if memo is not None:
         hit = memo.get(prop)
         if hit is not None and len(hit) == n:
@@ -110,7 +99,7 @@ def uids(collection=None):
     """``(n,) int64`` identities (:func:`ident`) over ``collection`` (default ``bpy.data.objects``)."""
     objs = bpy.data.objects if collection is None else collection
     memo = _memo if collection is None else None
-    n = _count(objs, memo)
+    n = len(objs)                                  # (a walk of Blender's list: once)
     if memo is not None:                           # within one pass (see one_pass): read once
         hit = memo.get("uids")
         if hit is not None and len(hit) == n:
