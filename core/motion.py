@@ -26,7 +26,19 @@ from enum import Enum
 import numpy as np
 
 from .camera import view_change
+from .cull import Visibility
 from .envelope import Envelope
+
+
+def occluded_share(state, triangles):
+    """Of the triangles Blender draws in the view (every object's but those outside it:
+    Blender culls those itself), the share of the objects a pass's ``state``
+    (:class:`core.Visibility` per object) finds occluded: what hiding them saves of a
+    redraw, where the redraw grows with the triangles drawn."""
+    state = np.asarray(state)
+    triangles = np.asarray(triangles, dtype=np.int64)
+    drawn = int(triangles[state != Visibility.VIEW_CULLED].sum())
+    return float(triangles[state == Visibility.OCCLUDED].sum()) / drawn if drawn else 0.0
 
 
 class AtRest(Enum):
@@ -76,7 +88,7 @@ class LivePolicy:
     def worth(self, hidden_share, latency_s, update_ms):
         """Whether a set made during motion pays for Blender's update: while the user
         navigates the view redraws back to back, so a set hiding ``hidden_share`` of the
-        triangles saves about that share of the redraw time it is shown for
+        triangles in the view saves about that share of the redraw time it is shown for
         (:meth:`hold_s`: during motion the next set lands about then), and costs its own
         update (``update_ms``, the last measured; None: none yet, it lands), which holds
         Blender's main thread.  A set that saves less than that is not shown: the redraws
@@ -183,8 +195,8 @@ class LiveLoop:
       still inside its envelope (with room for the next step) and, during motion, its
       saving pays for Blender's update (:meth:`LivePolicy.worth`; the update measured
       after each set that changed something, :meth:`updated`).  Where no set could pay
-      (the update outlasts a hold), the passes of this motion end: the next starts at rest.  A pass's time during
-      motion (start to landing, the slowest of the last few) sizes the next envelope; a
+      (the update outlasts a hold), the passes of this motion end: the next starts at
+      rest.  A pass's time during motion (start to landing, the slowest of the last few) sizes the next envelope; a
       pass at rest is other work (a small envelope, the image probed: the city-xl's took
       0.9 s on llvmpipe where its passes during motion took 35 ms) and sizes none.
     """
@@ -198,6 +210,7 @@ class LiveLoop:
         self.latencies: list[float] = []
         self.update_ms: float | None = None      # Blender's update after the last set that changed something
         self.paused = False                      # no set during this motion can pay for its update
+        self.unworthy = False                    # the last set to land during motion did not pay for it
 
     def updated(self, blender_ms):
         """A set was shown that changed what is hidden; Blender's update took ``blender_ms``."""
@@ -235,14 +248,16 @@ class LiveLoop:
 
     def land(self, shown, view, now, hidden_share=None):
         """The pass in flight finished at ``now``; ``shown``: the camera and envelope its set
-        holds for; ``hidden_share``: of the scene's triangles, what it hides (None: not
-        known, no saving weighed).  Whether its set may be shown for ``view``."""
+        holds for; ``hidden_share``: of the triangles in the view (what Blender draws), the
+        share its set hides (None: not known, no saving weighed).  Whether its set may be
+        shown for ``view``."""
         rest = self.flight.rest
         if not rest:
             self.latencies = (self.latencies + [max(now - self.flight.started, 0.0)])[-self.LATENCIES:]
         self.flight = None
-        if not rest and hidden_share is not None and not self.policy.worth(hidden_share, self.latency(),
-                                                                             self.update_ms):
+        self.unworthy = (not rest and hidden_share is not None
+                         and not self.policy.worth(hidden_share, self.latency(), self.update_ms))
+        if self.unworthy:
             # where not even a set hiding everything would pay, passes during this motion only
             # cost the main thread their reads: none until the next rest
             self.paused = not self.policy.worth(1.0, self.latency(), self.update_ms)

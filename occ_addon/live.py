@@ -35,9 +35,9 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
-from ..core import OccError, Visibility
+from ..core import OccError
 from ..core.camera import camera_cut
-from ..core.motion import AT_REST, LiveLoop, MotionTracker
+from ..core.motion import AT_REST, LiveLoop, MotionTracker, occluded_share
 from . import bus, overlay, visibility
 from .cameras import camera_for, find_viewport, region_camera, scene_camera, view_state
 from .passes import shown_by
@@ -226,7 +226,7 @@ def _land(context, camera, display, now):
     if failed is not None:
         SESSION.finish(context, pending)              # raises the engine's error (the tick reports it)
     if why is not None or not lands:
-        key = f"dropped_{why or ('not_worth' if LOOP.paused and not flight.rest else 'left')}"
+        key = f"dropped_{why or ('not_worth' if LOOP.unworthy else 'left')}"
         COUNTS[key] = COUNTS.get(key, 0) + 1
         SESSION.discard()
         if flight.rest and WATCH.changed_at is None and WATCH.dirty_at is None:
@@ -243,14 +243,12 @@ def _land(context, camera, display, now):
 
 
 def _hidden_share(result):
-    """Of the engine's triangles, the share ``result`` finds hidden (what its set may
-    save of a redraw, :meth:`..core.motion.LivePolicy.worth`); None: no answer."""
+    """What ``result``'s set may save of a redraw (:meth:`..core.motion.LivePolicy.worth`);
+    None: no answer."""
     culler = SESSION.culler
     if result is None or culler is None or len(result.state) != len(culler.scene):
         return None
-    tri = culler.scene.triangle_counts
-    total = int(tri.sum())
-    return float(tri[result.state != Visibility.VISIBLE].sum()) / total if total else 0.0
+    return occluded_share(result.state, culler.scene.triangle_counts)
 
 
 def _changed_under(context, display, flight, pending):

@@ -5,7 +5,7 @@ import numpy as np
 
 from core.camera import Camera
 from core.envelope import Envelope
-from core.motion import FIRST_LATENCY_S, MAX_ANGLE_DEG, LiveLoop, LivePolicy
+from core.motion import FIRST_LATENCY_S, MAX_ANGLE_DEG, LiveLoop, LivePolicy, occluded_share
 
 
 def walk(x, yaw_deg=0.0, fov=60.0):
@@ -110,7 +110,7 @@ def test_a_set_during_motion_lands_only_where_its_saving_pays_for_blenders_updat
     env = loop.start(view, 1.0, scene_size=100.0)
     loop.updated(30.0)                                           # 3,000 objects: 30 ms an update
     assert not loop.land((view, env), view, 1.2, hidden_share=0.1)   # 0.2 s x 10 % < 30 ms
-    assert not loop.paused and loop.due(None, view)             # another set may pay
+    assert loop.unworthy and not loop.paused and loop.due(None, view)   # another set may pay
     env = loop.start(view, 1.3, scene_size=100.0)
     loop.updated(400.0)                                          # 50,000 objects: 0.4 s an update
     assert not loop.land((view, env), view, 1.5, hidden_share=0.9)   # 0.2 s x 90 % < 0.4 s
@@ -121,6 +121,15 @@ def test_a_set_during_motion_lands_only_where_its_saving_pays_for_blenders_updat
     env = loop.start(view, 4.0, scene_size=100.0)
     loop.updated(30.0)                                           # 3,000 objects: 30 ms
     assert loop.land((view, env), view, 4.2, hidden_share=0.9)   # 0.2 s x 90 % = 180 ms >= 30 ms
+    assert not loop.unworthy
     assert not loop.paused
     env = loop.start(view, 5.0, scene_size=100.0)
     assert loop.land((view, env), view, 5.2)                     # no share given: nothing weighed
+
+
+def test_a_sets_saving_counts_the_triangles_blender_would_draw():
+    from core import Visibility
+    state = np.array([Visibility.OCCLUDED, Visibility.VISIBLE, Visibility.VIEW_CULLED, Visibility.OCCLUDED])
+    tris = np.array([10, 30, 1000, 60])
+    assert np.isclose(occluded_share(state, tris), 70 / 100)    # outside the view Blender draws nothing anyway
+    assert occluded_share(np.full(2, Visibility.VIEW_CULLED), np.array([5, 5])) == 0.0

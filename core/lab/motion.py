@@ -14,7 +14,7 @@ import numpy as np
 
 from ..camera import Camera, look_at
 from ..frustum import classify, planes_from_matrix
-from ..motion import LiveLoop
+from ..motion import LiveLoop, occluded_share
 
 STEP_S = 1.0 / 30.0          # a redraw at 30 Hz
 STEPS_PER_FRAME = 4          # a sample path replayed as a drag: this many steps between its frames
@@ -108,17 +108,13 @@ def replay(culler, views, policy=None, latency_s=None, update_ms=None):
     tris = np.asarray(culler.scene.triangle_counts, dtype=np.int64)
     nothing = np.zeros(len(bounds), dtype=bool)
 
-    total = max(int(tris.sum()), 1)
-
     def run(view, envelope, probe=False):
         t = time.perf_counter()
         r = culler.cull(view, envelope=envelope, probe=probe)
         ms = 1e3 * (time.perf_counter() - t)
         pass_ms.append(ms)
-        return ~r.visible, (view, r.envelope), (latency_s if latency_s is not None else ms / 1e3)
-
-    def share(h):
-        return float(tris[h].sum()) / total if update_ms is not None else None
+        share = occluded_share(r.state, tris) if update_ms is not None else None
+        return ~r.visible, (view, r.envelope), (latency_s if latency_s is not None else ms / 1e3), share
 
     def shows(h):
         nonlocal hidden
@@ -130,15 +126,15 @@ def replay(culler, views, policy=None, latency_s=None, update_ms=None):
     loop.look(views[0], 0.0)
     loop.start(views[0], 0.0, envelope=loop.policy.rest(culler.scene_size))
     hidden = nothing
-    h, shown, took = run(views[0], loop.flight.envelope, probe=True)   # at rest: hidden before it moves
+    h, shown, took, _ = run(views[0], loop.flight.envelope, probe=True)   # at rest: hidden before it moves
     loop.land(shown, views[0], took)
     shows(h)
-    flight = None                        # (hidden, shown, when it lands) of the pass in flight
+    flight = None                        # (hidden, shown, when it lands, its share) of the pass in flight
     for k, view in enumerate(views):
         now = k * STEP_S
         loop.look(view, now)
         if flight is not None and now >= flight[2] - 1e-9:
-            if loop.land(flight[1], view, now, share(flight[0])):
+            if loop.land(flight[1], view, now, flight[3]):
                 shown = flight[1]
                 shows(flight[0])
             flight = None
@@ -155,8 +151,8 @@ def replay(culler, views, policy=None, latency_s=None, update_ms=None):
         if not loop.holds(shown, view):                     # the next step leaves it: show all first
             hidden, shown = nothing, None
         if loop.due(shown, view):
-            h, s, took = run(view, loop.start(view, now, culler.scene_size))
-            flight = (h, s, now + max(took, STEP_S))
+            h, s, took, share = run(view, loop.start(view, now, culler.scene_size))
+            flight = (h, s, now + max(took, STEP_S), share)
     return rows, pass_ms
 
 
