@@ -191,7 +191,8 @@ def baked(tmp_path_factory):
     """``--bake`` reports of frames 0:6 of the small city: whole, and chunks 0:3 and 3:6."""
     d = tmp_path_factory.mktemp("bake")
     return {"dir": d, "whole": analyze(d / "whole", "--frames", "0:6", "--bake"),
-            "c1": analyze(d / "c1", "--frames", ":3", "--bake"), "c2": analyze(d / "c2", "--frames", "3:6", "--bake")}
+            "c1": analyze(d / "c1", "--frames", ":3", "--bake"), "c2": analyze(d / "c2", "--frames", "3:6", "--bake"),
+            "display": analyze(d / "display", "--frames", "0:6", "--bake", "--display", "640x360")}
 
 
 def test_baked_chunks_merge_to_the_whole_bake_and_never_to_a_point_report(baked, runs):
@@ -205,10 +206,12 @@ def test_baked_chunks_merge_to_the_whole_bake_and_never_to_a_point_report(baked,
     assert p.returncode == 2 and "within_frame" in p.stderr and not (d / "mixed").exists()
 
 
-def test_a_baked_frame_keeps_everything_seen_on_the_way_to_the_next_frame(baked, runs):
+@pytest.mark.parametrize("report,truth", [("whole", (160, 90)), ("display", (640, 360))])
+def test_a_baked_frame_keeps_everything_seen_on_the_way_to_the_next_frame(baked, runs, report, truth):
     """Every view between two path frames (the eye on the segment, the frame turned part of
-    the way) sees only what the baked frame keeps; a point pass of the frame's own view
-    keeps less (the check can fail)."""
+    the way) sees only what the baked frame keeps, at the query's resolution and, baked
+    with ``--display``, at the display's; a point pass of the frame's own view keeps less
+    (the check can fail)."""
     import numpy as np
 
     import sample_scenes
@@ -217,11 +220,11 @@ def test_a_baked_frame_keeps_everything_seen_on_the_way_to_the_next_frame(baked,
     from core.lab.analyze import frame_envelope
     scene = load_scene(str(sample_scenes.scene_path("city", small=True)))
     cams = cameras_from_json(sample_scenes.default_camera_path("city", small=True))
-    frames = json.loads((baked["whole"] / "report.json").read_text())["frames"]
+    frames = json.loads((baked[report] / "report.json").read_text())["frames"]
     point = json.loads((runs["whole"] / "report.json").read_text())["frames"]
     names = list(scene.names)
     missed, point_missed = [], 0
-    with Culler(scene, (160, 90)) as culler:
+    with Culler(scene, truth) as culler:
         for i in range(5):
             a, b = cams[i], cams[i + 1]
             env = frame_envelope(cams, i)
