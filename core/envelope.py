@@ -109,6 +109,32 @@ class Envelope:
         return move <= self.distance and turn <= self.angle_deg
 
 
+# an envelope wider than this proves little, and the envelope allows less than 90 degrees
+MAX_COVER_TURN_DEG = 60.0
+
+
+def covering(camera, views, widen: float = 0.0):
+    """The envelope around ``camera`` that holds every view of ``views`` (Cameras): the
+    largest eye distance and whole-frame turn (roll included) from ``camera`` to any of
+    them, each grown by ``widen`` times itself (the slack for a path sampled between
+    the views) and a hair for float rounding.  None: every view is ``camera``'s own
+    (nothing moves); ``False``: no envelope holds (a view has another lens, or turns
+    more than :data:`MAX_COVER_TURN_DEG`): nothing may be hidden for them."""
+    move = turn = 0.0
+    for v in views:
+        if not np.array_equal(v.projection, camera.projection):
+            return False
+        m, t = view_change(camera, v)
+        move, turn = max(move, m), max(turn, t)
+    turn *= 1.0 + widen
+    if turn > MAX_COVER_TURN_DEG:
+        return False
+    if move == 0.0 and turn == 0.0:
+        return None
+    return Envelope(move * (1.0 + widen) * (1.0 + 1e-9) + 1e-12, min(turn * (1.0 + 1e-9) + 1e-9, 89.0),
+                    any_roll=False)
+
+
 def corner_half_angle(camera):
     """Largest angle between the view direction and a ray through a corner of the
     image, radians (lens shift included)."""

@@ -7,7 +7,7 @@ with: :mod:`.kinds` (what an object is), :mod:`.drawn` (what a view draws),
 :mod:`.meshes`, :mod:`.instances` (geometry in bulk), :mod:`.fingerprints` (what a hidden
 object's geometry was read from); :mod:`.policy` (what is never hidden),
 :mod:`.visibility` (the hide record), :mod:`.passes` (what a pass leaves behind),
-:mod:`.analysis`, :mod:`.live`, :mod:`.handlers` (Blender's handlers), :mod:`.bus`
+:mod:`.analysis`, :mod:`.bake` (baked shots), :mod:`.live`, :mod:`.handlers` (Blender's handlers), :mod:`.bus`
 (the change bus), and the faces: :mod:`.operators`, :mod:`.panel`, :mod:`.overlay`, :mod:`.props`.
 """
 
@@ -15,7 +15,7 @@ import sys
 
 import bpy
 
-from . import handlers, live, localview, operators, panel, props, visibility, worker
+from . import bake, handlers, live, localview, operators, panel, props, visibility, worker
 from .session import SESSION
 
 CLASSES = operators.CLASSES + panel.CLASSES
@@ -29,6 +29,7 @@ def register():
     operators.register_keys()
     localview.subscribe()
     handlers.register()
+    bake.register()                                  # after the add-on's own frame handler
     live.register()                                  # live mode listens on the change bus
     if isinstance(bpy.data, bpy.types.BlendData):    # enabled on an open file: show what a record hides
         visibility.restore()
@@ -42,6 +43,7 @@ def unregister():
         visibility.restore()
     SESSION.shutdown()
     live.unregister()
+    bake.unregister()
     handlers.unregister()
     localview.unsubscribe()
     operators.unregister_keys()

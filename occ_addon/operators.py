@@ -8,7 +8,7 @@ from bpy.props import BoolProperty, EnumProperty, IntProperty, StringProperty
 
 from ..core import OccError
 from ..core.motion import AT_REST
-from . import live, localview, visibility
+from . import bake, live, localview, visibility
 from .analysis import analysis_steps, link_collection, push_undo, report_path, write_report
 from .cameras import camera_for
 from .session import SESSION
@@ -297,6 +297,99 @@ class OCC_OT_analyze(Stepped, bpy.types.Operator):
         return {"FINISHED"}
 
 
+class OCC_OT_bake_shot(Stepped, bpy.types.Operator):
+    """Cull every frame of the range from the scene camera, within the frame's motion, and store
+    each frame's hidden set in the file (Use Baked Shot applies it as the frame changes)"""
+
+    bl_idname = "occ.bake_shot"
+    bl_label = "Bake Shot"
+
+    frame_start: IntProperty(name="Start", default=-1, description="-1: the scene's start")
+    frame_end: IntProperty(name="End", default=-1, description="-1: the scene's end")
+
+    def _range(self, context):
+        scene = context.scene
+        start = scene.frame_start if self.frame_start < 0 else self.frame_start
+        end = scene.frame_end if self.frame_end < 0 else self.frame_end
+        if end < start:
+            raise OccError(f"empty frame range {start}..{end}")
+        if scene.camera is None:
+            raise OccError("the scene has no camera: a shot is baked for the scene camera")
+        return start, end
+
+    def invoke(self, context, event):
+        if not self.windowed(context):
+            return self.execute(context)
+        try:
+            start, end = self._range(context)
+        except Exception as e:  # every failure is a report, never a traceback
+            return failed(self, e)
+        return self.start_steps(context, bake.bake_steps(context, start, end), "bake")
+
+    def execute(self, context):
+        try:
+            start, end = self._range(context)
+            value = self.run_steps(bake.bake_steps(context, start, end), "bake")
+        except Exception as e:  # every failure is a report, never a traceback
+            return failed(self, e)
+        return self.finish(context, value)
+
+    def finish(self, context, result):
+        push_undo("Bake Shot")
+        if context.scene.occ_bake.use:
+            bake.apply_frame(context)
+        warn(self)
+        self.report({"INFO"}, f"baked {len(result.frames)} frames: {result.hidden_mean:,.0f} of "
+                              f"{result.objects:,} objects hidden a frame (mean)")
+        return {"FINISHED"}
+
+
+class OCC_OT_bake_use(bpy.types.Operator):
+    """Apply the baked shot's hiding as the frame changes, in the view through the scene camera (toggle)"""
+
+    bl_idname = "occ.bake_use"
+    bl_label = "Use Baked Shot"
+
+    def execute(self, context):
+        scene = context.scene
+        b = scene.occ_bake
+        if not b.use and bake.stored(scene) is None:
+            self.report({"ERROR"}, "no baked shot in this scene: bake one first (Bake Shot)")
+            return {"CANCELLED"}
+        b.use = not b.use
+        if b.use:
+            if scene.occ.live:                       # one owner of the hiding at a time
+                live.stop(context)
+                visibility.restore()
+                SESSION.shown = None
+            try:
+                hidden = bake.apply_frame(context)
+            except Exception as e:  # every failure is a report, never a traceback
+                bake.release()
+                return failed(self, e)
+            why = bake.STATE.stale
+            if why:
+                self.report({"WARNING"}, f"the baked shot is stale ({why}): it hides nothing; bake again")
+            elif not hidden and bake.camera_area(context) is None and not bpy.app.background:
+                self.report({"INFO"}, "the baked shot hides in a 3D view that looks through the scene camera "
+                                      "(Numpad 0)")
+        else:
+            bake.release()
+        return {"FINISHED"}
+
+
+class OCC_OT_bake_clear(bpy.types.Operator):
+    """Delete the baked shot from the scene (what it hides is shown)"""
+
+    bl_idname = "occ.bake_clear"
+    bl_label = "Clear Bake"
+
+    def execute(self, context):
+        bake.clear(context.scene)
+        push_undo("Clear Baked Shot")
+        return {"FINISHED"}
+
+
 def warn(op):
     """Name the objects the last pass left out (kept visible, not occluders)."""
     bad = SESSION.warnings
@@ -326,7 +419,8 @@ def failed(op, error):
     return {"CANCELLED"}
 
 
-CLASSES = (OCC_OT_cull, OCC_OT_restore, OCC_OT_local_view, OCC_OT_live, OCC_OT_analyze)
+CLASSES = (OCC_OT_cull, OCC_OT_restore, OCC_OT_local_view, OCC_OT_live, OCC_OT_analyze, OCC_OT_bake_shot,
+           OCC_OT_bake_use, OCC_OT_bake_clear)
 
 _keymaps = []
 

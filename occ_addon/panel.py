@@ -2,6 +2,7 @@
 
 import bpy
 
+from . import bake
 from .session import SESSION
 
 
@@ -31,6 +32,7 @@ class OCC_PT_panel(bpy.types.Panel):
         layout.prop(s, "cull_raytraced")
         layout.prop(s, "show_overlay")
         layout.operator("occ.analyze", icon="RENDER_ANIMATION")
+        _baked_shot(layout, context)
         res = layout.box()
         res.label(text="Last pass")
         last = SESSION.last          # the session's, not the scene's: a pass writes no figures there
@@ -46,6 +48,21 @@ class OCC_PT_panel(bpy.types.Panel):
             split = res.split(factor=0.55)
             split.label(text=label)
             split.label(text=value)
+
+
+def _baked_shot(layout, context):
+    """Bake Shot, Use Baked Shot and what the bake holds (or why it no longer does)."""
+    b = context.scene.occ_bake
+    box = layout.box()
+    row = box.row(align=True)
+    row.operator("occ.bake_shot", icon="REC")
+    if b.hidden:
+        row.operator("occ.bake_clear", text="", icon="TRASH")
+        box.operator("occ.bake_use", text="Use Baked Shot", icon="PLAY", depress=b.use)
+        box.label(text=b.summary)
+        why = bake.STATE.stale if bake.STATE.known else None
+        if why:
+            box.label(text=f"Stale: {why}; bake again", icon="ERROR")
 
 
 def _labelled(layout, data, prop, label):

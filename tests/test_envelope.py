@@ -521,3 +521,25 @@ def test_passes_without_the_image_hide_nothing_any_view_sees_and_a_fresh_pass_dr
         c.forget()
         assert c.cull(cams[0], envelope=env).stats.envelope_image_hidden is not None
     assert skipped > 0
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_covering_holds_every_sampled_view_and_widens_as_asked(seed):
+    """The envelope of a camera's sampled views (a baked frame's sub-frames) holds each of
+    them; widened by w, its distance and turn are (1 + w) times the largest; a lens change
+    or a turn past the limit gives False, no motion None."""
+    from core.envelope import MAX_COVER_TURN_DEG, covering
+    rng = np.random.default_rng(seed)
+    centre = Camera.look_at((0, 0, 1), (5, 0, 1), (0, 0, 1), 50.0)
+    views = [Camera.look_at(tuple(rng.normal(0, 0.5, 3) + (0, 0, 1)),
+                            tuple((5, 0, 1) + rng.normal(0, 0.4, 3)), (0, 0, 1), 50.0) for _ in range(5)]
+    env = covering(centre, views)
+    assert all(env.holds(centre, v) for v in views) and not env.any_roll
+    wide = covering(centre, views, widen=0.25)
+    assert math.isclose(wide.distance, 1.25 * env.distance, rel_tol=1e-6)
+    assert math.isclose(wide.angle_deg, 1.25 * env.angle_deg, rel_tol=1e-6)
+    assert covering(centre, [centre, centre]) is None and covering(centre, []) is None
+    assert covering(centre, views + [Camera.look_at((0, 0, 1), (5, 0, 1), (0, 0, 1), 40.0)]) is False
+    turned = Camera.look_at((0, 0, 1), (5 * math.cos(math.radians(MAX_COVER_TURN_DEG + 5)),
+                                        5 * math.sin(math.radians(MAX_COVER_TURN_DEG + 5)), 1), (0, 0, 1), 50.0)
+    assert covering(centre, [turned]) is False

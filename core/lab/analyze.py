@@ -90,32 +90,17 @@ class Plan:
                 "within_frame": self.bake}
 
 
-# an envelope wider than this proves little and the envelope allows less than 90 degrees
-MAX_FRAME_TURN_DEG = 60.0
-
-
 def frame_envelope(cameras: list[Camera], i: int):
     """The envelope a baked frame ``i`` of the path ``cameras`` holds for: every view the
     camera passes through until the next frame, taken as moving straight from one eye to
-    the next and turning along the shortest rotation between the two frames (the
-    envelope around frame ``i``'s camera of that distance and turn, roll included).
-    None: the path's last frame (its own view only); ``False``: no envelope holds (the
-    lens changes, or the camera turns more than :data:`MAX_FRAME_TURN_DEG`): the frame
-    hides nothing."""
-    from ..camera import view_change
-    from ..envelope import Envelope
+    the next and turning along the shortest rotation between the two frames
+    (:func:`core.envelope.covering` of the next frame's view).  None: the path's last
+    frame (its own view only); ``False``: no envelope holds (the lens changes, or the
+    camera turns too far): the frame hides nothing."""
+    from ..envelope import covering
     if i + 1 >= len(cameras):
         return None
-    a, b = cameras[i], cameras[i + 1]
-    if not np.array_equal(a.projection, b.projection):
-        return False
-    move, turn = view_change(a, b)
-    if turn > MAX_FRAME_TURN_DEG:
-        return False
-    if move == 0.0 and turn == 0.0:
-        return None
-    # a hair beyond the end views: float rounding of the end frame itself stays inside
-    return Envelope(move * (1.0 + 1e-9) + 1e-12, min(turn * (1.0 + 1e-9) + 1e-9, 89.0), any_roll=False)
+    return covering(cameras[i], [cameras[i + 1]])
 
 
 def analyze_chunk(plan: Plan, a: int, b: int, progress=None) -> dict:

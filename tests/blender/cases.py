@@ -16,7 +16,7 @@ import traceback
 import bpy
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from in_blender import analysis, cameras, common, handlers, live, localview, policy, session, visibility  # noqa: E402
+from in_blender import analysis, bake, cameras, common, handlers, live, localview, policy, session, visibility  # noqa: E402
 
 # In one Blender session, in this order (add-on settings a case changes stay for the next).
 CASES = (policy.user_hidden_objects, policy.dynamic_objects, cameras.camera_as_rendered, policy.instancers,
@@ -42,7 +42,7 @@ CASES = (policy.user_hidden_objects, policy.dynamic_objects, cameras.camera_as_r
          session.large_mesh_triangles_in_place, session.edit_outside_the_layer,
          session.edit_while_another_layer_shown, visibility.records_read_once_a_pass,
          localview.toggle_waits_for_engine,
-         localview.failed_pass_keeps_selection)
+         localview.failed_pass_keeps_selection, bake.bake_storage_roundtrip, bake.baked_shot_workflow)
 # Cases whose failure was a crash of Blender: each runs only when named (a process of its own).
 ALONE = (analysis.undo_after_collect, session.hair_undo_two_layers, session.foreign_overrides_during_a_job)
 

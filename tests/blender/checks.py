@@ -86,6 +86,14 @@ CHECKS = {
         "keyed_camera_taken", "keyed_camera_refused", "keyed_camera_report_is_frames_report",
         "keyed_camera_moving_scene_frames",
     ],
+    "bake": [
+        "bake_storage_roundtrip", "bake_stored",
+        *[f"bake_{w}_{c}" for w in ("play", "scrub", "reloaded") for c in ("is_the_frames_set", "truth")],
+        "bake_survives_rename", "bake_saved_file_opens_shown", "bake_survives_reload",
+        *[f"bake_stale_after_{e}_{c}" for e in ("move", "hide", "delete", "camera")
+          for c in ("hides_nothing", "truth")],
+        "bake_duplicate_never_hidden", "bake_duplicate_truth", "bake_use_off_shows_all",
+    ],
 }
 
 # Cases that once crashed Blender, each in a process of its own (see cases.ALONE): case -> its checks.

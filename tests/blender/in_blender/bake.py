@@ -1,0 +1,177 @@
+"""Baked shots (occ_addon/bake.py): Bake Shot, then Use Baked Shot through play, scrub,
+jumps, sub-frames, renames, a save and reload, edits after the bake; every frame
+checked against the object-ID truth of the scene camera at that (sub-)frame."""
+
+import os
+import random
+
+import bpy
+import numpy as np
+
+from .common import WORK, addon, box, check, hidden_but_seen, keyframes, new_scene, update
+
+
+def _shot(seed: int):
+    """The wall of ``new_scene``, seeded boxes behind it, past its ends and small ones
+    where its ends sweep across the view, the camera walking along it (frames 1-12),
+    turning a little."""
+    scene = new_scene()
+    rng = random.Random(seed)
+    for i in range(14):
+        y = rng.uniform(-11, 11)
+        x = rng.uniform(2, 8)
+        s = rng.uniform(0.3, 1.2)
+        box(f"b{i}", (x, y - s, 0), (x + s, y + s, rng.uniform(0.5, 3.0)))
+    for i in range(24):                    # small ones where the wall's ends sweep across the view
+        y = rng.choice((-1, 1)) * rng.uniform(4.5, 11.0)
+        x = rng.uniform(1.0, 6.0)
+        s = rng.uniform(0.08, 0.25)
+        box(f"e{i}", (x, y - s, 0.5), (x + s, y + s, 0.5 + 2 * s))
+    cam = bpy.data.objects["cam"]
+    keyframes(cam, [(1, (-10.0, -7.0 + rng.uniform(-1, 1), 1.0)), (12, (-9.0, 7.0 + rng.uniform(-1, 1), 1.5))])
+    cam.rotation_euler[2] = -1.5708
+    cam.keyframe_insert("rotation_euler", frame=1)
+    cam.rotation_euler[2] = -1.5708 + rng.uniform(-0.1, 0.1)
+    cam.keyframe_insert("rotation_euler", frame=12)
+    scene.frame_start, scene.frame_end = 1, 12
+    scene.frame_set(1)
+    update()
+    return scene
+
+
+def _expected(scene, f):
+    """The names the scene's bake hides at frame ``f`` (its numbers decoded)."""
+    b = addon("bake")
+    row = b.stored(scene).frame(f)
+    ids = b.numbers()
+    ok = b.usable(ids) & (ids < len(row))
+    return {o.name for o, i, k in zip(bpy.data.objects, ids, ok, strict=True) if k and row[i]}
+
+
+def _hidden():
+    return {o.name for o in bpy.data.objects if o.occ_culled or o.occ_view_culled}
+
+
+def _frames_hold(scene, order, name):
+    """At every frame of ``order`` (and half a frame on), the baked set is what is
+    hidden and nothing hidden is seen."""
+    wrong, seen, total = [], [], 0
+    for f in order:
+        scene.frame_set(f)
+        update()
+        got, want = _hidden(), _expected(scene, f)
+        total += len(got)
+        if got != want:
+            wrong.append((f, sorted(got ^ want)))
+        bad = hidden_but_seen()
+        if bad:
+            seen.append((f, bad))
+        if f < scene.frame_end:
+            scene.frame_set(f, subframe=0.5)       # the set holds for the whole frame
+            update()
+            bad = hidden_but_seen()
+            if bad:
+                seen.append((f + 0.5, bad))
+    check(f"{name}_is_the_frames_set", not wrong and total > 0, (wrong, total))
+    check(f"{name}_truth", not seen, seen)
+
+
+def baked_shot_workflow():
+    """Bake, play forward, backward, jump; rename; save and reload; edits after the bake."""
+    scene = _shot(11)
+    r = bpy.ops.occ.bake_shot()
+    b = scene.occ_bake
+    rows = [_expected(scene, f) for f in range(1, 13)]
+    check("bake_stored", r == {"FINISHED"} and b.hidden and any(rows) and len({frozenset(x) for x in rows}) > 1,
+          (r, [sorted(x) for x in rows]))
+    bpy.ops.occ.bake_use()
+    _frames_hold(scene, list(range(1, 13)), "bake_play")
+    order = list(range(12, 0, -1)) + random.Random(5).sample(range(1, 13), 12)
+    _frames_hold(scene, order, "bake_scrub")
+
+    # a rename keeps the object's number
+    f = max(range(1, 13), key=lambda k: len(rows[k - 1]))
+    victim = sorted(rows[f - 1])[0]
+    bpy.data.objects[victim].name = victim + "_renamed"
+    scene.frame_set(f)
+    update()
+    check("bake_survives_rename", bpy.data.objects[victim + "_renamed"].hide_viewport
+          and addon("bake").STATE.stale is None, (victim, _hidden()))
+
+    # saved and opened again: the bake and the numbers come back, and hide again
+    path = os.path.join(WORK, "baked_shot.blend")
+    before = _hidden()
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    scene = bpy.context.scene
+    check("bake_saved_file_opens_shown", not _hidden(), _hidden())
+    scene.frame_set(f)
+    update()
+    check("bake_survives_reload", scene.occ_bake.use and _hidden() == before and before, (before, _hidden()))
+    _frames_hold(scene, [3, 9, 1, 12], "bake_reloaded")
+
+    # edits after the bake: each makes it stale, and a stale bake hides nothing
+    edits = [("move", lambda: _move(bpy.data.objects["wall"], 3.0)),
+             ("hide", lambda: bpy.data.objects["wall"].hide_set(True)),
+             ("delete", lambda: bpy.data.objects.remove(bpy.data.objects["wall"])),
+             ("camera", lambda: _move_camera_key(scene))]
+    for name, edit in edits:
+        bpy.ops.wm.open_mainfile(filepath=path)
+        scene = bpy.context.scene
+        scene.frame_set(f)
+        update()
+        hid = _hidden()
+        edit()
+        update()
+        scene.frame_set(f)
+        update()
+        check(f"bake_stale_after_{name}_hides_nothing", hid and not _hidden(), (hid, _hidden()))
+        check(f"bake_stale_after_{name}_truth", not hidden_but_seen(), hidden_but_seen())
+
+    # a duplicate made after the bake shares its original's number: neither is hidden
+    bpy.ops.wm.open_mainfile(filepath=path)
+    scene = bpy.context.scene
+    scene.frame_set(f)
+    update()
+    hid = sorted(_hidden())
+    dup = bpy.data.objects[hid[0]].copy()
+    scene.collection.objects.link(dup)
+    update()
+    scene.frame_set(f)
+    update()
+    check("bake_duplicate_never_hidden", hid and hid[0] not in _hidden() and dup.name not in _hidden(),
+          (hid, _hidden()))
+    check("bake_duplicate_truth", not hidden_but_seen(), hidden_but_seen())
+
+    # Use off: everything the bake hid is shown
+    bpy.ops.wm.open_mainfile(filepath=path)
+    scene = bpy.context.scene
+    scene.frame_set(f)
+    update()
+    had = _hidden()
+    bpy.ops.occ.bake_use()
+    update()
+    check("bake_use_off_shows_all", had and not _hidden() and not scene.occ_bake.use, (had, _hidden()))
+
+
+def _move(obj, dy):
+    obj.location.y += dy
+
+
+def _move_camera_key(scene):
+    """Key the camera elsewhere at the current frame (an animation edit)."""
+    cam = scene.camera
+    cam.location.y += 2.0
+    cam.keyframe_insert("location", frame=scene.frame_current)
+
+
+def bake_storage_roundtrip():
+    """The per-frame bitsets decode to exactly what was encoded (random rows, widths not
+    a multiple of 8, one frame, empty rows)."""
+    b = addon("bake")
+    rng = np.random.default_rng(3)
+    ok = []
+    for frames, width in ((1, 1), (5, 13), (40, 1000), (3, 8)):
+        rows = rng.random((frames, width)) < rng.random()
+        ok.append(np.array_equal(b.decode_frames(b.encode_frames(rows), frames, width), rows))
+    check("bake_storage_roundtrip", all(ok), ok)
