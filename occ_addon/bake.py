@@ -242,8 +242,9 @@ def _geometry(obj, memo: dict) -> tuple:
 
 def fingerprint(context, held: np.ndarray) -> str:
     """The fingerprint of what a bake read (``held``: ``(width,) bool`` over numbers):
-    each such object's number, shape and (where it does not move by itself) transform,
-    every light of the view layer, the settings and the render size."""
+    each such object's number and, where it does not change by itself (animation,
+    drivers, constraints: :func:`.kinds.is_dynamic`), its shape and transform; every
+    light of the view layer, the settings and the render size."""
     h = hashlib.sha1()
     ids = numbers()
     own = usable(ids)
@@ -258,16 +259,20 @@ def fingerprint(context, held: np.ndarray) -> str:
     objs.foreach_get("matrix_world", mats)
     mats = mats.reshape(-1, 16)
     memo = {}
+    dynamic = {}
     for i in at.tolist():
         o = items[i]
-        moves = is_dynamic(o, memo)
-        h.update(repr((int(ids[i]), moves, _geometry(o, memo))).encode())
-        if not moves:
-            h.update(mats[i].tobytes())
+        if is_dynamic(o, dynamic):            # never hidden; what animation changes is baked per frame
+            h.update(repr((int(ids[i]), "dynamic")).encode())
+            continue
+        h.update(repr((int(ids[i]), _geometry(o, memo))).encode())
+        h.update(mats[i].tobytes())
     for o in context.view_layer.objects:
         if o.type == "LIGHT":
-            h.update(repr((o.name_full, o.visible_get(), _struct(o.data))).encode())
-            h.update(np.array(o.matrix_world, dtype=np.float32).tobytes())
+            moves = is_dynamic(o, dynamic)
+            h.update(repr((o.name_full, o.visible_get(), moves, None if moves else _struct(o.data))).encode())
+            if not moves:
+                h.update(np.array(o.matrix_world, dtype=np.float32).tobytes())
     scene = context.scene
     r = scene.render
     key = settings_key(scene.occ)
@@ -314,7 +319,10 @@ class State:
         self.key = None              # (scene, fingerprint) the status is for
         self.stale: str | None = None
         self.known = False
-        self.applied = False         # the add-on hides a baked frame's set now
+        self.applied = False         # the add-on hides a baked frame's set now ...
+        self.version = -1            # ... unless a pass applied since (SESSION.version)
+        self.drawn = None            # what the view layer drew at the apply (a digest)
+        self.camera_off: int | None = None   # a frame whose camera is not the baked one
         self.view = None             # the SpaceView3D pointer it hides in
         self.baking = False
         self.pending = False         # a recheck timer is registered
@@ -327,6 +335,10 @@ class State:
             self.key, self.known = key, True
             self.stale = check(context, baked)
         return self.stale
+
+    def owns(self) -> bool:
+        """Whether what the add-on hides now is a baked frame's set (no pass since)."""
+        return self.applied and self.version == SESSION.version
 
     def mark(self, reason: str | None) -> None:
         """An edit: stale with ``reason``, or (None) unknown until checked."""
@@ -360,32 +372,41 @@ def _channel(context):
     return camera_area(context) or False
 
 
-def release() -> int:
-    """Show what the bake hid (every object the add-on hides: its record is one)."""
-    if not STATE.applied:
+def release(update: bool = True) -> int:
+    """Show what the bake hid (every object the add-on hides: its record is one), where
+    no pass has hidden another set since.  ``update``: Blender's update now (not from
+    a depsgraph handler: the next evaluation takes it)."""
+    if not STATE.owns():
+        STATE.applied = False
         return 0
     STATE.applied, STATE.view = False, None
     SESSION.applying = True
     try:
         n = visibility.restore()
-        bpy.context.view_layer.update()
+        if update:
+            bpy.context.view_layer.update()
     finally:
         SESSION.applying = False
     return n
 
 
+def drawn_digest(context) -> int:
+    """A digest of what the view layer draws (the user's hides: eye, monitor, collections)."""
+    return hash(identity.idents(context.visible_objects).tobytes())
+
+
 def _camera_holds(baked: Baked, f: int, t: float, camera) -> bool:
     """Whether frame ``f``'s set holds for ``camera`` at time ``t``: at the frame itself the
-    camera is the baked one (else the bake is stale); within the frame (a sub-frame) it
-    lies inside the frame's envelope (else that sub-frame hides nothing)."""
+    camera is the baked one, within the frame (a sub-frame) it lies inside the frame's
+    envelope; else that frame hides nothing (the panel names it: the camera's keys were
+    edited, or it was moved by hand)."""
     want = baked.cameras[f - baked.start]
     if camera is None:
         return False
     if t == f:
         same = np.allclose(camera.view, want[0], rtol=CAMERA_TOLERANCE, atol=CAMERA_TOLERANCE) \
             and np.allclose(camera.projection, want[1], rtol=CAMERA_TOLERANCE, atol=CAMERA_TOLERANCE)
-        if not same:
-            STATE.mark(f"the camera at frame {f} is not the baked one")
+        STATE.camera_off = None if same else f
         return same
     move, turn = baked.envelopes[f - baked.start]
     if move < 0 or not np.allclose(camera.projection, want[1], rtol=CAMERA_TOLERANCE, atol=CAMERA_TOLERANCE):
@@ -432,6 +453,7 @@ def apply_frame(context, handler: bool = False) -> int:
     finally:
         SESSION.applying = False
     STATE.apply_ms = 1e3 * (time.perf_counter() - t0)
+    STATE.version, STATE.drawn = SESSION.version, drawn_digest(context)
     STATE.changed = visibility.COUNT["changed"] - before
     SESSION.shown = None                 # no pass's set: the live guard has nothing to watch
     STATE.applied = bool(n)
@@ -575,21 +597,37 @@ def on_frame_change(scene, _depsgraph=None):
 
 @persistent
 def on_depsgraph_update(scene, depsgraph):
-    """An edit: a transform or a geometry changed makes the bake stale at once; any
-    other change makes it unknown until checked (a timer, right after)."""
+    """An edit: a transform or a geometry changed makes the bake stale at once; any other
+    change to an object or a collection, or to what the view layer draws, makes it
+    unknown until checked; the camera moved is compared with the frame's.  What the
+    bake hid is shown here (before the next draw) and applied again from a timer right
+    after, checked (headless: at the next frame change)."""
     if SESSION.applying or STATE.baking or not scene.occ_bake.hidden:
         return
-    reason = None
-    cam = scene.camera
+    reason, touched, cam = None, False, scene.camera
     for u in depsgraph.updates:
-        if isinstance(u.id, bpy.types.Object) and (u.is_updated_transform or u.is_updated_geometry):
+        if isinstance(u.id, bpy.types.Object):
             o = u.id.original
             if cam is not None and o == cam:
-                continue                       # the camera: compared at every frame
-            reason = f"'{o.name}' was edited"
-            break
+                touched = True                 # compared with the frame's camera on the apply
+            elif u.is_updated_transform or u.is_updated_geometry:
+                reason = f"'{o.name}' was edited"
+                break
+            else:
+                touched = True
+        elif not isinstance(u.id, bpy.types.Scene):
+            touched = True
+    if reason is None and not touched:         # the scene alone: a selection, or a hide
+        if not STATE.owns():
+            return
+        try:
+            if STATE.drawn == drawn_digest(bpy.context):
+                return
+        except AttributeError:                 # no view layer in this context: unknown
+            pass
     STATE.mark(reason)
-    if STATE.applied:
+    if STATE.owns():
+        release(update=False)
         _later()
 
 
@@ -624,7 +662,7 @@ def on_reset(*_args):
 def guard():
     """Before a redraw of the view the bake hides in: a view no longer looking through
     the camera shows everything first (a timer: no data changes while drawing)."""
-    if not STATE.applied or STATE.view is None or STATE.pending:
+    if not STATE.owns() or STATE.view is None or STATE.pending:
         return
     context = bpy.context
     space = context.space_data

@@ -63,6 +63,8 @@ def _baked_shot(layout, context):
         why = bake.STATE.stale if bake.STATE.known else None
         if why:
             box.label(text=f"Stale: {why}; bake again", icon="ERROR")
+        elif bake.STATE.camera_off is not None:
+            box.label(text=f"Frame {bake.STATE.camera_off}: the camera is not the baked one", icon="ERROR")
 
 
 def _labelled(layout, data, prop, label):

@@ -176,6 +176,14 @@ def test_checks_had_teeth(workflows):
     assert sum(s["hidden_at_checks"] for s in stats) >= 50 * len(SEEDS), stats
 
 
+def test_baked_shots_were_checked(workflows):
+    """The truth was drawn many times while a baked frame's set was what the add-on hid
+    (played, scrubbed, after edits): the bake steps were not passed by hiding nothing."""
+    results, _ = workflows
+    stats = [s["stats"] for s in results["seeds"].values()]
+    assert sum(s["bake_checks"] for s in stats) >= len(SEEDS), stats
+
+
 def test_quiet_exit(workflows):
     """Nothing prints a traceback when the interpreter exits after culling (issue 9, case 11)."""
     _, p = workflows

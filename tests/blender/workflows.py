@@ -87,6 +87,8 @@ KINDS = {
     "instance_move": 5, "scene_switch": 4, "emitter_undo": 4, "revert": 3,
     # what a user does with the "Never Visible" collection an analysis collected
     "nv_move": 3, "nv_add": 3, "nv_duplicate": 3,
+    # a baked shot: baked, switched on and off, played forward, backward and between frames
+    "bake": 3, "bake_use": 1, "play": 5,
 }
 # Scene features, switched off like step kinds: a geometry-nodes instancer whose
 # instances stand far from its mesh, props animated by keyframes, props carried by
@@ -103,15 +105,15 @@ FEATURES = {"scene_gn", "scene_animated", "scene_parent", "scene_particles", "sc
 # drawn when their object is hidden; geometry nodes here use no object.
 SOURCE_HIDES_INSTANCES = {"VERTS", "FACES", "COLLECTION"}
 # Steps that need the add-on enabled (its operators or properties).
-NEEDS_ADDON = {"cull", "restore", "never_cull", "exclude_setting", "live", "analyze", "settings"}
+NEEDS_ADDON = {"cull", "restore", "never_cull", "exclude_setting", "live", "analyze", "settings", "bake", "bake_use"}
 # Steps after which Blender's undo system gets a step, as the UI pushes one after
 # every user edit (the add-on's Cull and Restore carry no UNDO flag: no push; an
 # analysis pushes its own step when it collects the never-visible objects).
 NO_PUSH = {"cull", "restore", "undo", "redo", "save_reload", "addon_toggle", "live", "analyze", "emitter_undo",
-           "revert"}
+           "revert", "bake", "bake_use", "play"}
 # Steps that run the add-on's own operations, checked by (h) around them (analyze:
 # around its operator only; the live pass after every step while live mode is on).
-ADDON_OPS = {"cull", "restore", "live", "addon_toggle"}
+ADDON_OPS = {"cull", "restore", "live", "addon_toggle", "bake", "bake_use"}
 # What --plain skips besides NEEDS_ADDON: the add-on's switch.
 PLAIN_SKIPS = {"addon_toggle"}
 NEVER_VISIBLE = "Never Visible"        # the collection "Collect Never Visible" fills (occ_addon/analysis.py)
@@ -268,7 +270,7 @@ class World:
         self.undo_pos = -1
         self.history = []
         self.counts = {}
-        self.stats = {"truth_checks": 0, "hidden_at_checks": 0, "visible_at_checks": 0}
+        self.stats = {"truth_checks": 0, "hidden_at_checks": 0, "visible_at_checks": 0, "bake_checks": 0}
         self.pending = []           # problems a step found itself (analyze)
         self.saved = None           # (path, model) of the file saved last
         self.note = ""              # what a step did before its own action (a first analysis)
@@ -1531,8 +1533,81 @@ def step_nv_duplicate(w, kind):
     return f"linked duplicate '{o.name}' -> '{c.name}' in '{NEVER_VISIBLE}' only"
 
 
+def step_bake(w, kind):
+    """Bake Shot over ten frames from a random one (half the time the camera keyed to
+    move through them first), Use Baked Shot on, three frames of the range shown (each
+    checked against the truth)."""
+    import bpy
+    scene = bpy.context.scene
+    a = w.rng.randint(FRAMES[0], FRAMES[1] - 9)
+    keyed = ""
+    cam = scene.camera
+    if cam is not None and w.rng.random() < 0.5:
+        for f, dx in ((a, 0.0), (a + 9, w.rng.uniform(-3.0, 3.0))):
+            scene.frame_set(f)
+            cam.location.x += dx
+            cam.keyframe_insert("location", frame=f)
+        keyed = ", camera keyed"
+    try:
+        r = sorted(bpy.ops.occ.bake_shot(frame_start=a, frame_end=a + 9))
+        if not scene.occ_bake.use:
+            bpy.ops.occ.bake_use()
+    except RuntimeError as e:                  # an ERROR report: fine unless it is our bug
+        if "failed" in str(e):
+            raise
+        r = f"report: {e}"
+    for f in sorted(w.rng.sample(range(a, a + 10), 3), reverse=w.rng.random() < 0.5):
+        scene.frame_set(f)                     # played at once, as a user checks a bake
+        bpy.context.view_layer.update()
+        if bake_on():
+            w.stats["bake_checks"] += 1
+            w.pending += check_cull(w)
+    return f"bake {a}-{a + 9}{keyed} -> {r}, frame {scene.frame_current}"
+
+
+def step_bake_use(w, kind):
+    import bpy
+    try:
+        return f"bake use -> {sorted(bpy.ops.occ.bake_use())}, on: {bpy.context.scene.occ_bake.use}"
+    except RuntimeError as e:                  # no bake yet: an ERROR report
+        if "failed" in str(e):
+            raise
+        return f"bake use -> report: {e}"
+
+
+def step_play(w, kind):
+    """Three frames played forward or backward (sometimes half a frame on), mostly from a
+    frame of the baked range: while a baked shot is used, nothing the add-on hides is
+    seen at any of them."""
+    import bpy
+    scene = bpy.context.scene
+    start, way = scene.frame_current, w.rng.choice((1, -1))
+    b = scene.occ_bake if addon_enabled() else None
+    if b is not None and b.hidden and w.rng.random() < 0.7:
+        start = w.rng.randint(b.frame_start, b.frame_end)
+    shown = []
+    for k in range(1, 4):
+        f = min(max(start + way * k, FRAMES[0]), FRAMES[1])
+        sub = 0.5 if w.rng.random() < 0.3 and f < FRAMES[1] else 0.0
+        scene.frame_set(f, subframe=sub)
+        bpy.context.view_layer.update()
+        shown.append(f + sub)
+        if bake_on() and k < 3:                # the last frame: the step's own check
+            w.stats["bake_checks"] += 1
+            w.pending += check_cull(w)
+    return f"play {shown}"
+
+
+def bake_on():
+    """Whether what the add-on hides now is a baked frame's set (Use Baked Shot on, no pass since)."""
+    import bpy
+    return addon_enabled() and bool(bpy.context.scene.occ_bake.use) \
+        and sys.modules[f"{ADDON_MODULE}.occ_addon.bake"].STATE.owns()
+
+
 SCENE_STEPS = {
-    "cull": step_cull, "restore": step_restore, "bad_value": lambda w, kind: do_bad_value(w),
+    "cull": step_cull, "bake": step_bake, "bake_use": step_bake_use, "play": step_play,
+    "restore": step_restore, "bad_value": lambda w, kind: do_bad_value(w),
     "live": step_live, "analyze": lambda w, kind: do_analyze(w), "camera_move": step_camera_move,
     "camera_nudge": step_camera_nudge, "camera_scale": step_camera_scale, "camera_lens": step_camera_lens,
     "frame": step_frame, "view_layer": step_view_layer, "add": step_add, "settings": step_settings,
@@ -1914,7 +1989,9 @@ def run_seed(w, steps, verbose=False, progress=None):
                 if addon_enabled():
                     problems += check_live_state()
                 problems += check_state(w, after_restore=kind == "restore" or not addon_enabled())
-                if (kind == "cull" and what.startswith("cull -> ['FINISHED']")) or (live and live_on()):
+                baked = bake_on()
+                w.stats["bake_checks"] += baked
+                if (kind == "cull" and what.startswith("cull -> ['FINISHED']")) or (live and live_on()) or baked:
                     problems += check_cull(w)
                 elif w.validate and kind.startswith("camera"):
                     problems += check_truth_camera(w)

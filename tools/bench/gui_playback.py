@@ -1,0 +1,246 @@
+"""Animation playback with a baked shot, in a real Blender window (Debian's Blender 3.4 under Xvfb):
+
+    .venv/bin/python tools/bench/gui_playback.py [SCENE] [--seconds 20] [--fps 1000]   (-small: the small variant)
+
+runs Blender in an Xvfb window with this checkout as a legacy add-on (as ``tests/gui``
+does), loads the sample scene, keys the scene camera on every frame of the scene's camera
+path (frames 1..N), makes the 3D view look through it (solid shading, the camera frame
+fitted to the region), bakes the shot (Bake Shot, timed) and plays the animation for
+``--seconds`` of wall time from the first frame, once with Use Baked Shot off and once
+on.  Playback: ``sync_mode`` NONE (every frame is drawn, none dropped) at ``--fps``
+(default 1000: as fast as Blender draws; its animation timer is the only brake).
+Counts per run the frames Blender drew of the camera view (a draw handler), the frames
+advanced (``frame_change_post``), the time each draw of the 3D view took (its PRE_VIEW
+to its POST_PIXEL handler), the frame change (``frame_change_pre`` to a
+``frame_change_post`` handler after the add-on's: scene evaluation and the bake's
+apply), the bake's own apply per frame and the objects it changed (its ``STATE``), and,
+sampled every ``SAMPLE_S`` of wall time, the objects hidden in the view
+(``occ_view_culled``), the objects and triangles drawn and whether the hidden set is the
+frame's baked one.  Prints one JSON object (with any traceback Blender's console shows).
+
+Inside Blender (``--python tools/bench/gui_playback.py -- OUT_JSON SCENE SECONDS FPS``) it is the playback itself.
+"""
+
+import os
+import sys
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+ADDON = "occlusion_culled_viewport"
+SAMPLE_S = 0.25          # the hidden / drawn counts are taken this often (a walk of every object)
+RENDER = (1280, 720)     # the render size the bake culls at (the path's 16:9)
+
+
+def outside(argv):
+    """Set up a Blender profile with the add-on, run the playback in a window, print its figures."""
+    import argparse
+    import json
+    import pathlib
+    import tempfile
+
+    sys.path.insert(0, ROOT)
+    from tests.gui.window import blender_env, run_in_window
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("scene", nargs="?", default="city-small")
+    ap.add_argument("--seconds", type=float, default=20.0, help="of playback, each of the bake off and on")
+    ap.add_argument("--fps", type=int, default=1000, help="the scene's frame rate (sync NONE: every frame drawn)")
+    args = ap.parse_args(argv)
+    with tempfile.TemporaryDirectory() as work:
+        work = pathlib.Path(work)
+        env = blender_env(work)
+        out = work / "playback.json"
+        rc, log = run_in_window(env, os.path.abspath(__file__), [str(out), args.scene, str(args.seconds),
+                                                                 str(args.fps)], screen="1280x720")
+        if not out.exists():
+            print(f"no results (rc {rc}):\n{log[-3000:]}", file=sys.stderr)
+            return 1
+        results = json.loads(out.read_text())
+        results["command"] = " ".join([sys.executable, *sys.argv])
+        lines = log.splitlines()
+        results["console_tracebacks"] = ["\n".join(lines[i:i + 12]) for i, ln in enumerate(lines)
+                                         if ln.startswith("Traceback")]
+        print(json.dumps(results, indent=1))
+    return 0
+
+
+def key_camera(scene, frames, core):
+    """A scene camera keyed on frames 1..N at the path's views (its first frame's lens)."""
+    import bpy
+    import mathutils
+    import numpy as np
+
+    first = frames[0]
+    cam = bpy.data.objects.new("path_camera", bpy.data.cameras.new("path_camera"))
+    scene.collection.objects.link(cam)
+    cam.data.sensor_fit = "VERTICAL"
+    cam.data.angle_y = np.radians(first["fov_y_deg"])
+    cam.data.clip_start, cam.data.clip_end = first["near"], first["far"]
+    scene.camera = cam
+    scene.render.resolution_x, scene.render.resolution_y = RENDER
+    scene.render.resolution_percentage = 100
+    euler = None
+    for f, c in enumerate(frames, start=1):
+        view = core.Camera.look_at(c["eye"], c["target"], c["up"]).view
+        m = mathutils.Matrix(np.linalg.inv(view).tolist())
+        euler = m.to_euler("XYZ", euler) if euler is not None else m.to_euler("XYZ")   # no wrap between keys
+        cam.location, cam.rotation_euler = m.translation, euler
+        cam.keyframe_insert("location", frame=f)
+        cam.keyframe_insert("rotation_euler", frame=f)
+    scene.frame_start, scene.frame_end = 1, len(frames)
+    return cam
+
+
+def stats(values, name):
+    import numpy as np
+    return {f"{name}_median": float(np.median(values)) if values else None,
+            f"{name}_mean": float(np.mean(values)) if values else None}
+
+
+def inside(out_path, scene_name, seconds, fps):
+    import bpy
+    import numpy as np
+
+    sys.path.insert(0, os.path.join(ROOT, "tools"))
+    from blender_scene import build_scene, drive_in_window, view3d
+
+    results = {"scene": scene_name, "seconds": seconds, "fps_setting": fps, "sync_mode": "NONE",
+               "blender": bpy.app.version_string}
+
+    def run():
+        bpy.ops.preferences.addon_enable(module=ADDON)
+        core = sys.modules[f"{ADDON}.core"]
+        bake = sys.modules[f"{ADDON}.occ_addon.bake"]
+        flags = sys.modules[f"{ADDON}.occ_addon.identity"].flags
+        import sample_scenes
+        name, small = (scene_name[:-6], True) if scene_name.endswith("-small") else (scene_name, False)
+        scene = core.load_scene(str(sample_scenes.scene_path(name, small=small)))
+        build_scene(scene)
+        sc = bpy.context.scene
+        key_camera(sc, sample_scenes.default_camera_path(name, small=small)["frames"], core)
+        sc.render.fps, sc.render.fps_base, sc.sync_mode = fps, 1.0, "NONE"
+        sc.frame_set(sc.frame_start)
+        results.update(objects=len(scene), triangles=int(scene.triangle_counts.sum()),
+                       frame_start=sc.frame_start, frame_end=sc.frame_end)
+        win, area, region = view3d()
+        space = area.spaces.active
+        space.overlay.show_floor = False
+        space.shading.type = "SOLID"
+        rv3d = space.region_3d
+        rv3d.view_perspective = "CAMERA"
+        ctx = {"window": win, "area": area, "region": region}
+        with bpy.context.temp_override(**ctx):
+            bpy.ops.view3d.view_center_camera()
+        yield
+        t = time.perf_counter()
+        with bpy.context.temp_override(**ctx):
+            done = bpy.ops.occ.bake_shot(frame_start=sc.frame_start, frame_end=sc.frame_end)
+        results.update(bake_s=time.perf_counter() - t, bake_result=sorted(done), bake_frames=sc.frame_end - sc.frame_start + 1,
+                       bake_summary=sc.occ_bake.summary)
+        objs = bpy.data.objects
+        tris = dict(zip(scene.names, scene.triangle_counts.tolist(), strict=True))
+        rec = {}
+
+        def pre_view():
+            if bpy.context.region_data == rv3d:
+                rec["began"] = time.perf_counter()
+
+        def post_pixel():
+            if bpy.context.region_data != rv3d:
+                return
+            now = time.perf_counter()
+            if "began" in rec:
+                rec["draw_ms"].append(1e3 * (now - rec.pop("began")))
+            rec["drawn"] += 1
+            if now - rec["sampled"] < SAMPLE_S:
+                return
+            rec["sampled"] = now
+            hidden = flags("occ_view_culled")
+            rec["hidden"].append(int(hidden.sum()))
+            shown = [o.name for o in objs if o.visible_in_viewport_get(space)]
+            rec["objects_drawn"].append(len(shown))
+            rec["tris_drawn"].append(sum(tris.get(n, 0) for n in shown))
+            rec["perspective"].add(rv3d.view_perspective)
+            baked = bake.stored(sc)
+            row = baked.frame(sc.frame_current) if baked is not None and sc.occ_bake.use else None
+            if row is not None:
+                ids = bake.numbers()
+                want = np.zeros(len(ids), dtype=bool)
+                ok = bake.usable(ids) & (ids < len(row))
+                want[ok] = row[ids[ok]]
+                rec["not_baked_set"].append(int((want != hidden).sum()))
+
+        def frame_pre(_scene, _depsgraph=None):
+            rec["frame_began"] = time.perf_counter()
+
+        def frame_post(_scene, _depsgraph=None):
+            rec["advanced"] += 1
+            if "frame_began" in rec:
+                rec["frame_ms"].append(1e3 * (time.perf_counter() - rec.pop("frame_began")))
+            st = bake.STATE
+            if st.apply_ms != rec["last_apply"]:          # an apply ran on this frame change
+                rec["last_apply"] = st.apply_ms
+                rec["apply_ms"].append(st.apply_ms)
+                rec["changed"].append(st.changed)
+            rec["applied"] += bool(st.applied)
+
+        def play(on):
+            if bool(sc.occ_bake.use) != on:
+                with bpy.context.temp_override(**ctx):
+                    bpy.ops.occ.bake_use()
+            sc.frame_set(sc.frame_start)
+            for _ in range(5):
+                yield
+            rec.clear()
+            rec.update(drawn=0, advanced=0, applied=0, sampled=0.0, last_apply=bake.STATE.apply_ms, perspective=set(),
+                       **{k: [] for k in ("draw_ms", "frame_ms", "apply_ms", "changed", "hidden",
+                                          "objects_drawn", "tris_drawn", "not_baked_set")})
+            handles = [bpy.types.SpaceView3D.draw_handler_add(pre_view, (), "WINDOW", "PRE_VIEW"),
+                       bpy.types.SpaceView3D.draw_handler_add(post_pixel, (), "WINDOW", "POST_PIXEL")]
+            bpy.app.handlers.frame_change_pre.append(frame_pre)
+            bpy.app.handlers.frame_change_post.append(frame_post)     # after the add-on's
+            with bpy.context.temp_override(**ctx):
+                bpy.ops.screen.animation_play()
+            start = time.perf_counter()
+            while time.perf_counter() - start < seconds:
+                yield
+            with bpy.context.temp_override(**ctx):
+                bpy.ops.screen.animation_cancel(restore_frame=False)
+            took = time.perf_counter() - start
+            for h in handles:
+                bpy.types.SpaceView3D.draw_handler_remove(h, "WINDOW")
+            bpy.app.handlers.frame_change_pre.remove(frame_pre)
+            bpy.app.handlers.frame_change_post.remove(frame_post)
+            return {"wall_s": took, "frames_drawn": rec["drawn"], "fps_drawn": rec["drawn"] / took,
+                    "frames_advanced": rec["advanced"], "fps_advanced": rec["advanced"] / took,
+                    **stats(rec["draw_ms"], "draw_ms"), "draw_s_total": float(np.sum(rec["draw_ms"])) / 1e3,
+                    **stats(rec["frame_ms"], "frame_change_ms"),
+                    "applies": len(rec["apply_ms"]), "frames_applied": rec["applied"],
+                    **stats(rec["apply_ms"], "apply_ms"), **stats(rec["changed"], "changed"),
+                    "samples": len(rec["hidden"]), **stats(rec["hidden"], "hidden"),
+                    "hidden_max": max(rec["hidden"], default=0),
+                    **stats(rec["objects_drawn"], "objects_drawn"), **stats(rec["tris_drawn"], "triangles_drawn"),
+                    "samples_not_baked_set": sum(1 for m in rec["not_baked_set"] if m),
+                    "not_baked_set_max": max(rec["not_baked_set"], default=0),
+                    "view_perspective": sorted(rec["perspective"]), "local_view": space.local_view is not None,
+                    "stale": bake.STATE.stale, "known": bake.STATE.known}
+
+        results["bake_off"] = yield from play(False)
+        results["bake_on"] = yield from play(True)
+        off, on = results["bake_off"], results["bake_on"]
+        results["fps_ratio_on_off"] = on["fps_drawn"] / off["fps_drawn"] if off["fps_drawn"] else None
+        with bpy.context.temp_override(**ctx):
+            bpy.ops.occ.bake_use()                       # off again: everything shown
+        yield
+        results["after_off"] = {"hidden": int(flags("occ_view_culled").sum()),
+                                "local_view": space.local_view is not None, "view_perspective": rv3d.view_perspective}
+
+    drive_in_window(run, results, out_path, 0.05)
+
+
+if __name__ == "__main__":
+    if "--" in sys.argv and "bpy" in sys.modules:
+        a = sys.argv[sys.argv.index("--") + 1:]
+        inside(a[0], a[1], float(a[2]), int(a[3]))
+    else:
+        sys.exit(outside(sys.argv[1:]))
