@@ -325,6 +325,7 @@ class State:
         self.camera_off: int | None = None   # a frame whose camera is not the baked one
         self.view = None             # the SpaceView3D pointer it hides in
         self.baking = False
+        self.unsure = True           # hidden now may be a baked set nobody recorded (an undo)
         self.pending = False         # a recheck timer is registered
         self.apply_ms = 0.0          # the last frame's apply: the hiding and Blender's update (ms)
         self.changed = 0             # objects whose hiding the last frame's apply changed
@@ -341,11 +342,12 @@ class State:
         return self.applied and self.version == SESSION.version
 
     def mark(self, reason: str | None) -> None:
-        """An edit: stale with ``reason``, or (None) unknown until checked."""
-        if reason is None:
+        """An edit: stale with ``reason`` where the bake was known to hold (cheap: a drag
+        checks nothing), else (or with None) unknown until checked in full."""
+        if reason is None or not self.known:
             self.known = False
         elif self.stale is None:
-            self.stale, self.known = reason, True
+            self.stale = reason
 
 
 STATE = State()
@@ -374,9 +376,11 @@ def _channel(context):
 
 def release(update: bool = True) -> int:
     """Show what the bake hid (every object the add-on hides: its record is one), where
-    no pass has hidden another set since.  ``update``: Blender's update now (not from
-    a depsgraph handler: the next evaluation takes it)."""
-    if not STATE.owns():
+    no pass has hidden another set since, or where what is hidden came back with an
+    undo or a file and may be a baked set (:attr:`State.unsure`).  ``update``: Blender's
+    update now (not from a depsgraph handler: the next evaluation takes it)."""
+    unsure, STATE.unsure = STATE.unsure, False
+    if not (STATE.owns() or (unsure and visibility.culled().any())):
         STATE.applied = False
         return 0
     STATE.applied, STATE.view = False, None
@@ -453,7 +457,7 @@ def apply_frame(context, handler: bool = False) -> int:
     finally:
         SESSION.applying = False
     STATE.apply_ms = 1e3 * (time.perf_counter() - t0)
-    STATE.version, STATE.drawn = SESSION.version, drawn_digest(context)
+    STATE.version, STATE.drawn, STATE.unsure = SESSION.version, drawn_digest(context), False
     STATE.changed = visibility.COUNT["changed"] - before
     SESSION.shown = None                 # no pass's set: the live guard has nothing to watch
     STATE.applied = bool(n)

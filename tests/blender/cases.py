@@ -42,7 +42,8 @@ CASES = (policy.user_hidden_objects, policy.dynamic_objects, cameras.camera_as_r
          session.large_mesh_triangles_in_place, session.edit_outside_the_layer,
          session.edit_while_another_layer_shown, visibility.records_read_once_a_pass,
          localview.toggle_waits_for_engine,
-         localview.failed_pass_keeps_selection, bake.bake_storage_roundtrip, bake.baked_shot_workflow)
+         localview.failed_pass_keeps_selection, bake.bake_storage_roundtrip, bake.baked_shot_workflow,
+         bake.seeded_bake_workflows)
 # Cases whose failure was a crash of Blender: each runs only when named (a process of its own).
 ALONE = (analysis.undo_after_collect, session.hair_undo_two_layers, session.foreign_overrides_during_a_job)
 

@@ -93,6 +93,7 @@ CHECKS = {
         *[f"bake_stale_after_{e}_{c}" for e in ("move", "hide", "delete", "camera")
           for c in ("hides_nothing", "truth")],
         "bake_duplicate_never_hidden", "bake_duplicate_truth", "bake_use_off_shows_all",
+        "bake_seeded_truth", "bake_seeded_sets", "bake_seeded_had_teeth",
     ],
 }
 

@@ -159,6 +159,9 @@ def inside(out_path, scene_name, seconds, fps):
             rec["hidden"].append(int(hidden.sum()))
             shown = [o.name for o in objs if o.visible_in_viewport_get(space)]
             rec["objects_drawn"].append(len(shown))
+            layer = win.view_layer
+            rec.setdefault("vis_get", []).append(sum(1 for o in objs if o.visible_get(view_layer=layer, viewport=space)))
+            rec.setdefault("lv_get", []).append(sum(1 for o in objs if o.local_view_get(space)))
             rec["tris_drawn"].append(sum(tris.get(n, 0) for n in shown))
             rec["perspective"].add(rv3d.view_perspective)
             baked = bake.stored(sc)
@@ -183,6 +186,7 @@ def inside(out_path, scene_name, seconds, fps):
                 rec["apply_ms"].append(st.apply_ms)
                 rec["changed"].append(st.changed)
             rec["applied"] += bool(st.applied)
+            rec.setdefault("log", []).append((_scene.frame_current, bool(st.applied), space.local_view is not None, int(flags("occ_view_culled").sum()), st.changed, round(st.apply_ms,3), st.stale, st.camera_off, rv3d.view_perspective))
 
         def play(on):
             if bool(sc.occ_bake.use) != on:
@@ -223,7 +227,7 @@ def inside(out_path, scene_name, seconds, fps):
                     "samples_not_baked_set": sum(1 for m in rec["not_baked_set"] if m),
                     "not_baked_set_max": max(rec["not_baked_set"], default=0),
                     "view_perspective": sorted(rec["perspective"]), "local_view": space.local_view is not None,
-                    "stale": bake.STATE.stale, "known": bake.STATE.known}
+                    "stale": bake.STATE.stale, "DBG_vis_get": rec.get("vis_get"), "DBG_lv_get": rec.get("lv_get"), "DBG_objects_drawn": rec["objects_drawn"], "DBG_hidden": rec["hidden"], "DBG_nb": rec["not_baked_set"], "DBG_log": rec.get("log"), "known": bake.STATE.known}
 
         results["bake_off"] = yield from play(False)
         results["bake_on"] = yield from play(True)

@@ -175,3 +175,83 @@ def bake_storage_roundtrip():
         rows = rng.random((frames, width)) < rng.random()
         ok.append(np.array_equal(b.decode_frames(b.encode_frames(rows), frames, width), rows))
     check("bake_storage_roundtrip", all(ok), ok)
+
+
+SEEDS = (21, 22, 23)
+STEPS = 30
+
+
+def _step(scene, rng, path):
+    """One random user action on a baked shot; returns its description."""
+    objs = [o for o in bpy.data.objects if o.type == "MESH"]
+    kind = rng.choice(("play", "play", "jump", "sub", "rename", "move", "hide", "duplicate", "rebake",
+                       "undo", "save_reload", "use"))
+    f = scene.frame_current
+    if kind == "play":
+        scene.frame_set(min(max(f + rng.choice((1, -1)), scene.frame_start), scene.frame_end))
+    elif kind == "jump":
+        scene.frame_set(rng.randint(scene.frame_start, scene.frame_end))
+    elif kind == "sub":
+        scene.frame_set(min(f, scene.frame_end - 1), subframe=rng.choice((0.25, 0.5, 0.75)))
+    elif kind == "rename":
+        o = rng.choice(objs)
+        o.name = f"r{rng.randint(0, 999)}_{o.name}"[:60]
+    elif kind == "move":
+        rng.choice(objs).location.y += rng.uniform(-2, 2)
+    elif kind == "hide":
+        o = rng.choice(objs)
+        o.hide_set(not o.hide_get())
+    elif kind == "duplicate":
+        c = rng.choice(objs).copy()
+        scene.collection.objects.link(c)
+    elif kind == "rebake":
+        bpy.ops.occ.bake_shot()
+    elif kind == "undo":
+        if bpy.ops.ed.undo.poll():            # (a file just opened has nothing to undo)
+            bpy.ops.ed.undo()
+        scene = bpy.context.scene
+    elif kind == "save_reload":
+        bpy.ops.wm.save_as_mainfile(filepath=path)
+        bpy.ops.wm.open_mainfile(filepath=path)
+        scene = bpy.context.scene
+        bpy.ops.ed.undo_push(message="opened")
+    elif kind == "use":
+        bpy.ops.occ.bake_use()
+    if kind not in ("undo", "save_reload", "rebake", "use", "play", "jump", "sub"):
+        bpy.ops.ed.undo_push(message=kind)
+    update()
+    return kind, bpy.context.scene
+
+
+def seeded_bake_workflows():
+    """Seeded sequences of play, jumps, sub-frames, renames, moves, hides, duplicates,
+    bakes again, undo, save and reload, Use switched: after every step nothing hidden is
+    seen (the truth at that (sub-)frame), and what is hidden is the frame's baked set
+    exactly while the bake holds, else nothing."""
+    b = addon("bake")
+    seen, wrong, checked, hidden_at = [], [], 0, 0
+    for seed in SEEDS:
+        rng = random.Random(seed)
+        scene = _shot(seed)
+        bpy.ops.ed.undo_push(message="shot")
+        bpy.ops.occ.bake_shot()
+        bpy.ops.occ.bake_use()
+        path = os.path.join(WORK, f"bake_seed_{seed}.blend")
+        for step in range(STEPS):
+            kind, scene = _step(scene, rng, path)
+            got = _hidden()
+            bad = hidden_but_seen()
+            if bad:
+                seen.append((seed, step, kind, bad))
+            st = b.STATE
+            if scene.occ_bake.use and scene.frame_current_final == scene.frame_current and st.owns():
+                want = _expected(scene, scene.frame_current) if st.stale is None else set()
+                if got != want:
+                    wrong.append((seed, step, kind, sorted(got ^ want)))
+            elif st.known and st.stale is not None and got:
+                wrong.append((seed, step, kind, "stale but hides", sorted(got)))
+            checked += 1
+            hidden_at += len(got)
+    check("bake_seeded_truth", not seen and checked == len(SEEDS) * STEPS, seen)
+    check("bake_seeded_sets", not wrong, wrong)
+    check("bake_seeded_had_teeth", hidden_at >= 20, hidden_at)
