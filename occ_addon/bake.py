@@ -323,6 +323,7 @@ class State:
         self.version = -1            # ... unless a pass applied since (SESSION.version)
         self.drawn = None            # what the view layer drew at the apply (a digest)
         self.camera_off: int | None = None   # a frame whose camera is not the baked one
+        self.camera = None           # (view, projection) of the camera the applied set holds for
         self.view = None             # the SpaceView3D pointer it hides in
         self.baking = False
         self.unsure = True           # hidden now may be a baked set nobody recorded (an undo)
@@ -458,6 +459,7 @@ def apply_frame(context, handler: bool = False) -> int:
         SESSION.applying = False
     STATE.apply_ms = 1e3 * (time.perf_counter() - t0)
     STATE.version, STATE.drawn, STATE.unsure = SESSION.version, drawn_digest(context), False
+    STATE.camera = (camera.view, camera.projection)
     STATE.changed = visibility.COUNT["changed"] - before
     SESSION.shown = None                 # no pass's set: the live guard has nothing to watch
     STATE.applied = bool(n)
@@ -613,7 +615,9 @@ def on_depsgraph_update(scene, depsgraph):
         if isinstance(u.id, bpy.types.Object):
             o = u.id.original
             if cam is not None and o == cam:
-                touched = True                 # compared with the frame's camera on the apply
+                # tagged (its animation, a script) or moved: only a camera that left the
+                # view the applied set holds for counts (a Play press tags it unmoved)
+                touched = touched or _camera_moved(bpy.context)
             elif u.is_updated_transform or u.is_updated_geometry:
                 reason = f"'{o.name}' was edited"
                 break
@@ -633,6 +637,18 @@ def on_depsgraph_update(scene, depsgraph):
     if STATE.owns():
         release(update=False)
         _later()
+
+
+def _camera_moved(context) -> bool:
+    """Whether the scene camera differs from the one the applied set was made for."""
+    if STATE.camera is None or not STATE.owns():
+        return True
+    try:
+        camera, _ = scene_camera(context)
+    except (OccError, AttributeError):
+        return True
+    view, projection = STATE.camera
+    return not (np.array_equal(camera.view, view) and np.array_equal(camera.projection, projection))
 
 
 def _later() -> None:

@@ -276,7 +276,7 @@ def draw_panel():
     fake_self = type("P", (), {"layout": Layout(calls)})()
     panel.draw(fake_self, bpy.context)
     ops = {c[1][0] for c in calls if c[0] == "operator"}
-    return ops == {"occ.cull", "occ.restore", "occ.live", "occ.analyze"}
+    return ops == {"occ.cull", "occ.restore", "occ.live", "occ.analyze", "occ.bake_shot"}
 
 
 try:

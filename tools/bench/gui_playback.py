@@ -15,8 +15,8 @@ to its POST_PIXEL handler), the frame change (``frame_change_pre`` to a
 ``frame_change_post`` handler after the add-on's: scene evaluation and the bake's
 apply), the bake's own apply per frame and the objects it changed (its ``STATE``), and,
 sampled every ``SAMPLE_S`` of wall time, the objects hidden in the view
-(``occ_view_culled``), the objects and triangles drawn and whether the hidden set is the
-frame's baked one.  Prints one JSON object (with any traceback Blender's console shows).
+(``occ_view_culled``), the objects and triangles drawn (``visible_get`` in the view) and
+whether the hidden set is the frame's baked one.  Prints one JSON object (with any traceback Blender's console shows).
 
 Inside Blender (``--python tools/bench/gui_playback.py -- OUT_JSON SCENE SECONDS FPS``) it is the playback itself.
 """
@@ -46,14 +46,12 @@ def outside(argv):
     ap.add_argument("--seconds", type=float, default=20.0, help="of playback, each of the bake off and on")
     ap.add_argument("--fps", type=int, default=1000, help="the scene's frame rate (sync NONE: every frame drawn)")
     args = ap.parse_args(argv)
-    with tempfile.TemporaryDirectory() as work:
-        work = pathlib.Path(work)
-        env = blender_env(work)
-        out = work / "playback.json"
-        rc, log = run_in_window(env, os.path.abspath(__file__), [str(out), args.scene, str(args.seconds),
-                                                                 str(args.fps)], screen="1280x720")
-        if not out.exists():
-            print(f"no results (rc {rc}):\n{log[-3000:]}", file=sys.stderr)
+    with tempfile.TemporaryDirectory() as tmp:
+        out = pathlib.Path(tmp, "playback.json")
+        rc, log = run_in_window(blender_env(pathlib.Path(tmp)), os.path.abspath(__file__),
+                                [str(out), args.scene, str(args.seconds), str(args.fps)], screen="1280x720")
+        if not out.is_file():
+            sys.stderr.write(f"gui_playback: Blender wrote no figures (exit {rc}); its log ends:\n{log[-3000:]}\n")
             return 1
         results = json.loads(out.read_text())
         results["command"] = " ".join([sys.executable, *sys.argv])
@@ -91,6 +89,31 @@ def key_camera(scene, frames, core):
     return cam
 
 
+def camera_scene(core, scene_name, fps):
+    """The sample scene built, its path's camera keyed, the first 3D view looking through it
+    (solid, the frame fitted to the region); -> (engine scene, window override of that view)."""
+    import bpy
+    from blender_scene import build_scene, view3d
+
+    import sample_scenes
+    name = scene_name.removesuffix("-small")
+    small = name != scene_name
+    scene = core.load_scene(str(sample_scenes.scene_path(name, small=small)))
+    build_scene(scene)
+    sc = bpy.context.scene
+    key_camera(sc, sample_scenes.default_camera_path(name, small=small)["frames"], core)
+    sc.render.fps, sc.render.fps_base, sc.sync_mode = fps, 1.0, "NONE"
+    sc.frame_set(sc.frame_start)
+    win, area, region = view3d()
+    view = area.spaces.active
+    view.shading.type, view.overlay.show_floor = "SOLID", False
+    view.region_3d.view_perspective = "CAMERA"
+    ctx = {"window": win, "area": area, "region": region}
+    with bpy.context.temp_override(**ctx):
+        bpy.ops.view3d.view_center_camera()
+    return scene, ctx
+
+
 def stats(values, name):
     import numpy as np
     return {f"{name}_median": float(np.median(values)) if values else None,
@@ -102,41 +125,26 @@ def inside(out_path, scene_name, seconds, fps):
     import numpy as np
 
     sys.path.insert(0, os.path.join(ROOT, "tools"))
-    from blender_scene import build_scene, drive_in_window, view3d
+    from blender_scene import drive_in_window
 
     results = {"scene": scene_name, "seconds": seconds, "fps_setting": fps, "sync_mode": "NONE",
                "blender": bpy.app.version_string}
 
     def run():
         bpy.ops.preferences.addon_enable(module=ADDON)
-        core = sys.modules[f"{ADDON}.core"]
         bake = sys.modules[f"{ADDON}.occ_addon.bake"]
         flags = sys.modules[f"{ADDON}.occ_addon.identity"].flags
-        import sample_scenes
-        name, small = (scene_name[:-6], True) if scene_name.endswith("-small") else (scene_name, False)
-        scene = core.load_scene(str(sample_scenes.scene_path(name, small=small)))
-        build_scene(scene)
-        sc = bpy.context.scene
-        key_camera(sc, sample_scenes.default_camera_path(name, small=small)["frames"], core)
-        sc.render.fps, sc.render.fps_base, sc.sync_mode = fps, 1.0, "NONE"
-        sc.frame_set(sc.frame_start)
+        scene, ctx = camera_scene(sys.modules[f"{ADDON}.core"], scene_name, fps)
+        sc, win, space = bpy.context.scene, ctx["window"], ctx["area"].spaces.active
+        rv3d = space.region_3d
         results.update(objects=len(scene), triangles=int(scene.triangle_counts.sum()),
                        frame_start=sc.frame_start, frame_end=sc.frame_end)
-        win, area, region = view3d()
-        space = area.spaces.active
-        space.overlay.show_floor = False
-        space.shading.type = "SOLID"
-        rv3d = space.region_3d
-        rv3d.view_perspective = "CAMERA"
-        ctx = {"window": win, "area": area, "region": region}
-        with bpy.context.temp_override(**ctx):
-            bpy.ops.view3d.view_center_camera()
         yield
         t = time.perf_counter()
         with bpy.context.temp_override(**ctx):
             done = bpy.ops.occ.bake_shot(frame_start=sc.frame_start, frame_end=sc.frame_end)
-        results.update(bake_s=time.perf_counter() - t, bake_result=sorted(done), bake_frames=sc.frame_end - sc.frame_start + 1,
-                       bake_summary=sc.occ_bake.summary)
+        results.update(bake_s=time.perf_counter() - t, bake_result=sorted(done),
+                       bake_frames=sc.frame_end - sc.frame_start + 1, bake_summary=sc.occ_bake.summary)
         objs = bpy.data.objects
         tris = dict(zip(scene.names, scene.triangle_counts.tolist(), strict=True))
         rec = {}
@@ -157,11 +165,9 @@ def inside(out_path, scene_name, seconds, fps):
             rec["sampled"] = now
             hidden = flags("occ_view_culled")
             rec["hidden"].append(int(hidden.sum()))
-            shown = [o.name for o in objs if o.visible_in_viewport_get(space)]
+            # (not gui_walk's visible_in_viewport_get: on 3.4 it reads no object drawn in a local view)
+            shown = [o.name for o in objs if o.visible_get(view_layer=win.view_layer, viewport=space)]
             rec["objects_drawn"].append(len(shown))
-            layer = win.view_layer
-            rec.setdefault("vis_get", []).append(sum(1 for o in objs if o.visible_get(view_layer=layer, viewport=space)))
-            rec.setdefault("lv_get", []).append(sum(1 for o in objs if o.local_view_get(space)))
             rec["tris_drawn"].append(sum(tris.get(n, 0) for n in shown))
             rec["perspective"].add(rv3d.view_perspective)
             baked = bake.stored(sc)
@@ -186,7 +192,6 @@ def inside(out_path, scene_name, seconds, fps):
                 rec["apply_ms"].append(st.apply_ms)
                 rec["changed"].append(st.changed)
             rec["applied"] += bool(st.applied)
-            rec.setdefault("log", []).append((_scene.frame_current, bool(st.applied), space.local_view is not None, int(flags("occ_view_culled").sum()), st.changed, round(st.apply_ms,3), st.stale, st.camera_off, rv3d.view_perspective))
 
         def play(on):
             if bool(sc.occ_bake.use) != on:
@@ -227,7 +232,7 @@ def inside(out_path, scene_name, seconds, fps):
                     "samples_not_baked_set": sum(1 for m in rec["not_baked_set"] if m),
                     "not_baked_set_max": max(rec["not_baked_set"], default=0),
                     "view_perspective": sorted(rec["perspective"]), "local_view": space.local_view is not None,
-                    "stale": bake.STATE.stale, "DBG_vis_get": rec.get("vis_get"), "DBG_lv_get": rec.get("lv_get"), "DBG_objects_drawn": rec["objects_drawn"], "DBG_hidden": rec["hidden"], "DBG_nb": rec["not_baked_set"], "DBG_log": rec.get("log"), "known": bake.STATE.known}
+                    "stale": bake.STATE.stale, "known": bake.STATE.known}
 
         results["bake_off"] = yield from play(False)
         results["bake_on"] = yield from play(True)
@@ -243,8 +248,7 @@ def inside(out_path, scene_name, seconds, fps):
 
 
 if __name__ == "__main__":
-    if "--" in sys.argv and "bpy" in sys.modules:
-        a = sys.argv[sys.argv.index("--") + 1:]
-        inside(a[0], a[1], float(a[2]), int(a[3]))
-    else:
+    if "bpy" not in sys.modules or "--" not in sys.argv:
         sys.exit(outside(sys.argv[1:]))
+    out_json, scene_arg, seconds_arg, fps_arg = sys.argv[sys.argv.index("--") + 1:][:4]
+    inside(out_json, scene_arg, float(seconds_arg), int(fps_arg))
