@@ -16,7 +16,9 @@ to its POST_PIXEL handler), the frame change (``frame_change_pre`` to a
 apply), the bake's own apply per frame and the objects it changed (its ``STATE``), and,
 sampled every ``SAMPLE_S`` of wall time, the objects hidden in the view
 (``occ_view_culled``), the objects and triangles drawn (``visible_get`` in the view) and
-whether the hidden set is the frame's baked one.  Prints one JSON object (with any traceback Blender's console shows).
+whether the hidden set is the frame's baked one.  The two runs reach different frames in
+the same wall time: ``draw_ratio_off_on_common`` compares their draws over the frames both
+drew.  Prints one JSON object (with any traceback Blender's console shows).
 
 Inside Blender (``--python tools/bench/gui_playback.py -- OUT_JSON SCENE SECONDS FPS``) it is the playback itself.
 """
@@ -159,6 +161,7 @@ def inside(out_path, scene_name, seconds, fps):
             now = time.perf_counter()
             if "began" in rec:
                 rec["draw_ms"].append(1e3 * (now - rec.pop("began")))
+                rec["by_frame"].setdefault(sc.frame_current, []).append(rec["draw_ms"][-1])
             rec["drawn"] += 1
             if now - rec["sampled"] < SAMPLE_S:
                 return
@@ -202,6 +205,7 @@ def inside(out_path, scene_name, seconds, fps):
                 yield
             rec.clear()
             rec.update(drawn=0, advanced=0, applied=0, sampled=0.0, last_apply=bake.STATE.apply_ms, perspective=set(),
+                       by_frame={},
                        **{k: [] for k in ("draw_ms", "frame_ms", "apply_ms", "changed", "hidden",
                                           "objects_drawn", "tris_drawn", "not_baked_set")})
             handles = [bpy.types.SpaceView3D.draw_handler_add(pre_view, (), "WINDOW", "PRE_VIEW"),
@@ -232,12 +236,19 @@ def inside(out_path, scene_name, seconds, fps):
                     "samples_not_baked_set": sum(1 for m in rec["not_baked_set"] if m),
                     "not_baked_set_max": max(rec["not_baked_set"], default=0),
                     "view_perspective": sorted(rec["perspective"]), "local_view": space.local_view is not None,
-                    "stale": bake.STATE.stale, "known": bake.STATE.known}
+                    "stale": bake.STATE.stale, "known": bake.STATE.known,
+                    "draw_ms_by_frame": {f: float(np.median(v)) for f, v in sorted(rec["by_frame"].items())}}
 
         results["bake_off"] = yield from play(False)
         results["bake_on"] = yield from play(True)
         off, on = results["bake_off"], results["bake_on"]
         results["fps_ratio_on_off"] = on["fps_drawn"] / off["fps_drawn"] if off["fps_drawn"] else None
+        # the runs reach different frames in the same wall time: their draws compared frame by frame
+        common = sorted(set(off["draw_ms_by_frame"]) & set(on["draw_ms_by_frame"]))
+        results["common_frames"] = len(common)
+        results["draw_ratio_off_on_common"] = (
+            float(sum(off["draw_ms_by_frame"][f] for f in common) / sum(on["draw_ms_by_frame"][f] for f in common))
+            if common else None)
         with bpy.context.temp_override(**ctx):
             bpy.ops.occ.bake_use()                       # off again: everything shown
         yield
