@@ -321,7 +321,8 @@ class State:
         self.known = False
         self.applied = False         # the add-on hides a baked frame's set now ...
         self.version = -1            # ... unless a pass applied since (SESSION.version)
-        self.drawn = None            # what the view layer drew at the apply (a digest)
+        self.drawn = None            # what the view layer draws by the user's hides (a digest) ...
+        self.drawn_view = None       # ... in this view
         self.camera_off: int | None = None   # a frame whose camera is not the baked one
         self.camera = None           # (view, projection) of the camera the applied set holds for
         self.view = None             # the SpaceView3D pointer it hides in
@@ -396,16 +397,20 @@ def release(update: bool = True) -> int:
 
 
 def drawn_digest(context, view: int | None) -> int:
-    """A digest of what the view layer draws (the user's hides: eye, monitor, collections)
-    in the 3D view ``view`` (a ``SpaceView3D`` pointer; None: no view).  The view is named:
-    ``visible_get`` without one reads the context's 3D view, local view included, so a
-    handler and an operator would see two sets.  About 50 ms at 50,000 objects; asked
-    only after an update of the scene alone."""
+    """A digest of what the view layer draws by the user's hides (eye, monitor,
+    collections) in the 3D view ``view`` (a ``SpaceView3D`` pointer; None: no view), the
+    add-on's own hiding counted as drawn (so a frame's apply leaves it as it was).  The
+    view is named: ``visible_get`` without one reads the context's 3D view, local view
+    included, so a handler and an operator would see two sets.  About 50 ms at 50,000
+    objects: after an update of the scene alone, and at the first apply after one."""
     found = localview.find(view) if view is not None else None
     space = found[2] if found is not None else None
-    items = context.view_layer.objects.values()
+    layer = context.view_layer.objects
+    items = layer.values()
     shown = np.fromiter((o.visible_get(viewport=space) for o in items), dtype=bool, count=len(items))
-    return hash(identity.idents(items).tobytes() + np.packbits(shown).tobytes())
+    uids = identity.idents(items)
+    shown |= identity.layer_flags(identity.VIEW_RECORD, uids, layer) | identity.layer_flags("occ_culled", uids, layer)
+    return hash(uids.tobytes() + np.packbits(shown).tobytes())
 
 
 def _camera_holds(baked: Baked, f: int, t: float, camera) -> bool:
@@ -471,7 +476,9 @@ def apply_frame(context, handler: bool = False) -> int:
     STATE.applied = bool(n)
     STATE.view = channel[1].spaces.active.as_pointer() if n and channel is not None else None
     STATE.version, STATE.unsure = SESSION.version, False
-    STATE.drawn, STATE.camera = drawn_digest(context, STATE.view), (camera.view, camera.projection)
+    if STATE.drawn is None or STATE.drawn_view != STATE.view:
+        STATE.drawn, STATE.drawn_view = drawn_digest(context, STATE.view), STATE.view
+    STATE.camera = (camera.view, camera.projection)
     return n
 
 
@@ -532,7 +539,7 @@ def bake_steps(context, start: int, end: int) -> Generator[object, None, BakeRes
         width = int(ids.max(initial=0)) + 1
         hidden = np.zeros((len(frames), width), dtype=bool)
         held = np.zeros(width, dtype=bool)
-        cams, envelopes = [], np.zeros((len(frames), 2))
+        cams, envelopes, share = [], np.zeros((len(frames), 2)), np.zeros(len(frames))
         for k, f in enumerate(frames):
             analysis.evaluate(context, f)
             camera, display = scene_camera(context)
@@ -560,6 +567,8 @@ def bake_steps(context, start: int, end: int) -> Generator[object, None, BakeRes
                 if hide.any():
                     hide &= _inside(SESSION.culler.scene, [camera] + views)
                 hidden[k, took[hide]] = True
+                tris = SESSION.culler.scene.triangle_counts
+                share[k] = float(tris[hide].sum()) / max(float(tris.sum()), 1.0)
             yield Progress(f"frame {k + 1}/{len(frames)}", 0.2 + 0.8 * (k + 1) / len(frames))
     finally:
         scene.frame_set(previous)
@@ -572,7 +581,8 @@ def bake_steps(context, start: int, end: int) -> Generator[object, None, BakeRes
     b.held = _pack(np.packbits(held).tobytes())
     b.fingerprint = fingerprint(context, held)
     mean = float(hidden.sum(axis=1).mean()) if len(frames) else 0.0
-    b.summary = f"frames {start}-{end}: {mean:,.0f} of {int(held.sum()):,} objects hidden a frame (mean)"
+    b.summary = (f"frames {start}-{end}: {mean:,.0f} of {int(held.sum()):,} objects, "
+                 f"{100 * float(share.mean()):.0f} % of triangles hidden a frame (mean)")
     STATE.key, STATE.known, STATE.stale = (ident(scene), b.fingerprint), True, None
     return BakeResult(frames, mean, int(held.sum()))
 
@@ -641,14 +651,16 @@ def on_depsgraph_update(scene, depsgraph):
         elif not isinstance(u.id, bpy.types.Scene):
             touched = True
     if reason is None and not touched:         # the scene alone: a selection, or a hide
-        if not STATE.owns():
+        if not STATE.owns():                   # nothing of the bake's hidden: checked when it applies
+            STATE.mark(None)
+            STATE.drawn = None
             return
         try:
             if STATE.drawn == drawn_digest(bpy.context, STATE.view):
                 return
         except AttributeError:                 # no view layer in this context: unknown
             pass
-        touched = True
+        touched, STATE.drawn = True, None
     STATE.mark(reason)
     if STATE.owns():
         release(update=False)

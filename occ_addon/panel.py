@@ -65,6 +65,10 @@ def _baked_shot(layout, context):
             box.label(text=f"Stale: {why}; bake again", icon="ERROR")
         elif bake.STATE.camera_off is not None:
             box.label(text=f"Frame {bake.STATE.camera_off}: the camera is not the baked one", icon="ERROR")
+        elif b.use and bake.STATE.owns():
+            # Blender's update after each frame's change: where it outgrows the draw it saves
+            # (tens of thousands of objects), playback is faster without the bake
+            box.label(text=f"Last frame: {bake.STATE.changed:,} changed, {bake.STATE.apply_ms:.0f} ms update")
 
 
 def _labelled(layout, data, prop, label):

@@ -90,7 +90,7 @@ CHECKS = {
         "bake_storage_roundtrip", "bake_stored",
         *[f"bake_{w}_{c}" for w in ("play", "scrub", "reloaded") for c in ("is_the_frames_set", "truth")],
         "bake_survives_rename", "bake_saved_file_opens_shown", "bake_survives_reload",
-        *[f"bake_stale_after_{e}_{c}" for e in ("move", "hide", "delete", "camera")
+        *[f"bake_stale_after_{e}_{c}" for e in ("move", "hide", "delete", "camera", "hide_while_off")
           for c in ("hides_nothing", "truth")],
         "bake_duplicate_never_hidden", "bake_duplicate_truth", "bake_use_off_shows_all",
         "bake_seeded_truth", "bake_seeded_sets", "bake_seeded_had_teeth",

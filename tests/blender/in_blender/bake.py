@@ -114,7 +114,8 @@ def baked_shot_workflow():
     edits = [("move", lambda: _move(bpy.data.objects["wall"], 3.0)),
              ("hide", lambda: bpy.data.objects["wall"].hide_set(True)),
              ("delete", lambda: bpy.data.objects.remove(bpy.data.objects["wall"])),
-             ("camera", lambda: _move_camera_key(scene))]
+             ("camera", lambda: _move_camera_key(scene)),
+             ("hide_while_off", _hide_while_off)]
     for name, edit in edits:
         bpy.ops.wm.open_mainfile(filepath=path)
         scene = bpy.context.scene
@@ -152,6 +153,14 @@ def baked_shot_workflow():
     bpy.ops.occ.bake_use()
     update()
     check("bake_use_off_shows_all", had and not _hidden() and not scene.occ_bake.use, (had, _hidden()))
+
+
+def _hide_while_off():
+    """Use Baked Shot off, the wall hidden (eye), Use on again: the bake must notice."""
+    bpy.ops.occ.bake_use()
+    bpy.data.objects["wall"].hide_set(True)
+    update()
+    bpy.ops.occ.bake_use()
 
 
 def _move(obj, dy):
