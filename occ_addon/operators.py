@@ -113,6 +113,42 @@ class Stepped:
         return not bpy.app.background and context.window is not None
 
 
+class SteppedJob(Stepped):
+    """An operator whose whole work is one generator of steps (:meth:`steps`, named
+    :attr:`WHAT` in progress lines): modal in a window, at once otherwise, and
+    :meth:`finish` with the steps' value."""
+
+    WHAT = ""
+
+    def steps(self, context):
+        raise NotImplementedError
+
+    def invoke(self, context, event):
+        if not self.windowed(context):
+            return self.execute(context)
+        try:
+            steps = self.steps(context)
+        except Exception as e:  # every failure is a report, never a traceback
+            return failed(self, e)
+        return self.start_steps(context, steps, self.WHAT)
+
+    def execute(self, context):
+        try:
+            value = self.run_steps(self.steps(context), self.WHAT)
+        except Exception as e:  # every failure is a report, never a traceback
+            return failed(self, e)
+        return self.finish(context, value)
+
+
+def frame_range(op, scene) -> tuple[int, int]:
+    """The operator's ``frame_start`` / ``frame_end`` (-1: the scene's), or an OccError."""
+    start = scene.frame_start if op.frame_start < 0 else op.frame_start
+    end = scene.frame_end if op.frame_end < 0 else op.frame_end
+    if end < start:
+        raise OccError(f"empty frame range {start}..{end}")
+    return start, end
+
+
 class OCC_OT_cull(Stepped, bpy.types.Operator):
     """Hide the objects the active viewport (or the scene camera) cannot see"""
 
@@ -222,7 +258,7 @@ class OCC_OT_live(Stepped, bpy.types.Operator):
         return {"FINISHED"}
 
 
-class OCC_OT_analyze(Stepped, bpy.types.Operator):
+class OCC_OT_analyze(SteppedJob, bpy.types.Operator):
     """Cull from the scene camera over a frame range and write what it sees (JSON and CSV)"""
 
     # Every frame is a new engine's first pass: reports of parts of a range (a farm's
@@ -245,37 +281,18 @@ class OCC_OT_analyze(Stepped, bpy.types.Operator):
                ("RENDER", "Needed for the Render", "Seen, or shadowing what is seen under the render "
                           "engine's lights (everything under ray tracing, unless Cull Under Ray Tracing)")])
 
-    def _plan(self, context):
-        """``(frames, report path)``, or an OccError the user can act on."""
-        scene = context.scene
-        start = scene.frame_start if self.frame_start < 0 else self.frame_start
-        end = scene.frame_end if self.frame_end < 0 else self.frame_end
-        if end < start:
-            raise OccError(f"empty frame range {start}..{end}")
-        return list(range(start, end + 1, self.frame_step)), report_path(self.filepath)
+    WHAT = "analyze"
 
-    def invoke(self, context, event):
-        if not self.windowed(context):
-            return self.execute(context)
-        try:
-            frames, path = self._plan(context)
-        except Exception as e:  # every failure is a report, never a traceback
-            return failed(self, e)
-        steps = analysis_steps(context, frames, path, self._rule(), self.frame_step)
-        return self.start_steps(context, steps, "analyze")
+    def steps(self, context):
+        """The analysis's steps, or an OccError the user can act on (no frame, no path)."""
+        start, end = frame_range(self, context.scene)
+        frames = list(range(start, end + 1, self.frame_step))
+        return analysis_steps(context, frames, report_path(self.filepath), self._rule(), self.frame_step)
 
     def _rule(self):
         if self.rule == "AUTO":
             return "render" if self.link_never_visible else "seen"
         return self.rule.lower()
-
-    def execute(self, context):
-        try:
-            frames, path = self._plan(context)
-            value = self.run_steps(analysis_steps(context, frames, path, self._rule(), self.frame_step), "analyze")
-        except Exception as e:  # every failure is a report, never a traceback
-            return failed(self, e)
-        return self.finish(context, value)
 
     def finish(self, context, analysis):
         try:
@@ -297,42 +314,22 @@ class OCC_OT_analyze(Stepped, bpy.types.Operator):
         return {"FINISHED"}
 
 
-class OCC_OT_bake_shot(Stepped, bpy.types.Operator):
+class OCC_OT_bake_shot(SteppedJob, bpy.types.Operator):
     """Cull every frame of the range from the scene camera, within the frame's motion, and store
     each frame's hidden set in the file (Use Baked Shot applies it as the frame changes)"""
 
     bl_idname = "occ.bake_shot"
     bl_label = "Bake Shot"
+    WHAT = "bake"
 
     frame_start: IntProperty(name="Start", default=-1, description="-1: the scene's start")
     frame_end: IntProperty(name="End", default=-1, description="-1: the scene's end")
 
-    def _range(self, context):
-        scene = context.scene
-        start = scene.frame_start if self.frame_start < 0 else self.frame_start
-        end = scene.frame_end if self.frame_end < 0 else self.frame_end
-        if end < start:
-            raise OccError(f"empty frame range {start}..{end}")
-        if scene.camera is None:
+    def steps(self, context):
+        start, end = frame_range(self, context.scene)
+        if context.scene.camera is None:
             raise OccError("the scene has no camera: a shot is baked for the scene camera")
-        return start, end
-
-    def invoke(self, context, event):
-        if not self.windowed(context):
-            return self.execute(context)
-        try:
-            start, end = self._range(context)
-        except Exception as e:  # every failure is a report, never a traceback
-            return failed(self, e)
-        return self.start_steps(context, bake.bake_steps(context, start, end), "bake")
-
-    def execute(self, context):
-        try:
-            start, end = self._range(context)
-            value = self.run_steps(bake.bake_steps(context, start, end), "bake")
-        except Exception as e:  # every failure is a report, never a traceback
-            return failed(self, e)
-        return self.finish(context, value)
+        return bake.bake_steps(context, start, end)
 
     def finish(self, context, result):
         push_undo("Bake Shot")
