@@ -94,6 +94,8 @@ CHECKS = {
           for c in ("hides_nothing", "truth")],
         "bake_duplicate_never_hidden", "bake_duplicate_truth", "bake_use_off_shows_all",
         "bake_seeded_truth", "bake_seeded_sets", "bake_seeded_had_teeth",
+        *[f"bake_render_{e}_{c}" for e in ("eevee", "workbench") for c in ("no_pixel_changed", "slab_shadow_shows")],
+        "bake_render_workbench_flat_no_pixel_changed",
     ],
 }
 

@@ -264,3 +264,55 @@ def seeded_bake_workflows():
     check("bake_seeded_truth", not seen and checked == len(SEEDS) * STEPS, seen)
     check("bake_seeded_sets", not wrong, wrong)
     check("bake_seeded_had_teeth", hidden_at >= 20, hidden_at)
+
+
+def baked_frames_render_unchanged():
+    """A baked frame's set hidden from Blender's own render (``hide_render``, as a final
+    render would take it) changes no pixel beyond the renderer's own run-to-run noise,
+    EEVEE (one sample) and Workbench with shadows and without, on the lit-render scene with its
+    camera animated (casters seen only through their shadows, an emissive and a mirror
+    box and two crates behind a wall); and the check can fail: hiding the slab that shadows the view
+    changes pixels."""
+    from .policy import _lit_scene, _render
+    try:
+        bpy.context.scene.render.engine = eevee = "BLENDER_EEVEE"
+    except TypeError:                                   # Blender 4.2-4.4's name for it
+        eevee = "BLENDER_EEVEE_NEXT"
+    for engine, tag, shadows in ((eevee, "eevee", True), ("BLENDER_WORKBENCH", "workbench", True),
+                                 ("BLENDER_WORKBENCH", "workbench_flat", False)):
+        scene = _lit_scene()
+        scene.render.engine = engine
+        scene.display.shading.show_shadows = shadows
+        if engine == eevee:
+            scene.eevee.taa_render_samples = 1
+        for name, lo, hi in (("crate_a", (7.5, -3.0, 0.0), (8.3, -2.2, 0.8)),
+                             ("crate_b", (7.2, 1.5, 0.0), (7.8, 2.1, 1.5))):
+            box(name, lo, hi)                  # behind the wall, inside the frame: what a bake hides
+        cam = scene.camera
+        keyframes(cam, [(1, (-10.0, -1.5, 3.0)), (4, (-9.0, 1.5, 3.2))])
+        scene.frame_start, scene.frame_end = 1, 4
+        r = bpy.ops.occ.bake_shot()
+        changed, noise, hid = [], 0.0, []
+        for f in (1, 3):
+            scene.frame_set(f)
+            update()
+            a = _render(os.path.join(WORK, f"bake_{tag}_{f}_a.png"))
+            b = _render(os.path.join(WORK, f"bake_{tag}_{f}_b.png"))
+            noise = max(noise, float(np.abs(a - b).max()))
+            want = _expected(scene, f)
+            hid.append(sorted(want))
+            for o in bpy.data.objects:
+                o.hide_render = o.name in want
+            c = _render(os.path.join(WORK, f"bake_{tag}_{f}_c.png"))
+            changed.append(int((np.abs(c - a) > noise + 1.0 / 255.0).any(axis=2).sum()))
+            for o in bpy.data.objects:
+                o.hide_render = o.name == "slab"
+            d = _render(os.path.join(WORK, f"bake_{tag}_{f}_d.png"))
+            for o in bpy.data.objects:
+                o.hide_render = False
+            changed.append(-int((np.abs(d - a) > noise + 1.0 / 255.0).any(axis=2).sum()))
+        # (Workbench's shadows sweep every crate's shadow past the wall's end: it hides nothing there)
+        check(f"bake_render_{tag}_no_pixel_changed", r == {"FINISHED"} and all(c == 0 for c in changed[0::2])
+              and (any(hid) or tag == "workbench"), (r, hid, changed, noise))
+        if shadows:
+            check(f"bake_render_{tag}_slab_shadow_shows", all(c < 0 for c in changed[1::2]), (changed, noise))
