@@ -1,6 +1,6 @@
 """A baked shot headless (bpy from PyPI): the bake's time and size, and playback frame by frame.
 
-    .venv/bin/python tools/bench/bake_shot.py [SCENE] [--frames N]      (-small: the small variant)
+    .venv/bin/python tools/bench/bake_shot.py [SCENE] [--frames N] [--render eevee,workbench] [--size 640x360]
 
 Builds the add-on's zip and installs it into an isolated user folder (as the Blender tests
 do), builds the sample scene in bpy, keys the scene camera on the scene's camera path (the
@@ -12,7 +12,16 @@ one JSON object: bake seconds (per frame), the stored text's size, the objects h
 frame, the frame change off and on (median ms) and the bake's apply (median ms, objects
 changed per frame).
 
-Inside Blender (``python tools/bench/bake_shot.py --inside ZIP WORK SCENE FRAMES``) it is the run itself.
+``--render`` renders ``RENDER_FRAMES`` frames of the shot spread over it at ``--size`` with
+each engine, once as it is and once with the frame's baked set hidden from the render
+(``hide_render``, as a final render would take the bake; set and cleared by this tool),
+and reports per engine the median render time (as it is: the faster of two renders), the
+largest peak resident memory of the process during a render (``VmHWM`` reset before each)
+and the pixels that differ beyond the renderer's own run-to-run noise (the two renders
+as it is).
+
+Inside Blender (``python tools/bench/bake_shot.py --inside ZIP WORK SCENE FRAMES ENGINES SIZE``) it is the run
+itself.
 """
 
 import json
@@ -36,12 +45,15 @@ def outside(argv):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("scene", nargs="?", default="city-small")
     ap.add_argument("--frames", type=int, default=90, help="path frames baked and played (from the first)")
+    ap.add_argument("--render", default="", help="engines to render with: eevee, workbench (comma-separated)")
+    ap.add_argument("--size", default="640x360", help="render size for --render")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         work = pathlib.Path(tmp)
         env = {**os.environ, "BLENDER_USER_RESOURCES": str(work / "user")}
         p = subprocess.run([PYTHON, os.path.abspath(__file__), "--inside", str(build_zip(work)), str(work),
-                            args.scene, str(args.frames)], env=env, capture_output=True, text=True)
+                            args.scene, str(args.frames), args.render or "-", args.size], env=env, capture_output=True,
+                           text=True)
         line = next((ln for ln in p.stdout.splitlines() if ln.startswith("BAKE_SHOT ")), None)
         if line is None:
             sys.stderr.write(f"bake_shot: no figures (rc {p.returncode}):\n{p.stdout[-2000:]}\n{p.stderr[-3000:]}\n")
@@ -52,7 +64,91 @@ def outside(argv):
     return 0
 
 
-def inside(zip_path, scene_name, frames):
+RENDER_FRAMES = 4
+
+
+def _peak_reset():
+    try:
+        with open("/proc/self/clear_refs", "w") as f:
+            f.write("5")
+    except OSError:
+        pass
+
+
+def _peak():
+    with open("/proc/self/status") as f:
+        return next(int(ln.split()[1]) * 1024 for ln in f if ln.startswith("VmHWM"))
+
+
+def _render(path):
+    """Render the scene camera's view into ``path``: ``(seconds, peak bytes, (h, w, 4) pixels)``."""
+    import bpy
+    import numpy as np
+    sc = bpy.context.scene
+    sc.render.filepath = path
+    sc.render.image_settings.file_format = "PNG"
+    _peak_reset()
+    t = time.perf_counter()
+    bpy.ops.render.render(write_still=True)
+    took, peak = time.perf_counter() - t, _peak()
+    img = bpy.data.images.load(path, check_existing=False)
+    px = np.array(img.pixels[:], dtype=np.float64).reshape(img.size[1], img.size[0], img.channels)
+    bpy.data.images.remove(img)
+    return took, peak, px
+
+
+def render_figures(bake, engines, size, work):
+    """Per engine: render time, peak memory and pixels changed with the frame's set hidden."""
+    import bpy
+    import numpy as np
+    sc = bpy.context.scene
+    sc.render.resolution_x, sc.render.resolution_y = (int(v) for v in size.split("x"))
+    names = {"eevee": next(e for e in ("BLENDER_EEVEE", "BLENDER_EEVEE_NEXT")
+                           if e in {i.identifier for i in sc.render.bl_rna.properties["engine"].enum_items}),
+             "workbench": "BLENDER_WORKBENCH"}
+    if bool(sc.occ_bake.use):
+        bpy.ops.occ.bake_use()                      # the viewport's hiding off: the render reads hide_render
+    frames = np.linspace(sc.frame_start, sc.frame_end, RENDER_FRAMES).round().astype(int).tolist()
+    ids = bake.numbers()
+    ok = bake.usable(ids)
+    out = {}
+    for name in engines:
+        sc.render.engine = names[name]
+        if name == "eevee":
+            sc.eevee.taa_render_samples = 16
+        rec = {"plain_s": [], "baked_s": [], "plain_peak": [], "baked_peak": [], "changed": [], "noise": 0.0,
+               "hidden": []}
+        for f in frames:
+            sc.frame_set(f)
+            row = bake.stored(sc).frame(f)
+            hide = np.zeros(len(ids), dtype=bool)
+            hide[ok] = row[ids[ok]]
+            s0, p0, a = _render(os.path.join(work, f"{name}_{f}_a.png"))
+            s0b, p0b, b = _render(os.path.join(work, f"{name}_{f}_b.png"))
+            s0, p0 = min(s0, s0b), min(p0, p0b)          # (the first render of a frame may compile shaders)
+            noise = float(np.abs(a - b).max())
+            items = bpy.data.objects.values()
+            for i in np.flatnonzero(hide).tolist():
+                items[i].hide_render = True
+            s1, p1, c = _render(os.path.join(work, f"{name}_{f}_c.png"))
+            for i in np.flatnonzero(hide).tolist():
+                items[i].hide_render = False
+            rec["plain_s"].append(s0)
+            rec["baked_s"].append(s1)
+            rec["plain_peak"].append(p0)
+            rec["baked_peak"].append(p1)
+            rec["changed"].append(int((np.abs(c - a) > noise + 1.0 / 255.0).any(axis=2).sum()))
+            rec["noise"] = max(rec["noise"], noise)
+            rec["hidden"].append(int(hide.sum()))
+        out[name] = {"frames": frames, "render_s_plain_median": float(np.median(rec["plain_s"])),
+                     "render_s_baked_median": float(np.median(rec["baked_s"])),
+                     "peak_mb_plain_max": max(rec["plain_peak"]) / 2**20,
+                     "peak_mb_baked_max": max(rec["baked_peak"]) / 2**20,
+                     "pixels_changed": rec["changed"], "noise": rec["noise"], "hidden": rec["hidden"]}
+    return out
+
+
+def inside(zip_path, work, scene_name, frames, engines, size):
     import bpy
     import numpy as np
 
@@ -104,12 +200,16 @@ def inside(zip_path, scene_name, frames):
                        hidden_mean=float(np.mean(hidden)))
         out["use_on" if on else "use_off"] = run
     bpy.ops.occ.bake_use()
+    if engines:
+        out["render"] = render_figures(bake, engines, size, work)
+        out["render_size"] = size
     print("BAKE_SHOT " + json.dumps(out), flush=True)
 
 
 if __name__ == "__main__":
     if "--inside" in sys.argv:
-        zip_arg, _work, scene_arg, frames_arg = sys.argv[sys.argv.index("--inside") + 1:][:4]
-        inside(zip_arg, scene_arg, int(frames_arg))
+        zip_arg, work_arg, scene_arg, frames_arg, engines_arg, size_arg = sys.argv[sys.argv.index("--inside") + 1:][:6]
+        inside(zip_arg, work_arg, scene_arg, int(frames_arg), [e for e in engines_arg.split(",") if e != "-"],
+               size_arg)
     else:
         sys.exit(outside(sys.argv[1:]))
