@@ -169,6 +169,16 @@ def numbers() -> np.ndarray:
     return out.astype(np.int64)
 
 
+def frame_mask(row: np.ndarray | None, ids: np.ndarray) -> np.ndarray:
+    """``(n,) bool`` over ``bpy.data.objects`` (their numbers ``ids``): what a frame's
+    bitset ``row`` hides (None: nothing); an object without a number of its own never."""
+    out = np.zeros(len(ids), dtype=bool)
+    if row is not None:
+        ok = usable(ids) & (ids < len(row))
+        out[ok] = row[ids[ok]]
+    return out
+
+
 def usable(ids: np.ndarray) -> np.ndarray:
     """``(n,) bool``: numbers an object owns alone (none, or shared: never hidden)."""
     ok = ids > 0
@@ -327,6 +337,7 @@ class State:
         self.camera = None           # (view, projection) of the camera the applied set holds for
         self.view = None             # the SpaceView3D pointer it hides in
         self.baking = False
+        self.rendering = False       # Render Baked Shot runs: its own hide_render writes
         self.unsure = True           # hidden now may be a baked set nobody recorded (an undo)
         self.pending = False         # a recheck timer is registered
         self.apply_ms = 0.0          # the last frame's apply: the hiding and Blender's update (ms)
@@ -455,10 +466,7 @@ def apply_frame(context, handler: bool = False) -> int:
     if not _camera_holds(baked, f, scene.frame_current_final, camera):
         release()
         return 0
-    ids = numbers()
-    ok = usable(ids) & (ids < len(row))
-    hide = np.zeros(len(ids), dtype=bool)
-    hide[ok] = row[ids[ok]]
+    hide = frame_mask(row, numbers())
     if handler and channel is not None and channel[1].spaces.active.local_view is None and hide.any():
         _later()
         hide[:] = False
@@ -587,6 +595,73 @@ def bake_steps(context, start: int, end: int) -> Generator[object, None, BakeRes
     return BakeResult(frames, mean, int(held.sum()))
 
 
+# --- the render ---------------------------------------------------------------------------
+
+@dataclass
+class Rendered:
+    frames: list
+    hidden: list                # per frame, objects hidden from its render
+    paths: list
+
+
+def render_shot(context, start: int, end: int) -> Rendered:
+    """Render frames ``start .. end`` to ``scene.render.filepath`` (numbered as
+    ``blender -a`` numbers them), each with its baked set hidden from the render: the
+    frame is evaluated (``frame_set``), checked (the bake holds, the camera is the baked
+    one: else it is rendered whole), the set's objects get ``hide_render`` (only those
+    whose own is off), the frame is rendered on this thread (``render.render``, which
+    blocks: no render job, no handler on a render thread) and exactly those flags are
+    cleared again, whatever happens.  A stale bake renders nothing: an OccError."""
+    scene = context.scene
+    baked = stored(scene)
+    if baked is None:
+        raise OccError("no baked shot in this scene: bake one first (Bake Shot)")
+    if start < baked.start or end > baked.end:
+        raise OccError(f"frames {start}-{end} are not all baked (the bake holds frames {baked.start}-{baked.end})")
+    previous = scene.frame_current
+    out = Rendered([], [], [])
+    STATE.rendering = True
+    try:
+        release()                                 # the viewport's hiding is not the render's
+        why = STATE.status(context, baked)
+        if why is not None:
+            raise OccError(f"the baked shot is stale ({why}): bake it again, or render without it")
+        for f in range(start, end + 1):
+            scene.frame_set(f)
+            try:
+                camera, _ = scene_camera(context)
+            except OccError:
+                camera = None
+            row = baked.frame(f) if _camera_holds(baked, f, float(f), camera) else None
+            take = frame_mask(row, numbers()) & ~identity.flags("hide_render")
+            items = bpy.data.objects.values()
+            hidden = [items[i] for i in np.flatnonzero(take).tolist()]
+            path = scene.render.frame_path(frame=f)
+            SESSION.applying = True
+            try:
+                for o in hidden:
+                    o.hide_render = True
+                # a still goes to the output path as it is: the frame's own name, as -a writes it
+                scene.render.filepath, kept = path, scene.render.filepath
+                try:
+                    bpy.ops.render.render(write_still=True)
+                finally:
+                    scene.render.filepath = kept
+            finally:
+                for o in hidden:
+                    o.hide_render = False
+                SESSION.applying = False
+            out.frames.append(f)
+            out.hidden.append(len(hidden))
+            out.paths.append(path)
+            if bpy.app.background:
+                print(f"occlusion render: frame {f} ({len(hidden)} objects hidden) -> {path}", flush=True)
+    finally:
+        STATE.rendering = False
+        scene.frame_set(previous)
+    return out
+
+
 def clear(scene) -> None:
     release()
     b = scene.occ_bake
@@ -604,7 +679,7 @@ def _rendering() -> bool:
 @persistent
 def on_frame_change(scene, _depsgraph=None):
     """Apply the new frame's set before it draws."""
-    if STATE.baking or _rendering() or SESSION.busy:
+    if STATE.baking or STATE.rendering or _rendering() or SESSION.busy:
         return
     context = bpy.context
     if context.scene is not scene or not scene.occ_bake.use:
@@ -626,7 +701,7 @@ def on_depsgraph_update(scene, depsgraph):
     unknown until checked; the camera moved is compared with the frame's.  What the
     bake hid is shown here (before the next draw) and applied again from a timer right
     after, checked (headless: at the next frame change)."""
-    if SESSION.applying or STATE.baking or not scene.occ_bake.hidden:
+    if SESSION.applying or STATE.baking or STATE.rendering or not scene.occ_bake.hidden:
         return
     reason, touched, cam = None, False, scene.camera
     for u in depsgraph.updates:

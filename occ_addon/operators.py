@@ -341,6 +341,32 @@ class OCC_OT_bake_shot(SteppedJob, bpy.types.Operator):
         return {"FINISHED"}
 
 
+class OCC_OT_render_baked(bpy.types.Operator):
+    """Render the baked frames to the output path, each with its baked set hidden from the render
+    (blocks until done; from the command line: blender -b FILE --python-expr
+    "import bpy; bpy.ops.occ.render_baked()")"""
+
+    bl_idname = "occ.render_baked"
+    bl_label = "Render Baked Shot"
+
+    frame_start: IntProperty(name="Start", default=-1, description="-1: the bake's first frame")
+    frame_end: IntProperty(name="End", default=-1, description="-1: the bake's last frame")
+
+    def execute(self, context):
+        t = time.perf_counter()
+        try:
+            b = context.scene.occ_bake
+            start = b.frame_start if self.frame_start < 0 else self.frame_start
+            end = b.frame_end if self.frame_end < 0 else self.frame_end
+            done = bake.render_shot(context, start, end)
+        except Exception as e:  # every failure is a report, never a traceback
+            return failed(self, e)
+        self.report({"INFO"}, f"rendered {len(done.frames)} frames in {time.perf_counter() - t:.1f} s, "
+                              f"{sum(done.hidden) / max(len(done.hidden), 1):,.0f} objects hidden a frame "
+                              f"(mean); last {done.paths[-1] if done.paths else '-'}")
+        return {"FINISHED"}
+
+
 class OCC_OT_bake_use(bpy.types.Operator):
     """Apply the baked shot's hiding as the frame changes, in the view through the scene camera (toggle)"""
 
@@ -417,7 +443,7 @@ def failed(op, error):
 
 
 CLASSES = (OCC_OT_cull, OCC_OT_restore, OCC_OT_local_view, OCC_OT_live, OCC_OT_analyze, OCC_OT_bake_shot,
-           OCC_OT_bake_use, OCC_OT_bake_clear)
+           OCC_OT_bake_use, OCC_OT_bake_clear, OCC_OT_render_baked)
 
 _keymaps = []
 

@@ -59,6 +59,7 @@ def _baked_shot(layout, context):
     if b.hidden:
         row.operator("occ.bake_clear", text="", icon="TRASH")
         box.operator("occ.bake_use", text="Use Baked Shot", icon="PLAY", depress=b.use)
+        box.operator("occ.render_baked", icon="RENDER_STILL")
         box.label(text=b.summary)
         why = bake.STATE.stale if bake.STATE.known else None
         if why:

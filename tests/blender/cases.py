@@ -43,7 +43,8 @@ CASES = (policy.user_hidden_objects, policy.dynamic_objects, cameras.camera_as_r
          session.edit_while_another_layer_shown, visibility.records_read_once_a_pass,
          localview.toggle_waits_for_engine,
          localview.failed_pass_keeps_selection, bake.bake_storage_roundtrip, bake.baked_shot_workflow,
-         bake.seeded_bake_workflows, bake.baked_frames_render_unchanged)
+         bake.seeded_bake_workflows, bake.baked_frames_render_unchanged,
+         bake.render_baked_shot)
 # Cases whose failure was a crash of Blender: each runs only when named (a process of its own).
 ALONE = (analysis.undo_after_collect, session.hair_undo_two_layers, session.foreign_overrides_during_a_job)
 

@@ -96,6 +96,7 @@ CHECKS = {
         "bake_seeded_truth", "bake_seeded_sets", "bake_seeded_had_teeth",
         *[f"bake_render_{e}_{c}" for e in ("eevee", "workbench") for c in ("no_pixel_changed", "slab_shadow_shows")],
         "bake_render_workbench_flat_no_pixel_changed",
+        "render_baked_frames_pixel_identical", "render_baked_hide_render_as_it_was", "render_baked_stale_refused",
     ],
 }
 

@@ -110,7 +110,6 @@ def render_figures(bake, engines, size, work):
         bpy.ops.occ.bake_use()                      # the viewport's hiding off: the render reads hide_render
     frames = np.linspace(sc.frame_start, sc.frame_end, RENDER_FRAMES).round().astype(int).tolist()
     ids = bake.numbers()
-    ok = bake.usable(ids)
     out = {}
     for name in engines:
         sc.render.engine = names[name]
@@ -120,9 +119,7 @@ def render_figures(bake, engines, size, work):
                "hidden": []}
         for f in frames:
             sc.frame_set(f)
-            row = bake.stored(sc).frame(f)
-            hide = np.zeros(len(ids), dtype=bool)
-            hide[ok] = row[ids[ok]]
+            hide = bake.frame_mask(bake.stored(sc).frame(f), ids)
             s0, p0, a = _render(os.path.join(work, f"{name}_{f}_a.png"))
             s0b, p0b, b = _render(os.path.join(work, f"{name}_{f}_b.png"))
             s0, p0 = min(s0, s0b), min(p0, p0b)          # (the first render of a frame may compile shaders)

@@ -176,11 +176,7 @@ def inside(out_path, scene_name, seconds, fps):
             baked = bake.stored(sc)
             row = baked.frame(sc.frame_current) if baked is not None and sc.occ_bake.use else None
             if row is not None:
-                ids = bake.numbers()
-                want = np.zeros(len(ids), dtype=bool)
-                ok = bake.usable(ids) & (ids < len(row))
-                want[ok] = row[ids[ok]]
-                rec["not_baked_set"].append(int((want != hidden).sum()))
+                rec["not_baked_set"].append(int((bake.frame_mask(row, bake.numbers()) != hidden).sum()))
 
         def frame_pre(_scene, _depsgraph=None):
             rec["frame_began"] = time.perf_counter()

@@ -42,10 +42,8 @@ def _shot(seed: int):
 def _expected(scene, f):
     """The names the scene's bake hides at frame ``f`` (its numbers decoded)."""
     b = addon("bake")
-    row = b.stored(scene).frame(f)
-    ids = b.numbers()
-    ok = b.usable(ids) & (ids < len(row))
-    return {o.name for o, i, k in zip(bpy.data.objects, ids, ok, strict=True) if k and row[i]}
+    hide = b.frame_mask(b.stored(scene).frame(f), b.numbers())
+    return {o.name for o, h in zip(bpy.data.objects, hide, strict=True) if h}
 
 
 def _hidden():
@@ -264,6 +262,47 @@ def seeded_bake_workflows():
     check("bake_seeded_truth", not seen and checked == len(SEEDS) * STEPS, seen)
     check("bake_seeded_sets", not wrong, wrong)
     check("bake_seeded_had_teeth", hidden_at >= 20, hidden_at)
+
+
+def render_baked_shot():
+    """Render Baked Shot writes every frame where ``blender -a`` would, each with its set
+    hidden from the render, pixel for pixel the frame rendered whole (Workbench), and
+    leaves every ``hide_render`` as it was (one the user set stays); a stale bake renders
+    nothing and says why."""
+    scene = _shot(11)
+    scene.render.engine = "BLENDER_WORKBENCH"
+    scene.render.resolution_x, scene.render.resolution_y = 160, 90
+    scene.render.image_settings.file_format = "PNG"
+    scene.render.filepath = os.path.join(WORK, "shot", "f_")
+    bpy.data.objects["b3"].hide_render = True             # the user's own
+    bpy.ops.occ.bake_shot(frame_start=1, frame_end=4)
+    r = bpy.ops.occ.render_baked()
+    from .policy import _render
+    same, hidden = [], []
+    paths = {f: scene.render.frame_path(frame=f) for f in range(1, 5)}    # (_render moves the output path)
+    for f, path in paths.items():
+        if not os.path.exists(path):
+            same.append((f, "missing"))
+            continue
+        img = bpy.data.images.load(path, check_existing=False)
+        got = np.array(img.pixels[:], dtype=np.float64).reshape(img.size[1], img.size[0], img.channels)
+        bpy.data.images.remove(img)
+        scene.frame_set(f)
+        whole = _render(os.path.join(WORK, f"shot_whole_{f}.png"))
+        same.append((f, int((np.abs(got - whole) > 1.0 / 255.0).any(axis=2).sum())))
+        hidden.append(len(_expected(scene, f)))
+    flags = sorted(o.name for o in bpy.data.objects if o.hide_render)
+    check("render_baked_frames_pixel_identical", r == {"FINISHED"} and all(n == 0 for _, n in same)
+          and sum(hidden) > 0, (r, same, hidden))
+    check("render_baked_hide_render_as_it_was", flags == ["b3"], flags)
+    _move(bpy.data.objects["wall"], 3.0)
+    update()
+    try:
+        bpy.ops.occ.render_baked()
+        refused = ""
+    except RuntimeError as e:                           # the operator's ERROR report
+        refused = str(e)
+    check("render_baked_stale_refused", "stale" in refused, refused)
 
 
 def baked_frames_render_unchanged():
