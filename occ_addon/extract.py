@@ -61,7 +61,7 @@ import bpy
 import numpy as np
 
 from ..core import OccError, Scene
-from . import identity
+from . import identity, materials
 from .cameras import pass_view
 from .drawn import NoView, drawn, filters_geometry, shown_by_collections, user_shown, view_shows
 from .fingerprints import fingerprint
@@ -239,6 +239,7 @@ class Extractor:
         self.sources = {}        # instancer uid -> its instanced_sources when its instances were read
         self.beyond: set[int] = set()   # instancers whose instances, as read, draw beyond their geometry
         self.stale_originals = set()  # uids whose original matrix_world lags their evaluated one
+        materials.forget()
 
     def forget(self, uid: int) -> None:
         """Forget what object ``uid`` is (it will be classified again)."""
@@ -278,6 +279,11 @@ class Extractor:
             if self.dynamic and self.dynamic.pop(uid, None) is not True and is_dynamic(idb.original):
                 self.dynamic.clear()                  # its children may have become dynamic with it
         else:
+            if type(idb).__name__ in materials.UPDATES:   # what an object is may change with its materials
+                materials.forget()
+                self.info.clear()
+                for uid in self.sources:              # instances are read without the see-through ones
+                    self.cache.pop(uid, None)
             self.visibility_changed()
 
     def visibility_changed(self) -> None:

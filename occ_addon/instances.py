@@ -10,6 +10,7 @@ import numpy as np
 from .drawn import DRAWN_TYPES
 from .identity import ident
 from .kinds import GEOMETRY_TYPES, SOLID_DISPLAY
+from .materials import see_through
 from .meshes import EMPTY, mesh_arrays, read_mesh
 
 
@@ -58,6 +59,10 @@ def instanced_geometry(depsgraph, instancers, beyond: set | None = None):
         elif not MADE_READABLE:
             unknown.add(owner)                       # geometry it made, not to be read here
     for source, uses in sources.values():
+        if see_through(source):                      # (its materials: read after the iteration, as meshes)
+            if beyond is not None:
+                beyond.update(uses)
+            continue
         evaluated = source.evaluated_get(depsgraph)
         if not evaluated.is_evaluated:
             continue                                 # not in this depsgraph: what it draws is unknown
@@ -68,7 +73,7 @@ def instanced_geometry(depsgraph, instancers, beyond: set | None = None):
         if not MADE_READABLE or obj.type == "EMPTY":   # an empty makes no geometry (5.2 refuses to say)
             continue
         evaluated = obj.evaluated_get(depsgraph)
-        if evaluated.display_type in SOLID_DISPLAY:
+        if evaluated.display_type in SOLID_DISPLAY and not see_through(evaluated):
             try:
                 parts[uid] += _made_geometry(evaluated)
             except (TypeError, RuntimeError, _Unread):   # Blender cannot give all of it: unread, kept visible

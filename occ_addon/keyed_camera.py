@@ -24,7 +24,7 @@ import bpy
 import numpy as np
 from mathutils import Euler, Matrix, Quaternion
 
-from .kinds import is_dynamic
+from .kinds import action_curves, is_dynamic, render_keys_only
 
 # transform channels the keys may animate (anything else keyed on the camera: frames)
 CHANNELS = {"location": 3, "rotation_euler": 3, "rotation_quaternion": 4, "rotation_axis_angle": 4,
@@ -66,14 +66,7 @@ def _fcurves(idblock):
     action = ad.action
     if action is None:
         return []
-    slot = getattr(ad, "action_slot", None)
-    if hasattr(action, "layers") and (len(action.layers) or slot is not None):   # slotted (4.4+)
-        if len(action.layers) > 1 or any(len(layer.strips) > 1 for layer in action.layers):
-            return None
-        from bpy_extras.anim_utils import action_get_channelbag_for_slot
-        bag = action_get_channelbag_for_slot(action, slot)
-        return [] if bag is None else list(bag.fcurves)
-    return list(action.fcurves)
+    return action_curves(action, getattr(ad, "action_slot", None))
 
 
 class KeyedCamera:
@@ -148,6 +141,9 @@ def probe(scene, moving: list, lights_count: bool) -> KeyedCamera | None:
                 (idb.type in INERT_TYPES and idb.instance_type == "NONE")
                 or (idb.type == "LIGHT" and not lights_count)):
             continue
+        if isinstance(idb, bpy.types.Object) and idb not in ancestors and idb.animation_data is not None \
+                and render_keys_only(idb.animation_data) and not is_dynamic(idb):
+            continue                         # its render keys (Apply to Render): nothing a pass sees
         if isinstance(idb, bpy.types.Camera) and idb != cam.data:
             continue
         if isinstance(idb, bpy.types.Light) and not lights_count:

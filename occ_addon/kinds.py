@@ -11,6 +11,7 @@ from enum import Enum
 import numpy as np
 
 from .identity import ident
+from .materials import see_through
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
 SOLID_DISPLAY = {"SOLID", "TEXTURED"}            # wire and bounds display never occlude
@@ -149,6 +150,8 @@ def kind(obj) -> Kind | None:
     if obj.type in GEOMETRY_TYPES:
         if obj.display_type not in SOLID_DISPLAY or obj.show_in_front:
             return None                   # wire or bounds occlude nothing; "in front" is drawn over walls
+        if see_through(obj):
+            return None                   # glass, alpha, back faces culled: what is behind shows
         parent = obj.parent
         if parent is not None and parent.instance_type in {"VERTS", "FACES"}:
             return None                   # drawn only as the parent's instances
@@ -173,9 +176,36 @@ def _object_pointers(mod):
     return any(getattr(mod, p, None) is not None for p in props)
 
 
+# an action the add-on wrote (Apply to Render, :mod:`.render_keys`): its ``hide_render`` keys
+# change nothing a pass sees, so an object carrying only those is not animated
+RENDER_KEYS = "occ_render_keys"
+
+
+def action_curves(action, slot=None) -> list | None:
+    """The F-curves ``action`` animates through ``slot`` (slotted actions, Blender 4.4+;
+    the legacy ``Action.fcurves`` before), or None where it is more than one layer's keys."""
+    if hasattr(action, "layers") and (len(action.layers) or slot is not None):    # slotted (4.4+)
+        if len(action.layers) > 1 or any(len(layer.strips) > 1 for layer in action.layers):
+            return None
+        from bpy_extras.anim_utils import action_get_channelbag_for_slot
+        bag = action_get_channelbag_for_slot(action, slot)
+        return [] if bag is None else list(bag.fcurves)
+    return list(action.fcurves)
+
+
+def render_keys_only(ad) -> bool:
+    """Whether ``ad`` (animation data) animates nothing but the add-on's render keys."""
+    action = ad.action
+    if action is None or action.get(RENDER_KEYS) is None or len(ad.drivers) or len(ad.nla_tracks):
+        return False
+    curves = action_curves(action, getattr(ad, "action_slot", None))
+    return curves is not None and len(curves) == 1 and curves[0].data_path == "hide_render"
+
+
 def _animated(idblock):
     ad = getattr(idblock, "animation_data", None)
-    return ad is not None and (ad.action is not None or len(ad.drivers) > 0 or len(ad.nla_tracks) > 0)
+    return ad is not None and ((ad.action is not None and not render_keys_only(ad))
+                               or len(ad.drivers) > 0 or len(ad.nla_tracks) > 0)
 
 
 def _data_animated(data) -> bool:

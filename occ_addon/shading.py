@@ -2,8 +2,10 @@
 
 - Solid (Workbench), Wireframe, Material Preview without scene lights: only what
   is drawn shows; the depth rule alone.
-- X-ray (Solid or Wireframe, or Workbench's own for the camera): what is behind
-  shows through, so nothing occluded is hidden (what is outside the view still is).
+- X-ray (Solid or Wireframe, or Workbench's own for the camera), or Workbench's
+  backface culling: what is behind shows through, so nothing occluded is hidden (what
+  is outside the view still is).  A see-through material (glass, alpha, a material's
+  own backface culling) makes its object no occluder in every mode (:mod:`.materials`).
 - Scene lights (Material Preview or Rendered with scene lights, EEVEE for the
   camera; Solid with shadows, whose light is ``scene.display.light_direction`` in
   view space):
@@ -81,6 +83,8 @@ def _render_rule(scene, engine, scene_lights, scene_world):
 def _workbench_rule(scene, shading, label):
     if shading.show_xray and shading.xray_alpha < 1.0:
         return ViewRule("xray", f"{label} with X-ray shows what is behind")
+    if getattr(shading, "show_backface_culling", False):
+        return ViewRule("xray", f"{label} with backface culling shows what is behind a wall seen from behind")
     if shading.show_shadows:
         # Workbench's light turns with the view (measured: its direction is in view
         # space); which way it points is not read here: both ways

@@ -433,6 +433,126 @@ def view_rules():
     cull()
     check("rules_xray_hides_nothing_occluded", not hidden_by_addon("target") and hidden_by_addon("outside"),
           (hidden_by_addon("target"), hidden_by_addon("outside"), rule()))
+    scene.display.shading.show_xray = False
+    scene.display.shading.show_backface_culling = True
+    update()
+    cull()
+    check("rules_workbench_backface_culling_hides_nothing_occluded",
+          not hidden_by_addon("target") and hidden_by_addon("outside"),
+          (hidden_by_addon("target"), hidden_by_addon("outside"), rule()))
+
+
+def _see_through(name, how):
+    """A material for the wall: opaque (``opaque``, ``mix_opaque``) or one way of letting
+    what is behind show."""
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    bsdf, out = nodes.get("Principled BSDF"), nodes.get("Material Output")
+    if how == "alpha":
+        bsdf.inputs["Alpha"].default_value = 0.3
+    elif how == "transmission":
+        bsdf.inputs["Transmission Weight"].default_value = 1.0
+    elif how == "glass":
+        links.new(nodes.new("ShaderNodeBsdfGlass").outputs[0], out.inputs["Surface"])
+    elif how in ("mix_transparent", "mix_opaque"):
+        mix = nodes.new("ShaderNodeMixShader")
+        other = nodes.new("ShaderNodeBsdfTransparent" if how == "mix_transparent" else "ShaderNodeBsdfDiffuse")
+        links.new(bsdf.outputs[0], mix.inputs[1])
+        links.new(other.outputs[0], mix.inputs[2])
+        links.new(mix.outputs[0], out.inputs["Surface"])
+    elif how == "viewport_alpha":
+        mat.diffuse_color[3] = 0.5
+    elif how == "backface":
+        mat.use_backface_culling = True
+    elif how == "volume":
+        links.new(nodes.new("ShaderNodeVolumePrincipled").outputs[0], out.inputs["Volume"])
+    return mat
+
+
+SEE_THROUGH = ("alpha", "transmission", "glass", "mix_transparent", "viewport_alpha", "backface", "volume",
+               "object_alpha")
+
+
+def _eevee(scene):
+    try:
+        scene.render.engine = "BLENDER_EEVEE"
+    except TypeError:                                   # Blender 4.2-4.4's name for it
+        scene.render.engine = "BLENDER_EEVEE_NEXT"
+
+
+def see_through_materials():
+    """A wall whose material may show what is behind it (alpha, transmission, glass, a
+    transparent mix, a volume, Workbench's viewport alpha, backface culling, the object's
+    color alpha) occludes nothing, in any engine; opaque walls still do; a wall made
+    transparent after a pass shows what it hid at the next; a collection instance's
+    glass member occludes nothing; and the renders say the crate is seen through those walls."""
+    hid = {}
+    for how in ("opaque", "mix_opaque") + SEE_THROUGH:
+        scene = new_scene()
+        _eevee(scene)
+        box("crate", (2, -1, 0), (3, 1, 1.5))
+        wall = bpy.data.objects["wall"]
+        if how == "object_alpha":
+            wall.color[3] = 0.5
+        else:
+            wall.data.materials.append(_see_through(how, how))
+        update()
+        r, _ = cull()
+        hid[how] = (r, hidden_by_addon("crate"))
+    check("see_through_opaque_walls_occlude", all(hid[h] == ({"FINISHED"}, True) for h in ("opaque", "mix_opaque")),
+          hid)
+    check("see_through_walls_occlude_nothing", all(hid[h] == ({"FINISHED"}, False) for h in SEE_THROUGH), hid)
+    shows = {}
+    for how, engine in (("alpha", "eevee"), ("mix_transparent", "eevee"), ("viewport_alpha", "workbench")):
+        scene = new_scene()
+        _eevee(scene)
+        scene.render.resolution_x, scene.render.resolution_y = 160, 90
+        if engine == "workbench":
+            scene.render.engine = "BLENDER_WORKBENCH"
+            scene.display.shading.color_type = "MATERIAL"
+        crate = box("crate", (2, -1, 0), (3, 1, 1.5))
+        glow = bpy.data.materials.new("glow")             # (no world, no light: the crate lights itself)
+        glow.use_nodes = True
+        nodes = glow.node_tree.nodes
+        glow.node_tree.links.new(nodes.new("ShaderNodeEmission").outputs[0],
+                                 nodes.get("Material Output").inputs["Surface"])
+        glow.diffuse_color = (1.0, 1.0, 1.0, 1.0)
+        crate.data.materials.append(glow)
+        bpy.data.objects["wall"].data.materials.append(_see_through(how, how))
+        a = _render(os.path.join(WORK, f"see_{how}_a.png"))
+        bpy.data.objects["crate"].hide_render = True
+        b = _render(os.path.join(WORK, f"see_{how}_b.png"))
+        shows[how] = int((np.abs(a - b) > 2.0 / 255.0).any(axis=2).sum())
+    check("see_through_crate_shows_in_render", all(n > 0 for n in shows.values()), shows)
+    scene = new_scene()
+    box("crate", (2, -1, 0), (3, 1, 1.5))
+    mat = _see_through("edited", "opaque")
+    bpy.data.objects["wall"].data.materials.append(mat)
+    update()
+    cull()
+    before = hidden_by_addon("crate")
+    mat.node_tree.nodes.get("Principled BSDF").inputs["Alpha"].default_value = 0.3
+    update()
+    cull()
+    check("see_through_after_edit_shown", before and not hidden_by_addon("crate"), (before, hidden_by_addon("crate")))
+    scene = new_scene()
+    bpy.data.objects.remove(bpy.data.objects["wall"])
+    panes = bpy.data.collections.new("panes")
+    pane = box("pane", (0, -6, -2), (0.5, 6, 6), panes)
+    pane.data.materials.append(_see_through("pane_opaque", "opaque"))
+    inst = bpy.data.objects.new("panes_instance", None)
+    inst.instance_type, inst.instance_collection = "COLLECTION", panes
+    scene.collection.objects.link(inst)
+    box("crate", (2, -1, 0), (3, 1, 1.5))
+    update()
+    cull()
+    opaque = hidden_by_addon("crate")
+    pane.data.materials[0] = _see_through("pane_glass", "glass")
+    update()
+    cull()
+    check("see_through_instance_member_occludes_nothing", opaque and not hidden_by_addon("crate"),
+          (opaque, hidden_by_addon("crate")))
 
 
 def _render(path):

@@ -1,0 +1,99 @@
+"""Whether an object may let what is behind it show through its materials: such an
+object is no occluder (and, like wire display, takes no part: never hidden either).
+
+An object is see-through where any material it draws with could be, in any shading
+mode, since the rule must hold in every one and a mode switch re-reads nothing:
+
+- Workbench: the material's viewport alpha (``diffuse_color``) or the object's color
+  alpha below 1, or back faces culled (``use_backface_culling``: a single-sided wall seen
+  from behind is not drawn);
+- EEVEE and Cycles (Material Preview, Rendered, the camera's render): a surface shader
+  that is not proved opaque.  Proved opaque: the active material output's surface is a
+  tree of opaque closures (diffuse, glossy, emission, subsurface, sheen, toon, translucent,
+  holdout, Principled with alpha 1 and no transmission, EEVEE's Specular without
+  transparency, all of those through mix and add nodes), with nothing on its volume
+  input.  Anything else (transparent, glass, refraction, a ray portal, a node group, an
+  unlinked shader socket, an alpha driven by a texture) is taken as see-through.
+
+Materials are asked once each and remembered until a material, a node tree or an image
+changes (:func:`forget`, from the extractor's depsgraph marks) or the session resets.
+"""
+
+from .identity import ident
+
+OPAQUE_CLOSURES = {"BSDF_DIFFUSE", "BSDF_GLOSSY", "BSDF_ANISOTROPIC", "BSDF_METALLIC", "EMISSION",
+                   "SUBSURFACE_SCATTERING", "BSDF_VELVET", "BSDF_SHEEN", "BSDF_TOON", "BSDF_TRANSLUCENT",
+                   "HOLDOUT", "BSDF_PRINCIPLED", "EEVEE_SPECULAR", "BSDF_HAIR", "BSDF_HAIR_PRINCIPLED"}
+MIXERS = {"MIX_SHADER", "ADD_SHADER"}
+# inputs of an opaque closure that must stay at their value, unlinked: (name, opaque value)
+HELD_INPUTS = {"BSDF_PRINCIPLED": (("Alpha", 1.0), ("Transmission Weight", 0.0), ("Transmission", 0.0)),
+               "EEVEE_SPECULAR": (("Transparency", 0.0),)}
+MAX_DEPTH = 64
+UPDATES = {"Material", "ShaderNodeTree", "Image", "NodeTree"}   # what forgets the answers
+
+_memo: dict = {}
+
+
+def forget() -> None:
+    _memo.clear()
+
+
+def _follow(socket, seen: int) -> bool:
+    """Whether the shader reaching ``socket`` (an input) is proved opaque."""
+    if not socket.is_linked or seen > MAX_DEPTH:
+        return False
+    link = socket.links[0]
+    if not link.is_valid or link.is_muted:
+        return False
+    node = link.from_node
+    while node.type == "REROUTE" and seen <= MAX_DEPTH:
+        if not node.inputs[0].is_linked:
+            return False
+        node, seen = node.inputs[0].links[0].from_node, seen + 1
+    if node.mute:
+        return False
+    if node.type in MIXERS:
+        shaders = [s for s in node.inputs if s.type == "SHADER"]
+        return len(shaders) == 2 and all(_follow(s, seen + 1) for s in shaders)
+    if node.type not in OPAQUE_CLOSURES:
+        return False
+    for name, value in HELD_INPUTS.get(node.type, ()):
+        s = node.inputs.get(name)
+        if s is not None and (s.is_linked or abs(float(s.default_value) - value) > 1e-6):
+            return False
+    return True
+
+
+def _tree_opaque(tree) -> bool:
+    outputs = [n for n in tree.nodes if n.type == "OUTPUT_MATERIAL"]
+    if not outputs:
+        return False
+    for out in outputs:
+        volume = out.inputs.get("Volume")
+        if volume is not None and volume.is_linked:
+            return False
+        surface = out.inputs.get("Surface")
+        if surface is None or not _follow(surface, 0):
+            return False
+    return True
+
+
+def material_see_through(mat) -> bool:
+    """Whether ``mat`` may show what is behind it (in any mode); None material: opaque."""
+    if mat is None:
+        return False
+    key = ident(mat)
+    hit = _memo.get(key)
+    if hit is None:
+        hit = bool(mat.diffuse_color[3] < 1.0 or mat.use_backface_culling)
+        if not hit and getattr(mat, "use_nodes", True) and mat.node_tree is not None:
+            hit = not _tree_opaque(mat.node_tree)
+        _memo[key] = hit
+    return hit
+
+
+def see_through(obj) -> bool:
+    """Whether ``obj`` may let what is behind it show (its object color, its materials)."""
+    if obj.color[3] < 1.0:
+        return True
+    return any(material_see_through(s.material) for s in obj.material_slots)
