@@ -15,7 +15,7 @@ import sys
 
 import bpy
 
-from . import bake, handlers, live, localview, operators, panel, props, visibility, worker
+from . import bake, handlers, live, localview, operators, panel, props, render_keys, visibility, worker
 from .session import SESSION
 
 CLASSES = operators.CLASSES + panel.CLASSES
@@ -30,6 +30,7 @@ def register():
     localview.subscribe()
     handlers.register()
     bake.register()                                  # after the add-on's own frame handler
+    render_keys.register()                           # after the bake's: its state is reset first
     live.register()                                  # live mode listens on the change bus
     if isinstance(bpy.data, bpy.types.BlendData):    # enabled on an open file: show what a record hides
         visibility.restore()
@@ -43,6 +44,7 @@ def unregister():
         visibility.restore()
     SESSION.shutdown()
     live.unregister()
+    render_keys.unregister()
     bake.unregister()
     handlers.unregister()
     localview.unsubscribe()

@@ -84,6 +84,9 @@ class OccBake(bpy.types.PropertyGroup):
     held: StringProperty(default="", options={"HIDDEN"})
     fingerprint: StringProperty(default="", options={"HIDDEN"})
     summary: StringProperty(default="", options={"HIDDEN"})
+    camera_digest: StringProperty(default="", options={"HIDDEN"})   # the camera's path when baked
+    render_keys: StringProperty(default="", options={"HIDDEN"})     # Apply to Render wrote keys for this
+    render_note: StringProperty(default="", options={"HIDDEN"})     # why they were removed
 
 
 # --- storage -------------------------------------------------------------------------
@@ -288,7 +291,11 @@ def fingerprint(context, held: np.ndarray) -> str:
     key = settings_key(scene.occ)
     h.update(repr((key[0], key[1], key[3], scene.occ.strategy, scene.occ.max_resolution, r.engine,
                    r.resolution_x, r.resolution_y, r.resolution_percentage,
-                   scene.camera.name_full if scene.camera else None)).encode())
+                   scene.camera.name_full if scene.camera else None,
+                   # what the render shows beyond depth (ray tracing, X-ray, lights), and the
+                   # time a frame spans (motion blur, time remapping)
+                   rule_of(context, "CAMERA").why, getattr(r, "use_motion_blur", False),
+                   round(float(getattr(r, "motion_blur_shutter", 0.0)), 6), r.frame_map_old, r.frame_map_new)).encode())
     never = identity.flags("occ_never_cull")
     h.update(np.sort(ids[never & own]).tobytes())
     return h.hexdigest()
@@ -529,6 +536,8 @@ def bake_steps(context, start: int, end: int) -> Generator[object, None, BakeRes
     previous = scene.frame_current
     frames = list(range(start, end + 1))
     offsets = sample_offsets(scene)
+    from . import render_keys  # (it builds on this module)
+    render_keys.remove("removed: the shot is baked again; apply again")
     STATE.baking = True
     release()
     try:
@@ -588,6 +597,7 @@ def bake_steps(context, start: int, end: int) -> Generator[object, None, BakeRes
     b.envelopes = _pack(envelopes.astype("<f8").tobytes())
     b.held = _pack(np.packbits(held).tobytes())
     b.fingerprint = fingerprint(context, held)
+    b.camera_digest = render_keys.shot_digest(context)
     mean = float(hidden.sum(axis=1).mean()) if len(frames) else 0.0
     b.summary = (f"frames {start}-{end}: {mean:,.0f} of {int(held.sum()):,} objects, "
                  f"{100 * float(share.mean()):.0f} % of triangles hidden a frame (mean)")
@@ -663,9 +673,11 @@ def render_shot(context, start: int, end: int) -> Rendered:
 
 
 def clear(scene) -> None:
+    from . import render_keys
     release()
+    render_keys.remove()
     b = scene.occ_bake
-    b.hidden = b.cameras = b.envelopes = b.held = b.fingerprint = b.summary = ""
+    b.hidden = b.cameras = b.envelopes = b.held = b.fingerprint = b.summary = b.camera_digest = b.render_note = ""
     b.frame_start, b.frame_end, b.width, b.use = 0, -1, 0, False
 
 

@@ -8,7 +8,7 @@ from bpy.props import BoolProperty, EnumProperty, IntProperty, StringProperty
 
 from ..core import OccError
 from ..core.motion import AT_REST
-from . import bake, live, localview, visibility
+from . import bake, live, localview, render_keys, visibility
 from .analysis import analysis_steps, link_collection, push_undo, report_path, write_report
 from .cameras import camera_for
 from .session import SESSION
@@ -401,6 +401,32 @@ class OCC_OT_bake_use(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class OCC_OT_bake_render(bpy.types.Operator):
+    """Write the baked shot where every final render reads it (keys of hide_render on the objects it
+    hides), for F12, Render Animation, blender -b -a and a farm; removed again when the bake stops
+    holding (toggle)"""
+
+    bl_idname = "occ.bake_render"
+    bl_label = "Apply to Render"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        b = context.scene.occ_bake
+        if b.render_keys:
+            n = render_keys.remove()
+            self.report({"INFO"}, f"render keys removed from {n:,} objects")
+            return {"FINISHED"}
+        try:
+            done = render_keys.write(context)
+        except Exception as e:  # every failure is a report, never a traceback
+            render_keys.remove()
+            return failed(self, e)
+        skipped = (f"; {done.skipped:,} left whole (their own animation or render hide, or linked into "
+                   "another scene)") if done.skipped else ""
+        self.report({"INFO"}, f"render keys on {done.objects:,} objects ({done.keys:,} keys){skipped}")
+        return {"FINISHED"}
+
+
 class OCC_OT_bake_clear(bpy.types.Operator):
     """Delete the baked shot from the scene (what it hides is shown)"""
 
@@ -443,7 +469,7 @@ def failed(op, error):
 
 
 CLASSES = (OCC_OT_cull, OCC_OT_restore, OCC_OT_local_view, OCC_OT_live, OCC_OT_analyze, OCC_OT_bake_shot,
-           OCC_OT_bake_use, OCC_OT_bake_clear, OCC_OT_render_baked)
+           OCC_OT_bake_use, OCC_OT_bake_clear, OCC_OT_render_baked, OCC_OT_bake_render)
 
 _keymaps = []
 

@@ -59,8 +59,13 @@ def _baked_shot(layout, context):
     if b.hidden:
         row.operator("occ.bake_clear", text="", icon="TRASH")
         box.operator("occ.bake_use", text="Use Baked Shot", icon="PLAY", depress=b.use)
-        box.operator("occ.render_baked", icon="RENDER_STILL")
+        row = box.row(align=True)
+        row.operator("occ.render_baked", icon="RENDER_STILL")
+        row.operator("occ.bake_render", text="Remove from Render" if b.render_keys else "Apply to Render",
+                     icon="RENDER_ANIMATION", depress=bool(b.render_keys))
         box.label(text=b.summary)
+        if b.render_note and not b.render_keys:
+            box.label(text=f"Render keys {b.render_note}", icon="INFO")
         why = bake.STATE.stale if bake.STATE.known else None
         if why:
             box.label(text=f"Stale: {why}; bake again", icon="ERROR")

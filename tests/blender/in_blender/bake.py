@@ -355,3 +355,124 @@ def baked_frames_render_unchanged():
               and (any(hid) or tag == "workbench"), (r, hid, changed, noise))
         if shadows:
             check(f"bake_render_{tag}_slab_shadow_shows", all(c < 0 for c in changed[1::2]), (changed, noise))
+
+
+def _render_hidden():
+    """Names hidden from the render at the evaluated frame (the keys' values as evaluated)."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    return {o.name for o in bpy.data.objects if o.evaluated_get(depsgraph).hide_render}
+
+
+def _keys_hold(scene, frames, name, own=frozenset()):
+    """At every frame (and half a frame on) the render hides the frame's baked set and the
+    user's own hides, before and after the bake's range the user's alone."""
+    b = addon("bake")
+    baked = b.stored(scene)
+    wrong = []
+    for f in frames:
+        for sub in (0.0, 0.5):
+            scene.frame_set(f, subframe=sub)
+            want = set(own) | (_expected(scene, f) if baked.start <= f <= baked.end else set())
+            got = _render_hidden()
+            if got != want:
+                wrong.append((f + sub, sorted(got ^ want)))
+    check(name, not wrong, wrong)
+
+
+def _render_keyed():
+    """Names of the objects carrying the add-on's render keys."""
+    return sorted(o.name for o in addon("render_keys").keyed_objects())
+
+
+def render_keys_workflow():
+    """Apply to Render: keys of hide_render that hold the baked sets at every frame and
+    sub-frame (and nothing outside the range); Render Animation (what blender -a runs)
+    renders every frame pixel for pixel as the whole scene; the keyed objects stay
+    static for the add-on; the keys survive a save and reload; an edit, a camera key, a
+    key the user adds, a clear or a new bake removes them (the user's own keys stay);
+    a camera that is driven, and a scene rendering other view layers, are refused."""
+    scene = _shot(11)
+    scene.render.engine = "BLENDER_WORKBENCH"
+    scene.render.resolution_x, scene.render.resolution_y = 160, 90
+    scene.render.image_settings.file_format = "PNG"
+    bpy.data.objects["b3"].hide_render = True             # the user's own
+    bpy.ops.occ.bake_shot(frame_start=2, frame_end=9)
+    from .policy import _render
+    whole = {}
+    for f in (2, 5, 9):
+        scene.frame_set(f)
+        whole[f] = _render(os.path.join(WORK, f"keys_whole_{f}.png"))
+    r = bpy.ops.occ.bake_render()
+    b = scene.occ_bake
+    keyed = _render_keyed()
+    check("render_keys_written", r == {"FINISHED"} and b.render_keys and keyed and "b3" not in keyed, (r, keyed))
+    _keys_hold(scene, range(0, 12), "render_keys_are_the_frames_sets", {"b3"})
+    kinds = addon("kinds")
+    check("render_keys_objects_static", not any(kinds.is_dynamic(bpy.data.objects[n]) for n in keyed), keyed)
+    scene.render.filepath = os.path.join(WORK, "keys_anim", "f_")
+    scene.frame_start, scene.frame_end = 2, 9
+    scene.frame_step = 1
+    bpy.ops.render.render(animation=True)
+    changed, hid = [], 0
+    for f in (2, 5, 9):
+        img = bpy.data.images.load(scene.render.frame_path(frame=f), check_existing=False)
+        got = np.array(img.pixels[:], dtype=np.float64).reshape(img.size[1], img.size[0], img.channels)
+        bpy.data.images.remove(img)
+        changed.append(int((np.abs(got - whole[f]) > 1.0 / 255.0).any(axis=2).sum()))
+        hid += len(_expected(scene, f))
+    check("render_keys_animation_pixel_identical", all(c == 0 for c in changed) and hid > 0, (changed, hid))
+
+    path = os.path.join(WORK, "render_keys.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    scene = bpy.context.scene
+    check("render_keys_survive_reload", scene.occ_bake.render_keys and _render_keyed() == keyed,
+          (_render_keyed(), scene.occ_bake.render_note))
+    _keys_hold(scene, (1, 4, 9, 10), "render_keys_reloaded_sets", {"b3"})
+
+    def user_key():
+        o = bpy.data.objects[keyed[0]]
+        o.keyframe_insert("location", frame=3)         # into the add-on's action: the user's now
+    edits = [("move", lambda: _move(bpy.data.objects["wall"], 3.0)),
+             ("camera", lambda: _move_camera_key(scene)),
+             ("users_key", user_key),
+             ("engine", lambda: setattr(scene.render, "engine", "CYCLES")),
+             ("clear", lambda: bpy.ops.occ.bake_clear()),
+             ("rebake", lambda: bpy.ops.occ.bake_shot(frame_start=2, frame_end=9))]
+    for name, edit in edits:
+        bpy.ops.wm.open_mainfile(filepath=path)
+        scene = bpy.context.scene
+        scene.frame_set(4)
+        edit()
+        update()
+        scene.frame_set(5)
+        left = _render_keyed()
+        flags = sorted(_render_hidden())
+        marked = [a.name for a in bpy.data.actions if a.get("occ_render_keys") is not None]
+        check(f"render_keys_removed_after_{name}", not scene.occ_bake.render_keys and not left and not marked
+              and flags == ["b3"], (left, flags, marked))
+    o = bpy.data.objects[keyed[0]]
+    bpy.ops.wm.open_mainfile(filepath=path)
+    scene = bpy.context.scene
+    user_key()
+    update()
+    o = bpy.data.objects[keyed[0]]
+    ad = o.animation_data
+    curves = addon("kinds").action_curves(ad.action, getattr(ad, "action_slot", None)) if ad and ad.action else []
+    check("render_keys_keep_users_keys", sorted({c.data_path for c in curves}) == ["location"],
+          [c.data_path for c in curves])
+
+    refusals = {}
+    for name, setup in (("constraint", lambda: bpy.context.scene.camera.constraints.new("TRACK_TO")),
+                        ("layers", lambda: bpy.context.scene.view_layers.new("other"))):
+        bpy.ops.wm.open_mainfile(filepath=path)
+        bpy.ops.occ.bake_render()                        # off (the file had them on)
+        bpy.ops.occ.bake_shot(frame_start=2, frame_end=9)
+        setup()
+        update()
+        try:
+            got = bpy.ops.occ.bake_render()
+        except RuntimeError as e:                        # the operator's ERROR report
+            got = str(e)
+        refusals[name] = (str(got), _render_keyed())
+    check("render_keys_refused", all("Apply to Render" in g and not k for g, k in refusals.values()), refusals)

@@ -1,0 +1,348 @@
+"""Apply to Render: a baked shot written as keys of ``hide_render``, where any final render
+reads it, the window's F12 or Render Animation, ``blender -b file.blend -a`` and a farm's
+chunk alike, with or without the add-on there.
+
+**What is written.**  Each object that some baked frame hides gets an action of its own
+(marked :data:`.kinds.RENDER_KEYS`) with one F-curve, ``hide_render``, keyed only where
+its state changes: shown before the first baked frame and after the last, constant
+between keys.  A sub-frame (motion blur) takes the frame below it, whose set holds up to
+the next frame (the bake samples the camera that far).  An object with animation,
+drivers or NLA of its own, one the user hides from the render, one without a number of
+its own, and one linked into another scene (whose camera the bake never saw) gets none.
+An object carrying only these keys is not animated for the add-on (:func:`.kinds.is_dynamic`).
+
+**When it is refused.**  The bake must hold (:func:`.bake.check`), the camera must move by
+its own keys alone (no constraints, drivers, NLA, moving parent or markers switching
+cameras) and still be the baked one: the digest of its keys, its still channels, its
+lens and the scene's time mapping (:func:`shot_digest`) equals the bake's, so every
+sub-frame is the baked path.  The scene must render one view layer, the one baked.
+
+**When it is removed.**  The keys hold only as long as the bake does: after any edit,
+undo, redo or file load the add-on checks the bake and the digest again (a timer right
+after the edit in a window; at once headless and on load) and removes every key of a
+bake that no longer holds; the panel says why.  A new bake, Clear Bake and Remove from
+Render remove them too.  What the add-on cannot see, an edit made where it is not
+enabled, it cannot guard: open and save the file with the add-on before it goes to a
+farm (a load checks it).
+"""
+
+import hashlib
+from dataclasses import dataclass
+
+import bpy
+import numpy as np
+from bpy.app.handlers import persistent
+
+from ..core import OccError
+from . import bake
+from .keyed_camera import CHANNELS, _fcurves
+from .kinds import RENDER_KEYS, action_curves, is_dynamic, render_keys_only
+
+CURVE = "hide_render"
+
+
+@dataclass
+class Written:
+    objects: int            # objects given keys
+    keys: int               # keys written
+    skipped: int            # objects a frame hides that could not take keys (their own animation, ...)
+
+
+# --- the camera's digest --------------------------------------------------------------------
+
+def _curves_digest(curves) -> list:
+    out = []
+    for fc in sorted(curves, key=lambda c: (c.data_path, c.array_index)):
+        kp = fc.keyframe_points
+        n = len(kp)
+        arr = np.zeros(6 * n, dtype=np.float64)
+        if n:
+            for i, prop in enumerate(("co", "handle_left", "handle_right")):
+                part = np.zeros(2 * n, dtype=np.float32)
+                kp.foreach_get(prop, part)
+                arr[2 * i * n:2 * (i + 1) * n] = part
+        out.append((fc.data_path, fc.array_index, fc.mute, fc.extrapolation, len(fc.modifiers),
+                    hashlib.sha1(arr.tobytes()).hexdigest(),
+                    tuple((k.interpolation, k.easing, round(k.back, 6), round(k.amplitude, 6),
+                           round(k.period, 6)) for k in kp)))
+    return out
+
+
+def shot_digest(context) -> str:
+    """The scene camera's path and lens as a value, and what the render takes beside the
+    bake's fingerprint (time mapping, view layers, background sets); ``"complex: ..."``
+    where the camera moves by more than its own keys (its path cannot be told from its
+    settings)."""
+    scene = context.scene
+    cam = scene.camera
+    if cam is None or cam.type != "CAMERA":
+        return "complex: the scene has no camera"
+    if any(m.camera is not None for m in scene.timeline_markers):
+        return "complex: markers switch cameras"
+    if len(cam.constraints):
+        return "complex: the camera has constraints"
+    curves, data_curves = _fcurves(cam), _fcurves(cam.data)
+    if curves is None or data_curves is None:
+        return "complex: the camera is driven (drivers or NLA)"
+    chain = []
+    p = cam.parent
+    if p is not None and (cam.parent_type != "OBJECT" or is_dynamic(p)):
+        return "complex: the camera's parent moves"
+    while p is not None and len(chain) < 64:
+        chain.append((p.name_full, tuple(round(v, 7) for row in p.matrix_world for v in row)))
+        p = p.parent
+    keyed = {(fc.data_path, fc.array_index) for fc in curves}
+    still = [(path, i, round(getattr(cam, path)[i], 7)) for path, size in CHANNELS.items()
+             for i in range(size) if (path, i) not in keyed]
+    data_keyed = {fc.data_path for fc in data_curves}
+    lens = [p for p in bake._struct(cam.data) if not (isinstance(p, tuple) and p[0] in data_keyed)]
+    r = scene.render
+    layers = [v.name for v in scene.view_layers if v.use]
+    if r.use_single_layer:
+        layers = [context.view_layer.name]
+    sets = sorted(s.name_full for s in bpy.data.scenes if s.background_set == scene)
+    value = repr((cam.name_full, cam.rotation_mode, cam.parent_type, chain,
+                  tuple(round(v, 7) for row in cam.matrix_parent_inverse for v in row),
+                  still, _curves_digest(curves), lens, _curves_digest(data_curves),
+                  r.frame_map_old, r.frame_map_new, r.pixel_aspect_x, r.pixel_aspect_y,
+                  context.view_layer.name, layers, sets))
+    return hashlib.sha1(value.encode()).hexdigest()
+
+
+def _refusal(context, digest: str) -> str | None:
+    """Why the render keys cannot hold for the scene as it is, or None."""
+    scene = context.scene
+    if digest.startswith("complex"):
+        return (f"{digest[9:]}: its path cannot be proved frame by frame from its keys; use "
+                "Render Baked Shot, which checks every frame")
+    if digest != scene.occ_bake.camera_digest:
+        return "the camera's animation, its lens or the render's layers changed since the bake: bake again"
+    layers = [v.name for v in scene.view_layers if v.use]
+    if not scene.render.use_single_layer and layers != [context.view_layer.name]:
+        return (f"the scene renders the view layers {', '.join(layers) or '(none)'}; the bake holds for "
+                f"'{context.view_layer.name}' alone (Render Single Layer, or turn the others off)")
+    if any(s.background_set == scene for s in bpy.data.scenes):
+        return "another scene renders this one as its background set, with its own camera"
+    return None
+
+
+# --- writing and removing -------------------------------------------------------------------
+
+def _new_curve(obj):
+    """A fresh action of the add-on's, assigned to ``obj``, and its ``hide_render`` F-curve."""
+    action = bpy.data.actions.new(f"OccRender {obj.name}")
+    action[RENDER_KEYS] = 1
+    ad = obj.animation_data or obj.animation_data_create()
+    ad.action = action
+    if hasattr(action, "slots"):                      # slotted actions (Blender 4.4+)
+        from bpy_extras.anim_utils import action_ensure_channelbag_for_slot
+        slot = action.slots.new(id_type="OBJECT", name=obj.name)
+        ad.action_slot = slot
+        return action_ensure_channelbag_for_slot(action, slot).fcurves.new(CURVE)
+    return action.fcurves.new(CURVE)
+
+
+def _keys(states: np.ndarray, start: int) -> np.ndarray:
+    """``(k, 2) float32`` (frame, value) keys of ``states`` (one bool a frame from ``start``):
+    shown before and after, and a key at every change."""
+    s = states.astype(np.int8)
+    change = np.flatnonzero(np.diff(np.concatenate(([0], s))) != 0)
+    frames = np.concatenate(([start - 1], start + change, [start + len(s)])).astype(np.float32)
+    values = np.concatenate(([0], s[change], [0])).astype(np.float32)
+    return np.stack([frames, values], axis=1)
+
+
+def write(context) -> Written:
+    """Write the scene's bake as render keys (earlier ones removed first); an OccError
+    where they could not hold, with nothing written."""
+    scene = context.scene
+    b = scene.occ_bake
+    baked = bake.stored(scene)
+    if baked is None:
+        raise OccError("no baked shot in this scene: bake one first (Bake Shot)")
+    why = bake.STATE.status(context, baked)
+    if why is not None:
+        raise OccError(f"the baked shot is stale ({why}): bake it again")
+    digest = shot_digest(context)
+    why = _refusal(context, digest)
+    if why is not None:
+        raise OccError(f"Apply to Render: {why}")
+    remove()
+    ids = bake.numbers()
+    frames = range(baked.start, baked.end + 1)
+    rows = np.stack([bake.frame_mask(baked.frame(f), ids) for f in frames])
+    items = bpy.data.objects.values()
+    objects = keys = skipped = 0
+    for i in np.flatnonzero(rows.any(axis=0)).tolist():
+        o = items[i]
+        ad = o.animation_data
+        if o.hide_render or (ad is not None and (ad.action is not None or len(ad.drivers) or len(ad.nla_tracks))) \
+                or len(o.users_scene) != 1:
+            skipped += 1
+            continue
+        pts = _keys(rows[:, i], baked.start)
+        fc = _new_curve(o)
+        fc.keyframe_points.add(len(pts))
+        fc.keyframe_points.foreach_set("co", pts.ravel())
+        for k in fc.keyframe_points:
+            k.interpolation = "CONSTANT"
+        fc.update()
+        objects += 1
+        keys += len(pts)
+    b.render_keys = f"{digest}:{b.fingerprint}"
+    b.render_note = ""
+    return Written(objects, keys, skipped)
+
+
+def keyed_objects() -> list:
+    """Every object carrying the add-on's render keys (any scene)."""
+    if not any(a.get(RENDER_KEYS) is not None for a in bpy.data.actions):
+        return []
+    out = []
+    for o in bpy.data.objects:
+        ad = o.animation_data
+        if ad is not None and ad.action is not None and ad.action.get(RENDER_KEYS) is not None:
+            out.append(o)
+    return out
+
+
+def remove(note: str = "") -> int:
+    """Remove every render key of the add-on's (every scene), each object's ``hide_render``
+    back to shown; keys the user added to such an action stay (only the add-on's curve
+    goes).  ``note``: why, for the panel.  Returns the objects it touched."""
+    objs = keyed_objects()
+    for o in objs:
+        ad = o.animation_data
+        action = ad.action
+        if render_keys_only(ad):
+            ad.action = None
+            if not len(ad.drivers) and not len(ad.nla_tracks):
+                o.animation_data_clear()
+        else:                                      # the user keyed more into it: theirs now
+            slot = getattr(ad, "action_slot", None)
+            curves = action_curves(action, slot) or []
+            for fc in curves:
+                if fc.data_path == CURVE:
+                    _curve_owner(action, slot).remove(fc)
+            del action[RENDER_KEYS]
+        o.hide_render = False
+    for action in [a for a in bpy.data.actions if a.get(RENDER_KEYS) is not None and a.users == 0]:
+        bpy.data.actions.remove(action)
+    for s in bpy.data.scenes:
+        sb = s.occ_bake
+        if sb.render_keys:
+            sb.render_keys = ""
+            sb.render_note = note
+    return len(objs)
+
+
+def _curve_owner(action, slot):
+    """The F-curve collection of ``action`` that holds ``slot``'s curves."""
+    if hasattr(action, "slots"):
+        from bpy_extras.anim_utils import action_get_channelbag_for_slot
+        return action_get_channelbag_for_slot(action, slot).fcurves
+    return action.fcurves
+
+
+def holds(context) -> str | None:
+    """Why the scene's render keys no longer hold, or None (they do, or there are none)."""
+    scene = context.scene
+    b = scene.occ_bake
+    if not b.render_keys:
+        return None
+    baked = bake.stored(scene)
+    if baked is None:
+        return "the bake was cleared"
+    # evaluated first: a file just read holds no world matrices yet (Blender 4+ keeps them
+    # at run time only), an undo step may hold stale ones
+    context.evaluated_depsgraph_get()
+    why = bake.check(context, baked)           # in full: the keys hide in every render
+    if why is not None:
+        return f"the bake is stale ({why})"
+    digest = shot_digest(context)
+    if b.render_keys != f"{digest}:{b.fingerprint}":
+        return _refusal(context, digest) or "the camera or the render's settings changed"
+    if any(len(o.users_scene) != 1 for o in keyed_objects()):
+        return "an object with render keys was linked into another scene"
+    return None
+
+
+def recheck(context) -> str | None:
+    """Remove the render keys where they no longer hold (any failure: removed too);
+    returns why, or None."""
+    try:
+        why = holds(context)
+    except Exception as e:  # cannot tell: the keys go (they would hide without proof)
+        why = f"the check failed ({type(e).__name__}: {e})"
+    if why is not None:
+        remove(f"removed: {why}; apply again after baking")
+    return why
+
+
+# --- handlers ----------------------------------------------------------------------------
+
+_pending = []
+
+
+def _own(u) -> bool:
+    """Whether a depsgraph update is the keys' own (their actions, their objects' flags)."""
+    idb = u.id
+    if isinstance(idb, bpy.types.Action):
+        return idb.original.get(RENDER_KEYS) is not None
+    if isinstance(idb, bpy.types.Object) and not (u.is_updated_transform or u.is_updated_geometry):
+        ad = idb.original.animation_data
+        return ad is not None and render_keys_only(ad)
+    return False
+
+
+def _later() -> None:
+    if not _pending:
+        _pending.append(True)
+        bpy.app.timers.register(_timer, first_interval=0.0)
+
+
+def _timer():
+    _pending.clear()
+    context = bpy.context
+    if context.scene is not None and context.view_layer is not None and not bake.STATE.baking:
+        recheck(context)
+    return None
+
+
+@persistent
+def on_depsgraph_update(scene, depsgraph):
+    """An edit: the keys are checked again, right after it in a window (a timer: a drag
+    asks once per step), at once headless (no timer runs there before a render)."""
+    if not scene.occ_bake.render_keys or bake.STATE.baking or bake.STATE.rendering:
+        return
+    if all(_own(u) for u in depsgraph.updates):
+        return
+    if bpy.app.background:
+        recheck(bpy.context)
+    else:
+        _later()
+
+
+@persistent
+def on_reset(*_args):
+    """A file load, an undo or a redo: checked at once (a farm's render follows the load)."""
+    context = bpy.context
+    if context.scene is not None and context.view_layer is not None:
+        recheck(context)
+
+
+HANDLERS = (("depsgraph_update_post", on_depsgraph_update), ("load_post", on_reset), ("undo_post", on_reset),
+            ("redo_post", on_reset))
+
+
+def register():
+    for name, f in HANDLERS:
+        getattr(bpy.app.handlers, name).append(f)
+
+
+def unregister():
+    for name, f in reversed(HANDLERS):
+        h = getattr(bpy.app.handlers, name)
+        if f in h:
+            h.remove(f)
+    _pending.clear()
