@@ -280,6 +280,18 @@ def fingerprint(context, held: np.ndarray) -> str:
             continue
         h.update(repr((int(ids[i]), _geometry(o, memo))).encode())
         h.update(mats[i].tobytes())
+    h.update(settings_digest(context).encode())
+    return h.hexdigest()
+
+
+def settings_digest(context) -> str:
+    """The part of :func:`fingerprint` that no object's own edit changes: every light of the
+    view layer, the settings, the render size and rule, the objects kept from culling
+    (an update of the scene alone is checked against this, cheaply)."""
+    h = hashlib.sha1()
+    ids = numbers()
+    own = usable(ids)
+    dynamic = {}
     for o in context.view_layer.objects:
         if o.type == "LIGHT":
             moves = is_dynamic(o, dynamic)
@@ -320,6 +332,51 @@ def check(context, baked: Baked) -> str | None:
         return "an object it culled against is hidden, deleted or duplicated since"
     if fingerprint(context, baked.held) != b.fingerprint:
         return "the scene changed since the bake (geometry, transforms, lights or settings)"
+    return None
+
+
+def _render_collections(view_layer) -> set:
+    """Identities of the collections whose objects the view layer renders to the camera:
+    not excluded, not indirect only, not hidden from the render, and their parents too."""
+    out = set()
+    stack = [view_layer.layer_collection]
+    while stack:
+        lc = stack.pop()
+        c = lc.collection
+        if lc.exclude or getattr(lc, "indirect_only", False) or getattr(c, "hide_render", False):
+            continue
+        out.add(ident(c))
+        stack.extend(lc.children)
+    return out
+
+
+def render_reason(context, baked: Baked) -> str | None:
+    """Why the render would not draw what the bake culled against, or None: every object a
+    bake held renders to the camera (its own render hide off and not animated, seen by
+    camera rays, in a collection the view layer renders).  The bake reads the viewport;
+    an occluder the render leaves out would show what it hid."""
+    from .kinds import RENDER_KEYS, action_curves
+    ids = numbers()
+    own = usable(ids)
+    at = np.flatnonzero(own & (ids < len(baked.held)))
+    at = at[baked.held[ids[at]]]
+    items = bpy.data.objects.values()
+    colls = _render_collections(context.view_layer)
+    for i in at.tolist():
+        o = items[i]
+        ad = o.animation_data
+        ours = ad is not None and ad.action is not None and ad.action.get(RENDER_KEYS) is not None
+        if (o.hide_render and not ours) or not getattr(o, "visible_camera", True) \
+                or not any(ident(c) in colls for c in o.users_collection):
+            return (f"'{o.name}' is culled against in the viewport but left out of the render (its own or its "
+                    "collection's render visibility): render it, or hide it in the viewport too, and bake again")
+        if ad is None or ours:
+            continue
+        curves = list(ad.drivers)
+        if ad.action is not None:
+            curves += action_curves(ad.action, getattr(ad, "action_slot", None)) or []
+        if len(ad.nla_tracks) or any(fc.data_path == "hide_render" for fc in curves):
+            return f"'{o.name}' has its render visibility animated (or NLA tracks)"
     return None
 
 
@@ -633,7 +690,7 @@ def render_shot(context, start: int, end: int) -> Rendered:
     STATE.rendering = True
     try:
         release()                                 # the viewport's hiding is not the render's
-        why = STATE.status(context, baked)
+        why = STATE.status(context, baked) or render_reason(context, baked)
         if why is not None:
             raise OccError(f"the baked shot is stale ({why}): bake it again, or render without it")
         for f in range(start, end + 1):

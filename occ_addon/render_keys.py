@@ -17,8 +17,10 @@ cameras) and still be the baked one: the digest of its keys, its still channels,
 lens and the scene's time mapping (:func:`shot_digest`) equals the bake's, so every
 sub-frame is the baked path.  The scene must render one view layer, the one baked.
 
-**When it is removed.**  The keys hold only as long as the bake does: after any edit,
-undo, redo or file load the add-on checks the bake and the digest again (a timer right
+**When it is removed.**  The keys hold only as long as the bake does, and as long as the
+render draws everything the bake culled against (:func:`.bake.render_reason`: no occluder
+hidden from the render, out of camera rays, or in a collection the render leaves out):
+after any edit, undo, redo or file load the add-on checks the bake and the digest again (a timer right
 after the edit in a window; at once headless and on load) and removes every key of a
 bake that no longer holds; the panel says why.  A new bake, Clear Bake and Remove from
 Render remove them too.  What the add-on cannot see, an edit made where it is not
@@ -160,7 +162,7 @@ def write(context) -> Written:
     baked = bake.stored(scene)
     if baked is None:
         raise OccError("no baked shot in this scene: bake one first (Bake Shot)")
-    why = bake.STATE.status(context, baked)
+    why = bake.STATE.status(context, baked) or bake.render_reason(context, baked)
     if why is not None:
         raise OccError(f"the baked shot is stale ({why}): bake it again")
     digest = shot_digest(context)
@@ -189,7 +191,7 @@ def write(context) -> Written:
         fc.update()
         objects += 1
         keys += len(pts)
-    b.render_keys = f"{digest}:{b.fingerprint}"
+    b.render_keys = f"{digest}:{b.fingerprint}:{bake.settings_digest(context)}"
     b.render_note = ""
     return Written(objects, keys, skipped)
 
@@ -244,8 +246,11 @@ def _curve_owner(action, slot):
     return action.fcurves
 
 
-def holds(context) -> str | None:
-    """Why the scene's render keys no longer hold, or None (they do, or there are none)."""
+def holds(context, full: bool = True) -> str | None:
+    """Why the scene's render keys no longer hold, or None (they do, or there are none).
+    ``full``: the bake's whole check (every object it culled against, their shapes); else
+    what an update of the scene alone can change (settings, lights, the camera's path, what
+    the render leaves out), milliseconds."""
     scene = context.scene
     b = scene.occ_bake
     if not b.render_keys:
@@ -256,22 +261,25 @@ def holds(context) -> str | None:
     # evaluated first: a file just read holds no world matrices yet (Blender 4+ keeps them
     # at run time only), an undo step may hold stale ones
     context.evaluated_depsgraph_get()
-    why = bake.check(context, baked)           # in full: the keys hide in every render
+    why = bake.check(context, baked) if full else None     # in full: the keys hide in every render
     if why is not None:
         return f"the bake is stale ({why})"
     digest = shot_digest(context)
-    if b.render_keys != f"{digest}:{b.fingerprint}":
-        return _refusal(context, digest) or "the camera or the render's settings changed"
+    if b.render_keys != f"{digest}:{b.fingerprint}:{bake.settings_digest(context)}":
+        return _refusal(context, digest) or "the camera, the lights or the render's settings changed"
+    why = bake.render_reason(context, baked)
+    if why is not None:
+        return why
     if any(len(o.users_scene) != 1 for o in keyed_objects()):
         return "an object with render keys was linked into another scene"
     return None
 
 
-def recheck(context) -> str | None:
+def recheck(context, full: bool = True) -> str | None:
     """Remove the render keys where they no longer hold (any failure: removed too);
-    returns why, or None."""
+    returns why, or None.  ``full``: see :func:`holds`."""
     try:
-        why = holds(context)
+        why = holds(context, full)
     except Exception as e:  # cannot tell: the keys go (they would hide without proof)
         why = f"the check failed ({type(e).__name__}: {e})"
     if why is not None:
@@ -295,17 +303,20 @@ def _own(u) -> bool:
     return False
 
 
-def _later() -> None:
-    if not _pending:
-        _pending.append(True)
-        bpy.app.timers.register(_timer, first_interval=0.0)
+def _later(full: bool) -> None:
+    if _pending:
+        _pending[0] = _pending[0] or full
+        return
+    _pending.append(full)
+    bpy.app.timers.register(_timer, first_interval=0.0)
 
 
 def _timer():
+    full = bool(_pending and _pending[0])
     _pending.clear()
     context = bpy.context
     if context.scene is not None and context.view_layer is not None and not bake.STATE.baking:
-        recheck(context)
+        recheck(context, full)
     return None
 
 
@@ -315,12 +326,16 @@ def on_depsgraph_update(scene, depsgraph):
     asks once per step), at once headless (no timer runs there before a render)."""
     if not scene.occ_bake.render_keys or bake.STATE.baking or bake.STATE.rendering:
         return
-    if all(_own(u) for u in depsgraph.updates):
+    theirs = [u for u in depsgraph.updates if not _own(u)]
+    if not theirs:
         return
+    # the scene alone (a selection, a setting, a view layer's collections): no object's
+    # shape or place changed, the cheap part is enough
+    full = not all(isinstance(u.id, bpy.types.Scene) for u in theirs)
     if bpy.app.background:
-        recheck(bpy.context)
+        recheck(bpy.context, full)
     else:
-        _later()
+        _later(full)
 
 
 @persistent

@@ -145,6 +145,37 @@ def render_figures(bake, engines, size, work):
     return out
 
 
+def render_keys_figures(sc):
+    """Apply to Render: its time, the objects and keys it writes, a frame change with the
+    keys (Use Baked Shot off: what the keys cost the viewport) and the check after an edit."""
+    import bpy
+    import numpy as np
+    keys = sys.modules[f"{EXT}.occ_addon.render_keys"]
+    t = time.perf_counter()
+    bpy.ops.occ.bake_render()
+    write_s = time.perf_counter() - t
+    keyed = keys.keyed_objects()
+    curves = sys.modules[f"{EXT}.occ_addon.kinds"].action_curves
+    n_keys = sum(len(c.keyframe_points) for o in keyed
+                 for c in curves(o.animation_data.action, getattr(o.animation_data, "action_slot", None)))
+    frame_ms = []
+    for f in range(sc.frame_start, sc.frame_end + 1):
+        t = time.perf_counter()
+        sc.frame_set(f)
+        bpy.context.view_layer.update()
+        frame_ms.append(1e3 * (time.perf_counter() - t))
+    t = time.perf_counter()
+    why = keys.holds(bpy.context)
+    check_ms = 1e3 * (time.perf_counter() - t)
+    t = time.perf_counter()
+    why_scene = keys.holds(bpy.context, full=False)
+    scene_check_ms = 1e3 * (time.perf_counter() - t)
+    bpy.ops.occ.bake_render()
+    return {"write_s": write_s, "objects": len(keyed), "keys": n_keys, "held": why is None and why_scene is None,
+            "frame_change_ms_median": float(np.median(frame_ms)), "check_ms": check_ms,
+            "scene_update_check_ms": scene_check_ms}
+
+
 def inside(zip_path, work, scene_name, frames, engines, size):
     import bpy
     import numpy as np
@@ -197,6 +228,7 @@ def inside(zip_path, work, scene_name, frames, engines, size):
                        hidden_mean=float(np.mean(hidden)))
         out["use_on" if on else "use_off"] = run
     bpy.ops.occ.bake_use()
+    out["render_keys"] = render_keys_figures(sc)
     if engines:
         out["render"] = render_figures(bake, engines, size, work)
         out["render_size"] = size

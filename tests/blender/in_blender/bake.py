@@ -274,7 +274,8 @@ def render_baked_shot():
     scene.render.resolution_x, scene.render.resolution_y = 160, 90
     scene.render.image_settings.file_format = "PNG"
     scene.render.filepath = os.path.join(WORK, "shot", "f_")
-    bpy.data.objects["b3"].hide_render = True             # the user's own
+    bpy.data.objects["b3"].hide_render = True             # the user's own (hidden in the viewport too:
+    bpy.data.objects["b3"].hide_set(True)                 # else the bake culls against it, which renders not)
     bpy.ops.occ.bake_shot(frame_start=1, frame_end=4)
     r = bpy.ops.occ.render_baked()
     from .policy import _render
@@ -395,7 +396,8 @@ def render_keys_workflow():
     scene.render.engine = "BLENDER_WORKBENCH"
     scene.render.resolution_x, scene.render.resolution_y = 160, 90
     scene.render.image_settings.file_format = "PNG"
-    bpy.data.objects["b3"].hide_render = True             # the user's own
+    bpy.data.objects["b3"].hide_render = True             # the user's own (hidden in the viewport too:
+    bpy.data.objects["b3"].hide_set(True)                 # else the bake culls against it, which renders not)
     bpy.ops.occ.bake_shot(frame_start=2, frame_end=9)
     from .policy import _render
     whole = {}
@@ -437,6 +439,8 @@ def render_keys_workflow():
              ("camera", lambda: _move_camera_key(scene)),
              ("users_key", user_key),
              ("engine", lambda: setattr(scene.render, "engine", "CYCLES")),
+             ("wall_render_hidden", lambda: setattr(bpy.data.objects["wall"], "hide_render", True)),
+             ("wall_no_camera_rays", lambda: setattr(bpy.data.objects["wall"], "visible_camera", False)),
              ("clear", lambda: bpy.ops.occ.bake_clear()),
              ("rebake", lambda: bpy.ops.occ.bake_shot(frame_start=2, frame_end=9))]
     for name, edit in edits:
@@ -449,8 +453,9 @@ def render_keys_workflow():
         left = _render_keyed()
         flags = sorted(_render_hidden())
         marked = [a.name for a in bpy.data.actions if a.get("occ_render_keys") is not None]
+        own = ["b3", "wall"] if name == "wall_render_hidden" else ["b3"]
         check(f"render_keys_removed_after_{name}", not scene.occ_bake.render_keys and not left and not marked
-              and flags == ["b3"], (left, flags, marked))
+              and flags == own, (left, flags, marked, scene.occ_bake.render_note))
     o = bpy.data.objects[keyed[0]]
     bpy.ops.wm.open_mainfile(filepath=path)
     scene = bpy.context.scene
