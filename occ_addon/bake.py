@@ -335,48 +335,54 @@ def check(context, baked: Baked) -> str | None:
     return None
 
 
-def _render_collections(view_layer) -> set:
-    """Identities of the collections whose objects the view layer renders to the camera:
-    not excluded, not indirect only, not hidden from the render, and their parents too."""
-    out = set()
+def _rendered(view_layer) -> np.ndarray:
+    """Sorted identities of the objects the view layer renders to the camera by their
+    collections: in a collection not excluded, not indirect only, not hidden from the
+    render, and its parents neither."""
+    found = []
     stack = [view_layer.layer_collection]
     while stack:
         lc = stack.pop()
         c = lc.collection
         if lc.exclude or getattr(lc, "indirect_only", False) or getattr(c, "hide_render", False):
             continue
-        out.add(ident(c))
+        found.append(identity.uids(c.objects))
         stack.extend(lc.children)
-    return out
+    return np.unique(np.concatenate(found)) if found else np.zeros(0, dtype=np.int64)
 
 
 def render_reason(context, baked: Baked) -> str | None:
     """Why the render would not draw what the bake culled against, or None: every object a
     bake held renders to the camera (its own render hide off and not animated, seen by
     camera rays, in a collection the view layer renders).  The bake reads the viewport;
-    an occluder the render leaves out would show what it hid."""
+    an occluder the render leaves out would show what it hid.  In bulk but for the
+    objects that carry animation."""
     from .kinds import RENDER_KEYS, action_curves
     ids = numbers()
-    own = usable(ids)
-    at = np.flatnonzero(own & (ids < len(baked.held)))
+    at = np.flatnonzero(usable(ids) & (ids < len(baked.held)))
     at = at[baked.held[ids[at]]]
-    items = bpy.data.objects.values()
-    colls = _render_collections(context.view_layer)
+    objs = bpy.data.objects
+    off = identity.flags("hide_render")
+    if hasattr(bpy.types.Object, "visible_camera"):
+        rays = np.zeros(len(objs), dtype=bool)
+        objs.foreach_get("visible_camera", rays)
+        off |= ~rays
+    out = ~np.isin(identity.uids()[at], _rendered(context.view_layer))
+    items = objs.values()
+    for i in at[off[at] | out].tolist():          # (hidden by the add-on's own keys: not left out)
+        ad = items[i].animation_data
+        if out[np.searchsorted(at, i)] or ad is None or ad.action is None or ad.action.get(RENDER_KEYS) is None:
+            return (f"'{items[i].name}' is culled against in the viewport but left out of the render (its own "
+                    "or its collection's render visibility): render it, or hide it in the viewport too, and bake again")
     for i in at.tolist():
-        o = items[i]
-        ad = o.animation_data
-        ours = ad is not None and ad.action is not None and ad.action.get(RENDER_KEYS) is not None
-        if (o.hide_render and not ours) or not getattr(o, "visible_camera", True) \
-                or not any(ident(c) in colls for c in o.users_collection):
-            return (f"'{o.name}' is culled against in the viewport but left out of the render (its own or its "
-                    "collection's render visibility): render it, or hide it in the viewport too, and bake again")
-        if ad is None or ours:
+        ad = items[i].animation_data
+        if ad is None or (ad.action is not None and ad.action.get(RENDER_KEYS) is not None):
             continue
         curves = list(ad.drivers)
         if ad.action is not None:
             curves += action_curves(ad.action, getattr(ad, "action_slot", None)) or []
         if len(ad.nla_tracks) or any(fc.data_path == "hide_render" for fc in curves):
-            return f"'{o.name}' has its render visibility animated (or NLA tracks)"
+            return f"'{items[i].name}' has its render visibility animated (or NLA tracks)"
     return None
 
 
