@@ -363,7 +363,7 @@ def render_reason(context, baked: Baked) -> str | None:
     at = at[baked.held[ids[at]]]
     objs = bpy.data.objects
     off = identity.flags("hide_render")
-    if hasattr(bpy.types.Object, "visible_camera"):
+    if "visible_camera" in bpy.types.Object.bl_rna.properties:
         rays = np.zeros(len(objs), dtype=bool)
         objs.foreach_get("visible_camera", rays)
         off |= ~rays
