@@ -36,7 +36,7 @@ import numpy as np
 from bpy.app.handlers import persistent
 
 from ..core import OccError
-from . import bake
+from . import bake, identity
 from .keyed_camera import CHANNELS, _fcurves
 from .kinds import RENDER_KEYS, action_curves, is_dynamic, render_keys_only
 
@@ -130,6 +130,13 @@ def _refusal(context, digest: str) -> str | None:
 
 # --- writing and removing -------------------------------------------------------------------
 
+def _elsewhere(scene) -> np.ndarray:
+    """Sorted identities of the objects linked into any scene but ``scene`` (their keys
+    would hide in that scene's render, for a camera the bake never saw)."""
+    found = [identity.uids(s.objects) for s in bpy.data.scenes if s != scene]
+    return np.unique(np.concatenate(found)) if found else np.zeros(0, dtype=np.int64)
+
+
 def _new_curve(obj):
     """A fresh action of the add-on's, assigned to ``obj``, and its ``hide_render`` F-curve."""
     action = bpy.data.actions.new(f"OccRender {obj.name}")
@@ -174,12 +181,13 @@ def write(context) -> Written:
     frames = range(baked.start, baked.end + 1)
     rows = np.stack([bake.frame_mask(baked.frame(f), ids) for f in frames])
     items = bpy.data.objects.values()
+    shared = np.isin(identity.uids(), _elsewhere(scene))
     objects = keys = skipped = 0
     for i in np.flatnonzero(rows.any(axis=0)).tolist():
         o = items[i]
         ad = o.animation_data
         if o.hide_render or (ad is not None and (ad.action is not None or len(ad.drivers) or len(ad.nla_tracks))) \
-                or len(o.users_scene) != 1:
+                or shared[i]:
             skipped += 1
             continue
         pts = _keys(rows[:, i], baked.start)
@@ -270,7 +278,8 @@ def holds(context, full: bool = True) -> str | None:
     why = bake.render_reason(context, baked)
     if why is not None:
         return why
-    if any(len(o.users_scene) != 1 for o in keyed_objects()):
+    keyed = keyed_objects()
+    if keyed and np.isin(identity.idents(keyed), _elsewhere(scene)).any():
         return "an object with render keys was linked into another scene"
     return None
 

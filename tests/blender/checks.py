@@ -102,7 +102,8 @@ CHECKS = {
         "render_keys_written", "render_keys_are_the_frames_sets", "render_keys_objects_static",
         "render_keys_animation_pixel_identical", "render_keys_survive_reload", "render_keys_reloaded_sets",
         *[f"render_keys_removed_after_{e}" for e in ("move", "camera", "users_key", "engine", "wall_render_hidden",
-                                                      "wall_no_camera_rays", "clear", "rebake")],
+                                                      "wall_no_camera_rays", "linked_into_another_scene", "clear",
+                                                      "rebake")],
         "render_keys_keep_users_keys", "render_keys_refused",
     ],
 }

@@ -441,6 +441,8 @@ def render_keys_workflow():
              ("engine", lambda: setattr(scene.render, "engine", "CYCLES")),
              ("wall_render_hidden", lambda: setattr(bpy.data.objects["wall"], "hide_render", True)),
              ("wall_no_camera_rays", lambda: setattr(bpy.data.objects["wall"], "visible_camera", False)),
+             ("linked_into_another_scene", lambda: bpy.data.scenes.new("other").collection.objects.link(
+                 bpy.data.objects[keyed[0]])),
              ("clear", lambda: bpy.ops.occ.bake_clear()),
              ("rebake", lambda: bpy.ops.occ.bake_shot(frame_start=2, frame_end=9))]
     for name, edit in edits:
