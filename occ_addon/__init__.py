@@ -34,6 +34,9 @@ def register():
     live.register()                                  # live mode listens on the change bus
     if isinstance(bpy.data, bpy.types.BlendData):    # enabled on an open file: show what a record hides
         visibility.restore()
+        # and render keys go: an edit made while the add-on was off was seen by nothing
+        render_keys.remove("removed: the add-on was enabled on an open file (edits made while it was off "
+                           "are not known); apply again")
         live.after_load()                            # and live shows off: no timer runs yet
 
 

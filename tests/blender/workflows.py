@@ -94,7 +94,7 @@ KINDS = {
 # seeds that found a bug or a crash replay the same sequence with --skip of these).
 # (Their scenes' cameras see few objects occluded wholly inside the frame, which is all a
 # bake hides; the baked frames' truth with many hidden is tests/blender/test_bake.py's.)
-BAKE_KINDS = {"bake": 3, "bake_use": 1, "play": 5}
+BAKE_KINDS = {"bake": 3, "bake_use": 1, "play": 5, "bake_render": 1}
 BAKE_SHARE = 0.06
 # Scene features, switched off like step kinds: a geometry-nodes instancer whose
 # instances stand far from its mesh, props animated by keyframes, props carried by
@@ -111,7 +111,8 @@ FEATURES = {"scene_gn", "scene_animated", "scene_parent", "scene_particles", "sc
 # drawn when their object is hidden; geometry nodes here use no object.
 SOURCE_HIDES_INSTANCES = {"VERTS", "FACES", "COLLECTION"}
 # Steps that need the add-on enabled (its operators or properties).
-NEEDS_ADDON = {"cull", "restore", "never_cull", "exclude_setting", "live", "analyze", "settings", "bake", "bake_use"}
+NEEDS_ADDON = {"cull", "restore", "never_cull", "exclude_setting", "live", "analyze", "settings", "bake", "bake_use",
+               "bake_render"}
 # Steps after which Blender's undo system gets a step, as the UI pushes one after
 # every user edit (the add-on's Cull and Restore carry no UNDO flag: no push; an
 # analysis pushes its own step when it collects the never-visible objects).
@@ -119,7 +120,7 @@ NO_PUSH = {"cull", "restore", "undo", "redo", "save_reload", "addon_toggle", "li
            "revert", "bake", "bake_use", "play"}
 # Steps that run the add-on's own operations, checked by (h) around them (analyze:
 # around its operator only; the live pass after every step while live mode is on).
-ADDON_OPS = {"cull", "restore", "live", "addon_toggle", "bake", "bake_use"}
+ADDON_OPS = {"cull", "restore", "live", "addon_toggle", "bake", "bake_use", "bake_render"}
 # What --plain skips besides NEEDS_ADDON: the add-on's switch.
 PLAIN_SKIPS = {"addon_toggle"}
 NEVER_VISIBLE = "Never Visible"        # the collection "Collect Never Visible" fills (occ_addon/analysis.py)
@@ -1606,6 +1607,37 @@ def step_play(w, kind):
     return f"play {shown}"
 
 
+def step_bake_render(w, kind):
+    """Apply to Render switched (the bake's sets written as hide_render keys, or removed)."""
+    import bpy
+    try:
+        r = sorted(bpy.ops.occ.bake_render())
+    except RuntimeError as e:                  # no bake, stale, or refused: an ERROR report
+        if "failed" in str(e):
+            raise
+        r = f"report: {e}"
+    return f"apply to render -> {r}, keys: {bool(bpy.context.scene.occ_bake.render_keys)}"
+
+
+def check_render_keys():
+    """Render keys stand only where they hold: the bake holds, its camera path and settings
+    are the keyed ones and the render draws everything it culled against (the add-on's
+    check, asked in full after every step: an edit of any kind that left them standing
+    stale would show here); no key of the add-on's stands without a scene that applied it."""
+    import bpy
+    keys = sys.modules[f"{ADDON_MODULE}.occ_addon.render_keys"]
+    context = bpy.context
+    applied = [s.name for s in bpy.data.scenes if s.occ_bake.render_keys]
+    keyed = keys.keyed_objects()
+    if keyed and not applied:
+        return [f"k: render keys left on {sorted(o.name for o in keyed)[:5]} with no scene applying them"]
+    if context.scene.occ_bake.render_keys:
+        why = keys.holds(context)
+        if why is not None:
+            return [f"k: render keys stand where they no longer hold: {why}"]
+    return []
+
+
 def bake_on():
     """Whether what the add-on hides now is a baked frame's set (Use Baked Shot on, no pass since)."""
     import bpy
@@ -1615,6 +1647,7 @@ def bake_on():
 
 SCENE_STEPS = {
     "cull": step_cull, "bake": step_bake, "bake_use": step_bake_use, "play": step_play,
+    "bake_render": step_bake_render,
     "restore": step_restore, "bad_value": lambda w, kind: do_bad_value(w),
     "live": step_live, "analyze": lambda w, kind: do_analyze(w), "camera_move": step_camera_move,
     "camera_nudge": step_camera_nudge, "camera_scale": step_camera_scale, "camera_lens": step_camera_lens,
@@ -2000,6 +2033,7 @@ def run_seed(w, steps, verbose=False, progress=None):
                     problems += check_homes(before, "a live pass")
                 if addon_enabled():
                     problems += check_live_state()
+                    problems += check_render_keys()
                 problems += check_state(w, after_restore=kind == "restore" or not addon_enabled())
                 baked = bake_on()
                 w.stats["bake_checks"] += baked
