@@ -1608,15 +1608,25 @@ def step_play(w, kind):
 
 
 def step_bake_render(w, kind):
-    """Apply to Render switched (the bake's sets written as hide_render keys, or removed)."""
+    """Apply to Render switched (the bake's sets written as hide_render keys, or removed);
+    where none stand, mostly after a fresh bake (a workflow's bake goes stale within a few
+    steps, and the keys' removal is what the steps after this one check)."""
     import bpy
+    scene = bpy.context.scene
+    fresh = ""
     try:
+        if not scene.occ_bake.render_keys and w.rng.random() < 0.7:
+            if sum(v.use for v in scene.view_layers) > 1 and not scene.render.use_single_layer:
+                scene.render.use_single_layer = True   # as the refusal asks (the render's other layers)
+                fresh = "single layer, "
+            a = w.rng.randint(FRAMES[0], FRAMES[1] - 9)
+            fresh += f"baked {a}-{a + 9} {sorted(bpy.ops.occ.bake_shot(frame_start=a, frame_end=a + 9))}, "
         r = sorted(bpy.ops.occ.bake_render())
     except RuntimeError as e:                  # no bake, stale, or refused: an ERROR report
         if "failed" in str(e):
             raise
         r = f"report: {e}"
-    return f"apply to render -> {r}, keys: {bool(bpy.context.scene.occ_bake.render_keys)}"
+    return f"apply to render -> {fresh}{r}, keys: {bool(bpy.context.scene.occ_bake.render_keys)}"
 
 
 def check_render_keys():
