@@ -253,11 +253,13 @@ def _geometry(obj, memo: dict) -> tuple:
     return base + (tuple(map(tuple, obj.bound_box)),)
 
 
-def fingerprint(context, held: np.ndarray) -> str:
+def fingerprint(context, held: np.ndarray, passes: bool = True) -> str:
     """The fingerprint of what a bake read (``held``: ``(width,) bool`` over numbers):
     each such object's number and, where it does not change by itself (animation,
     drivers, constraints: :func:`.kinds.is_dynamic`), its shape and transform; every
-    light of the view layer, the settings and the render size."""
+    light of the view layer, the settings and the render size.  ``passes``: with the
+    pass's accuracy (strategy, resolution), which change how a bake is made, not whether a
+    made one holds (the render keys leave them out)."""
     h = hashlib.sha1()
     ids = numbers()
     own = usable(ids)
@@ -280,11 +282,11 @@ def fingerprint(context, held: np.ndarray) -> str:
             continue
         h.update(repr((int(ids[i]), _geometry(o, memo))).encode())
         h.update(mats[i].tobytes())
-    h.update(settings_digest(context).encode())
+    h.update(settings_digest(context, passes).encode())
     return h.hexdigest()
 
 
-def settings_digest(context) -> str:
+def settings_digest(context, passes: bool = True) -> str:
     """The part of :func:`fingerprint` that no object's own edit changes: every light of the
     view layer, the settings, the render size and rule, the objects kept from culling
     (an update of the scene alone is checked against this, cheaply)."""
@@ -301,7 +303,8 @@ def settings_digest(context) -> str:
     scene = context.scene
     r = scene.render
     key = settings_key(scene.occ)
-    h.update(repr((key[0], key[1], key[3], scene.occ.strategy, scene.occ.max_resolution, r.engine,
+    accuracy = (scene.occ.strategy, scene.occ.max_resolution) if passes else ()
+    h.update(repr((key[0], key[1], key[3], accuracy, r.engine,
                    r.resolution_x, r.resolution_y, r.resolution_percentage,
                    scene.camera.name_full if scene.camera else None,
                    # what the render shows beyond depth (ray tracing, X-ray, lights), and the
@@ -322,15 +325,17 @@ def _candidate_numbers(context) -> np.ndarray:
     return ids[order[np.searchsorted(uids, cand.uids, sorter=order)]]
 
 
-def check(context, baked: Baked) -> str | None:
-    """Why the scene's bake no longer holds, or None: it does."""
+def check(context, baked: Baked, want: str | None = None) -> str | None:
+    """Why the scene's bake no longer holds, or None: it does.  ``want``: the fingerprint
+    to hold to, made without the pass's accuracy (the render keys'), else the bake's own."""
     b = context.scene.occ_bake
     present = _candidate_numbers(context)
     missing = baked.held.copy()
     missing[present[present < len(missing)]] = False
     if missing.any():
         return "an object it culled against is hidden, deleted or duplicated since"
-    if fingerprint(context, baked.held) != b.fingerprint:
+    if (fingerprint(context, baked.held) != b.fingerprint) if want is None \
+            else (fingerprint(context, baked.held, passes=False) != want):
         return "the scene changed since the bake (geometry, transforms, lights or settings)"
     return None
 

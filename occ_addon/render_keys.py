@@ -199,7 +199,8 @@ def write(context) -> Written:
         fc.update()
         objects += 1
         keys += len(pts)
-    b.render_keys = f"{digest}:{b.fingerprint}:{bake.settings_digest(context)}"
+    b.render_keys = ":".join((digest, bake.fingerprint(context, baked.held, passes=False),
+                              bake.settings_digest(context, passes=False)))
     b.render_note = ""
     return Written(objects, keys, skipped)
 
@@ -269,11 +270,14 @@ def holds(context, full: bool = True) -> str | None:
     # evaluated first: a file just read holds no world matrices yet (Blender 4+ keeps them
     # at run time only), an undo step may hold stale ones
     context.evaluated_depsgraph_get()
-    why = bake.check(context, baked) if full else None     # in full: the keys hide in every render
+    stored_digest, fp, settings = (b.render_keys.split(":") + ["", "", ""])[:3]
+    # in full: the keys hide in every render (the pass's accuracy left out: it changes how
+    # a bake is made, not whether this one holds)
+    why = bake.check(context, baked, want=fp) if full else None
     if why is not None:
         return f"the bake is stale ({why})"
     digest = shot_digest(context)
-    if b.render_keys != f"{digest}:{b.fingerprint}:{bake.settings_digest(context)}":
+    if (stored_digest, settings) != (digest, bake.settings_digest(context, passes=False)):
         return _refusal(context, digest) or "the camera, the lights or the render's settings changed"
     why = bake.render_reason(context, baked)
     if why is not None:
