@@ -327,13 +327,17 @@ def _candidate_numbers(context) -> np.ndarray:
 
 def check(context, baked: Baked, want: str | None = None) -> str | None:
     """Why the scene's bake no longer holds, or None: it does.  ``want``: the fingerprint
-    to hold to, made without the pass's accuracy (the render keys'), else the bake's own."""
+    to hold to, made without the pass's accuracy (the render keys'), else the bake's own;
+    with it, what the viewport hides is not asked (the render draws it: an object deleted
+    or copied since still shows in the fingerprint, one the render leaves out in
+    :func:`render_reason`)."""
     b = context.scene.occ_bake
-    present = _candidate_numbers(context)
-    missing = baked.held.copy()
-    missing[present[present < len(missing)]] = False
-    if missing.any():
-        return "an object it culled against is hidden, deleted or duplicated since"
+    if want is None:            # (the render keys ask what the render draws: render_reason)
+        present = _candidate_numbers(context)
+        missing = baked.held.copy()
+        missing[present[present < len(missing)]] = False
+        if missing.any():
+            return "an object it culled against is hidden, deleted or duplicated since"
     if (fingerprint(context, baked.held) != b.fingerprint) if want is None \
             else (fingerprint(context, baked.held, passes=False) != want):
         return "the scene changed since the bake (geometry, transforms, lights or settings)"
