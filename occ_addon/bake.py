@@ -59,6 +59,7 @@ from .cameras import scene_camera
 from .fingerprints import _mesh_fingerprint
 from .identity import ident
 from .kinds import is_dynamic
+from .materials import see_through
 from .props import settings_key
 from .session import SESSION
 from .shading import rule as rule_of
@@ -384,6 +385,8 @@ def render_reason(context, baked: Baked) -> str | None:
             return (f"'{items[i].name}' is culled against in the viewport but left out of the render (its own "
                     "or its collection's render visibility): render it, or hide it in the viewport too, and bake again")
     for i in at.tolist():
+        if see_through(items[i]):                  # made see-through since: it hides nothing now
+            return f"'{items[i].name}' is see-through now (its materials)"
         ad = items[i].animation_data
         if ad is None or (ad.action is not None and ad.action.get(RENDER_KEYS) is not None):
             continue

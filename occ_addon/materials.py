@@ -49,7 +49,10 @@ def _follow(socket, seen: int) -> bool:
     while node.type == "REROUTE" and seen <= MAX_DEPTH:
         if not node.inputs[0].is_linked:
             return False
-        node, seen = node.inputs[0].links[0].from_node, seen + 1
+        link = node.inputs[0].links[0]
+        if not link.is_valid or link.is_muted:
+            return False
+        node, seen = link.from_node, seen + 1
     if node.mute:
         return False
     if node.type in MIXERS:

@@ -385,6 +385,15 @@ def _render_keyed():
     return sorted(o.name for o in addon("render_keys").keyed_objects())
 
 
+def _glass(obj):
+    """Give ``obj`` a glass material (what is behind it shows)."""
+    mat = bpy.data.materials.new("glass")
+    mat.use_nodes = True
+    nodes = mat.node_tree.nodes
+    mat.node_tree.links.new(nodes.new("ShaderNodeBsdfGlass").outputs[0], nodes.get("Material Output").inputs["Surface"])
+    obj.data.materials.append(mat)
+
+
 def render_keys_workflow():
     """Apply to Render: keys of hide_render that hold the baked sets at every frame and
     sub-frame (and nothing outside the range); Render Animation (what blender -a runs)
@@ -441,6 +450,7 @@ def render_keys_workflow():
              ("engine", lambda: setattr(scene.render, "engine", "CYCLES")),
              ("wall_render_hidden", lambda: setattr(bpy.data.objects["wall"], "hide_render", True)),
              ("wall_no_camera_rays", lambda: setattr(bpy.data.objects["wall"], "visible_camera", False)),
+             ("wall_made_glass", lambda: _glass(bpy.data.objects["wall"])),
              ("linked_into_another_scene", lambda: bpy.data.scenes.new("other").collection.objects.link(
                  bpy.data.objects[keyed[0]])),
              ("clear", lambda: bpy.ops.occ.bake_clear()),
