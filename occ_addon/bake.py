@@ -116,10 +116,6 @@ def decode_frames(text: str, frames: int, width: int) -> np.ndarray:
     return np.logical_xor.accumulate(delta, axis=0)
 
 
-def encode_cameras(cameras: list) -> str:
-    return _pack(np.stack([np.stack([c.view, c.projection]) for c in cameras]).astype("<f8").tobytes())
-
-
 def decode_cameras(text: str, frames: int) -> np.ndarray:
     """``(frames, 2, 4, 4)``: each frame's view and projection."""
     return np.frombuffer(_unpack(text), dtype="<f8").reshape(frames, 2, 4, 4)
@@ -601,6 +597,7 @@ class BakeResult:
     frames: list
     hidden_mean: float
     objects: int
+    share: list                 # per frame, the share of the triangles it hides
 
 
 def bake_steps(context, start: int, end: int) -> Generator[object, None, BakeResult]:
@@ -665,19 +662,31 @@ def bake_steps(context, start: int, end: int) -> Generator[object, None, BakeRes
     finally:
         scene.frame_set(previous)
         STATE.baking = False
+    cameras = np.stack([np.stack([c.view, c.projection]) for c in cams]) if cams else np.zeros((0, 2, 4, 4))
+    return store(context, start, end, hidden, cameras, envelopes, held, share)
+
+
+def store(context, start: int, end: int, hidden: np.ndarray, cameras: np.ndarray, envelopes: np.ndarray,
+          held: np.ndarray, share: np.ndarray) -> BakeResult:
+    """Write a bake of frames ``start .. end`` into ``scene.occ_bake`` (per frame: the
+    numbers hidden, the camera's view and projection, the envelope, the share of
+    triangles hidden; the numbers that took part), fingerprinted against the scene now."""
+    from . import render_keys
+    scene = context.scene
     b = scene.occ_bake
-    b.frame_start, b.frame_end, b.width = start, end, width
+    b.frame_start, b.frame_end, b.width = start, end, hidden.shape[1]
     b.hidden = encode_frames(hidden)
-    b.cameras = encode_cameras(cams)
-    b.envelopes = _pack(envelopes.astype("<f8").tobytes())
+    b.cameras = _pack(np.asarray(cameras, dtype="<f8").tobytes())
+    b.envelopes = _pack(np.asarray(envelopes, dtype="<f8").tobytes())
     b.held = _pack(np.packbits(held).tobytes())
     b.fingerprint = fingerprint(context, held)
     b.camera_digest = render_keys.shot_digest(context)
-    mean = float(hidden.sum(axis=1).mean()) if len(frames) else 0.0
+    mean = float(hidden.sum(axis=1).mean()) if len(hidden) else 0.0
+    share = np.asarray(share, dtype=np.float64)
     b.summary = (f"frames {start}-{end}: {mean:,.0f} of {int(held.sum()):,} objects, "
-                 f"{100 * float(share.mean()):.0f} % of triangles hidden a frame (mean)")
+                 f"{100 * float(share.mean() if len(share) else 0.0):.0f} % of triangles hidden a frame (mean)")
     STATE.key, STATE.known, STATE.stale = (ident(scene), b.fingerprint), True, None
-    return BakeResult(frames, mean, int(held.sum()))
+    return BakeResult(list(range(start, end + 1)), mean, int(held.sum()), [float(x) for x in share])
 
 
 # --- the render ---------------------------------------------------------------------------

@@ -8,7 +8,7 @@ from bpy.props import BoolProperty, EnumProperty, IntProperty, StringProperty
 
 from ..core import OccError
 from ..core.motion import AT_REST
-from . import bake, live, localview, render_keys, visibility
+from . import bake, bake_chunks, live, localview, render_keys, visibility
 from .analysis import analysis_steps, link_collection, push_undo, report_path, write_report
 from .cameras import camera_for
 from .session import SESSION
@@ -324,14 +324,23 @@ class OCC_OT_bake_shot(SteppedJob, bpy.types.Operator):
 
     frame_start: IntProperty(name="Start", default=-1, description="-1: the scene's start")
     frame_end: IntProperty(name="End", default=-1, description="-1: the scene's end")
+    filepath: StringProperty(name="Chunk", subtype="FILE_PATH", default="", options={"SKIP_SAVE"},
+                             description="Also write the bake to this file, a chunk that Merge Bake Chunks "
+                                         "merges with the other chunks of the shot (a farm bakes a shot in chunks)")
 
     def steps(self, context):
         start, end = frame_range(self, context.scene)
         if context.scene.camera is None:
             raise OccError("the scene has no camera: a shot is baked for the scene camera")
+        self._chunk = bake_chunks.prepare(self.filepath) if self.filepath else None
         return bake.bake_steps(context, start, end)
 
     def finish(self, context, result):
+        if self._chunk:
+            try:
+                bake_chunks.write(context.scene, self._chunk, result.share)
+            except OSError as e:
+                return failed(self, OccError(f"cannot write the bake chunk {self._chunk}: {e.strerror or e}"))
         push_undo("Bake Shot")
         if context.scene.occ_bake.use:
             bake.apply_frame(context)
@@ -364,6 +373,29 @@ class OCC_OT_render_baked(bpy.types.Operator):
         self.report({"INFO"}, f"rendered {len(done.frames)} frames in {time.perf_counter() - t:.1f} s, "
                               f"{sum(done.hidden) / max(len(done.hidden), 1):,.0f} objects hidden a frame "
                               f"(mean); last {done.paths[-1] if done.paths else '-'}")
+        return {"FINISHED"}
+
+
+class OCC_OT_bake_merge(bpy.types.Operator):
+    """Merge the chunks of a shot baked apart (occ.bake_shot with a chunk file, on a farm)
+    into this scene's bake: exactly the bake of one run over all their frames"""
+
+    bl_idname = "occ.bake_merge"
+    bl_label = "Merge Bake Chunks"
+
+    directory: StringProperty(name="Chunks", subtype="DIR_PATH", default="",
+                              description="Folder of the chunk files (every .json in it)")
+
+    def execute(self, context):
+        try:
+            result = bake_chunks.merge(context, bake_chunks.chunk_files(self.directory))
+        except Exception as e:  # every failure is a report, never a traceback
+            return failed(self, e)
+        push_undo("Merge Bake Chunks")
+        if context.scene.occ_bake.use:
+            bake.apply_frame(context)
+        self.report({"INFO"}, f"merged frames {result.frames[0]}-{result.frames[-1]}: {result.hidden_mean:,.0f} "
+                              f"of {result.objects:,} objects hidden a frame (mean)")
         return {"FINISHED"}
 
 
@@ -469,7 +501,7 @@ def failed(op, error):
 
 
 CLASSES = (OCC_OT_cull, OCC_OT_restore, OCC_OT_local_view, OCC_OT_live, OCC_OT_analyze, OCC_OT_bake_shot,
-           OCC_OT_bake_use, OCC_OT_bake_clear, OCC_OT_render_baked, OCC_OT_bake_render)
+           OCC_OT_bake_merge, OCC_OT_bake_use, OCC_OT_bake_clear, OCC_OT_render_baked, OCC_OT_bake_render)
 
 _keymaps = []
 

@@ -122,3 +122,86 @@ def test_a_failed_chunk_fails_its_task(farm):
     p = subprocess.run(cmd, cwd=str(work), env=env, capture_output=True, text=True, timeout=300)
     assert p.returncode == 1 and "empty frame range" in p.stderr + p.stdout, (p.stdout[-2000:], p.stderr[-2000:])
     assert not (work / "failing" / "chunks").exists()
+
+
+BAKE_FIELDS = ("frame_start", "frame_end", "width", "hidden", "cameras", "envelopes", "held", "fingerprint",
+               "camera_digest", "summary")
+
+
+def blender_expr(blend, expr, env, cwd):
+    """``blender -b FILE --python-expr EXPR`` as a worker runs it; -> (rc, stdout + stderr)."""
+    cmd = [*VARIABLES["{blender}"], "-b", "--addons", "bl_ext.user_default.occlusion_culled_viewport", str(blend),
+           "--python-exit-code", "1", "--python-expr", expr]
+    p = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True, timeout=300)
+    return p.returncode, p.stdout + p.stderr
+
+
+def bake_of(blend, env, cwd, before=""):
+    """The file's bake (``scene.occ_bake``), after ``before`` ran on it (not saved)."""
+    rc, out = blender_expr(blend, before + "import bpy, json; b = bpy.context.scene.occ_bake; print('OCC_BAKE', "
+                           f"json.dumps({{k: getattr(b, k) for k in {BAKE_FIELDS!r} + ('render_keys',)}}))",
+                           env, cwd)
+    assert rc == 0, out[-3000:]
+    return json.loads(next(line for line in out.splitlines() if line.startswith("OCC_BAKE "))[9:])
+
+
+def test_flamenco_bake_chunks_merge_to_the_whole_bake(farm):
+    """job BAKE_RENDER: the shot baked in chunks on workers, merged into the file and applied
+    to the render; the file's bake is exactly one Bake Shot's over the whole range."""
+    work, env, blend = farm
+    cwd = str(work / "worker_bake")
+    os.makedirs(cwd)
+    files = {}
+    for name, size in (("chunked", 2), ("whole", 100)):
+        files[name] = work / f"bake_{name}.blend"
+        shutil.copy(blend, files[name])
+        tasks = compile_job(blendfile=str(files[name]), frame_start=1, frame_end=7, chunk_size=size, checkout=ROOT,
+                            python=PYTHON, output_dir=str(work / f"bake_{name}"), job="BAKE_RENDER")
+        assert [t["name"] for t in tasks][-1] == "merge" and tasks[-1]["type"] == "blender"
+        assert len(tasks) == (5 if size == 2 else 2), [t["name"] for t in tasks]
+        run_job(tasks, cwd, env)
+    one = bake_of(blend, env, cwd, "import bpy; assert bpy.ops.occ.bake_shot(frame_start=1, frame_end=7) == "
+                                   "{'FINISHED'}; ")
+    chunked, whole = bake_of(files["chunked"], env, cwd), bake_of(files["whole"], env, cwd)
+    for f in BAKE_FIELDS:
+        assert chunked[f] == one[f] and whole[f] == one[f], f
+    assert chunked["render_keys"] and chunked["render_keys"] == whole["render_keys"]     # applied to the render
+    assert one["summary"].startswith("frames 1-7: ") and one["hidden"], one
+
+    # what the render reads: the keys hide per frame exactly what the bake hides
+    rc, out = blender_expr(files["chunked"], (
+        "import bpy, json; s = bpy.context.scene; rows = []\n"
+        "for f in range(1, 8):\n"
+        "    s.frame_set(f); rows.append(sorted(o.name for o in s.objects if o.hide_render))\n"
+        "print('OCC_ROWS', json.dumps(rows))"), env, cwd)
+    assert rc == 0, out[-3000:]
+    rows = json.loads(next(line for line in out.splitlines() if line.startswith("OCC_ROWS "))[9:])
+    assert any(rows) and len({tuple(r) for r in rows}) > 1, rows
+
+
+def test_bake_merge_refuses_chunks_that_do_not_make_the_shot(farm):
+    """A gap, an overlap, a chunk of an edited scene: one error each, exit 1, the file's bake untouched."""
+    work, env, blend = farm
+    cwd = str(work / "worker_refuse")
+    os.makedirs(cwd)
+    chunks = work / "refuse" / "chunks"
+    tasks = compile_job(blendfile=str(blend), frame_start=1, frame_end=6, chunk_size=2, checkout=ROOT,
+                        python=PYTHON, output_dir=str(work / "refuse"), job="BAKE")
+    run_job(tasks[:-1], cwd, env)                          # the chunks, not the merge
+    merge = f"import bpy; assert bpy.ops.occ.bake_merge(directory={str(chunks)!r}) == {{'FINISHED'}}"
+    rc, out = blender_expr(blend, merge, env, cwd)       # (not saved)
+    assert rc == 0, out[-3000:]
+    cases = {
+        "in no bake chunk": lambda: os.replace(chunks / "bake_3_4.json", work / "refuse" / "aside.json"),
+        "overlap": lambda: (os.replace(work / "refuse" / "aside.json", chunks / "bake_3_4.json"),
+                            shutil.copy(chunks / "bake_3_4.json", chunks / "bake_3_4_again.json")),
+    }
+    for why, make in cases.items():
+        make()
+        rc, out = blender_expr(blend, merge, env, cwd)
+        assert rc == 1 and why in out, (why, out[-3000:])
+    os.remove(chunks / "bake_3_4_again.json")
+    edit = "import bpy; bpy.data.objects['wall'].location.z += 0.5; bpy.context.view_layer.update(); "
+    rc, out = blender_expr(blend, edit + merge.split("; ", 1)[1], env, cwd)
+    assert rc == 1 and "before an edit of this one" in out, out[-3000:]
+    assert bake_of(blend, env, cwd)["hidden"] == ""                      # the file has no bake

@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 //
 // Flamenco job type "Occlusion Analysis": which objects the scene camera ever sees over a
-// frame range, analyzed in chunks on the farm's workers and merged into one report.
+// frame range, analyzed in chunks on the farm's workers and merged into one report; or
+// (`job` BAKE) the shot baked in chunks and merged into the blend file's bake.
 //
 // Install: copy this file into the `scripts/` folder next to the flamenco-manager
 // executable and restart the Manager (Flamenco manual, "Job Types").  Every worker needs
@@ -16,6 +17,14 @@
 //   merge        after every chunk (task type "misc"):
 //                PYTHON -c "<python -m core, from CHECKOUT>" merge OUT/chunks --out OUT
 //                -> OUT/report.json and OUT/report.csv, exactly the report of one run.
+// With `job` BAKE or BAKE_RENDER:
+//   bake-A-B     one per chunk of `chunk_size` frames (every frame: a bake has no step):
+//                ... --python-expr "import bpy; assert bpy.ops.occ.bake_shot(frame_start=A,
+//                 frame_end=B, filepath='OUT/chunks/bake_A_B.json') == {'FINISHED'}"
+//   merge        after every chunk (task type "blender"): opens FILE, occ.bake_merge(directory=
+//                'OUT/chunks') (exactly the bake of one run), BAKE_RENDER: occ.bake_render() (Apply
+//                to Render: a plain `blender -a` of the file renders with the bake), and saves
+//                FILE in place.
 // `python tools/flamenco/compile_job.js` (node) prints the tasks this file authors for
 // given settings; tests/blender/test_farm.py runs every command of them.
 
@@ -38,6 +47,10 @@ const JOB_TYPE = {
           description: "Analyze every n-th frame" },
         { key: "chunk_size", type: "int32", default: 50, visible: "submission",
           description: "Frames per analyze task" },
+        { key: "job", type: "string", default: "ANALYZE", choices: ["ANALYZE", "BAKE", "BAKE_RENDER"],
+          visible: "submission",
+          description: "ANALYZE: a report of what the camera sees; BAKE: Bake Shot in chunks, merged into the " +
+                       "blend file (saved in place); BAKE_RENDER: the same, applied to the render" },
         { key: "rule", type: "string", default: "AUTO", choices: ["AUTO", "SEEN", "RENDER"],
           visible: "submission",
           description: "What counts as visible: occ.analyze's rule (SEEN: a pixel of it is seen; RENDER: also its shadows)" },
@@ -55,20 +68,18 @@ const JOB_TYPE = {
 };
 
 function compileJob(job) {
+    if ((job.settings.job || "ANALYZE") !== "ANALYZE") {
+        compileBake(job);
+        return;
+    }
     const s = job.settings;
     const chunks = frameChunks(s.frame_start, s.frame_end, s.frame_step || 1, s.chunk_size);
     const chunkDir = path.join(s.output_dir, "chunks");
     const merge = author.Task("merge", "misc");
     for (const [a, b] of chunks) {
         const task = author.Task(`analyze-${a}-${b}`, "blender");
-        task.addCommand(author.Command("blender-render", {
-            exe: "{blender}",
-            exeArgs: "{blenderArgs}",
-            argsBefore: ["--addons", s.addon_module],
-            blendfile: s.blendfile,
-            args: ["--python-exit-code", "1", "--python-expr",
-                   analyzeExpr(a, b, s.frame_step || 1, s.rule, path.join(chunkDir, `chunk_${a}_${b}.json`))],
-        }));
+        task.addCommand(blenderCommand(s,
+            analyzeExpr(a, b, s.frame_step || 1, s.rule, path.join(chunkDir, `chunk_${a}_${b}.json`))));
         job.addTask(task);
         merge.addDependency(task);
     }
@@ -77,6 +88,37 @@ function compileJob(job) {
         args: ["-c", runCore(s.checkout), "merge", chunkDir, "--out", s.output_dir],
     }));
     job.addTask(merge);
+}
+
+// The shot baked per chunk (`occ.bake_shot` writing a chunk file), then merged into the file.
+function compileBake(job) {
+    const s = job.settings;
+    const chunkDir = path.join(s.output_dir, "chunks");
+    const merge = author.Task("merge", "blender");
+    for (const [a, b] of frameChunks(s.frame_start, s.frame_end, 1, s.chunk_size)) {
+        const task = author.Task(`bake-${a}-${b}`, "blender");
+        task.addCommand(blenderCommand(s, "import bpy; assert bpy.ops.occ.bake_shot(" +
+            `frame_start=${a}, frame_end=${b}, filepath=${pyString(path.join(chunkDir, `bake_${a}_${b}.json`))}) ` +
+            "== {'FINISHED'}"));
+        job.addTask(task);
+        merge.addDependency(task);
+    }
+    const render = s.job === "BAKE_RENDER" ? "assert bpy.ops.occ.bake_render() == {'FINISHED'}; " : "";
+    merge.addCommand(blenderCommand(s, "import bpy; " +
+        `assert bpy.ops.occ.bake_merge(directory=${pyString(chunkDir)}) == {'FINISHED'}; ` +
+        render + "assert bpy.ops.wm.save_mainfile() == {'FINISHED'}"));
+    job.addTask(merge);
+}
+
+// Blender on the job's file with the extension enabled, running `expr` (a failure fails the task).
+function blenderCommand(s, expr) {
+    return author.Command("blender-render", {
+        exe: "{blender}",
+        exeArgs: "{blenderArgs}",
+        argsBefore: ["--addons", s.addon_module],
+        blendfile: s.blendfile,
+        args: ["--python-exit-code", "1", "--python-expr", expr],
+    });
 }
 
 // [[first, last], ...]: chunks of `size` analyzed frames (`step` apart), each range inclusive.
