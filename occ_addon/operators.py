@@ -386,6 +386,12 @@ class OCC_OT_bake_merge(bpy.types.Operator):
     directory: StringProperty(name="Chunks", subtype="DIR_PATH", default="",
                               description="Folder of the chunk files (every .json in it)")
 
+    def invoke(self, context, event):
+        if self.directory or context.window is None:
+            return self.execute(context)
+        context.window_manager.fileselect_add(self)       # (F3 in a window: pick the folder)
+        return {"RUNNING_MODAL"}
+
     def execute(self, context):
         try:
             result = bake_chunks.merge(context, bake_chunks.chunk_files(self.directory))
