@@ -54,6 +54,7 @@ from ..core.bounds import transform_boxes
 from ..core.camera import Camera, view_change
 from ..core.envelope import covering
 from ..core.frustum import classify, planes_from_matrix
+from ..core.playback import PlaybackCost
 from . import analysis, identity, localview, policy, visibility
 from .cameras import scene_camera
 from .fingerprints import _mesh_fingerprint
@@ -88,6 +89,7 @@ class OccBake(bpy.types.PropertyGroup):
     camera_digest: StringProperty(default="", options={"HIDDEN"})   # the camera's path when baked
     render_keys: StringProperty(default="", options={"HIDDEN"})     # Apply to Render wrote keys for this
     render_note: StringProperty(default="", options={"HIDDEN"})     # why they were removed
+    shares: StringProperty(default="", options={"HIDDEN"})          # per frame, the share of triangles hidden
 
 
 # --- storage -------------------------------------------------------------------------
@@ -132,6 +134,7 @@ class Baked:
     cameras: np.ndarray         # (frames, 2, 4, 4)
     held: np.ndarray            # (width,) bool
     envelopes: np.ndarray       # (frames, 2): each frame's envelope (move, turn); -1: none holds
+    shares: np.ndarray | None = None   # (frames,): the share of triangles each frame hides (older bakes: None)
 
     def frame(self, f: int) -> np.ndarray | None:
         return self.hidden[f - self.start] if self.start <= f <= self.end else None
@@ -152,7 +155,8 @@ def stored(scene) -> Baked | None:
             held = np.unpackbits(np.frombuffer(_unpack(b.held), np.uint8), count=b.width).astype(bool)
             baked = Baked(b.frame_start, b.frame_end, decode_frames(b.hidden, n, b.width),
                           decode_cameras(b.cameras, n), held,
-                          np.frombuffer(_unpack(b.envelopes), dtype="<f8").reshape(n, 2))
+                          np.frombuffer(_unpack(b.envelopes), dtype="<f8").reshape(n, 2),
+                          np.frombuffer(_unpack(b.shares), dtype="<f4").reshape(n) if b.shares else None)
         except (ValueError, zlib.error):      # damaged by hand or by a script: no bake
             baked = None
         _decoded.update(key=key, baked=baked)
@@ -420,6 +424,7 @@ class State:
         self.pending = False         # a recheck timer is registered
         self.apply_ms = 0.0          # the last frame's apply: the hiding and Blender's update (ms)
         self.changed = 0             # objects whose hiding the last frame's apply changed
+        self.playback = PlaybackCost()   # the applies' updates against the drawing they save
 
     def status(self, context, baked: Baked) -> str | None:
         key = (ident(context.scene), context.scene.occ_bake.fingerprint)
@@ -535,6 +540,7 @@ def apply_frame(context, handler: bool = False) -> int:
     channel = _channel(context) if row is not None else False
     if row is None or channel is False or STATE.status(context, baked) is not None:
         release()
+        STATE.playback.reset()
         return 0
     f = scene.frame_current
     try:
@@ -543,6 +549,7 @@ def apply_frame(context, handler: bool = False) -> int:
         camera = None
     if not _camera_holds(baked, f, scene.frame_current_final, camera):
         release()
+        STATE.playback.reset()
         return 0
     hide = frame_mask(row, numbers())
     if handler and channel is not None and channel[1].spaces.active.local_view is None and hide.any():
@@ -556,7 +563,10 @@ def apply_frame(context, handler: bool = False) -> int:
         context.view_layer.update()
     finally:
         SESSION.applying = False
-    STATE.apply_ms = 1e3 * (time.perf_counter() - t0)
+    now = time.perf_counter()
+    STATE.apply_ms = 1e3 * (now - t0)
+    share = None if baked.shares is None else float(baked.shares[f - baked.start]) if hide.any() else 0.0
+    STATE.playback.frame(f, now, STATE.apply_ms, share)
     STATE.changed = visibility.COUNT["changed"] - before
     SESSION.shown = None                 # no pass's set: the live guard has nothing to watch
     STATE.applied = bool(n)
@@ -679,6 +689,7 @@ def store(context, start: int, end: int, hidden: np.ndarray, cameras: np.ndarray
     b.cameras = _pack(np.asarray(cameras, dtype="<f8").tobytes())
     b.envelopes = _pack(np.asarray(envelopes, dtype="<f8").tobytes())
     b.held = _pack(np.packbits(held).tobytes())
+    b.shares = _pack(np.asarray(share, dtype="<f4").tobytes())
     b.fingerprint = fingerprint(context, held)
     b.camera_digest = render_keys.shot_digest(context)
     mean = float(hidden.sum(axis=1).mean()) if len(hidden) else 0.0
@@ -762,6 +773,7 @@ def clear(scene) -> None:
     render_keys.remove()
     b = scene.occ_bake
     b.hidden = b.cameras = b.envelopes = b.held = b.fingerprint = b.summary = b.camera_digest = b.render_note = ""
+    b.shares = ""
     b.frame_start, b.frame_end, b.width, b.use = 0, -1, 0, False
 
 

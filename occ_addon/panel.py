@@ -75,6 +75,10 @@ def _baked_shot(layout, context):
             # Blender's update after each frame's change: where it outgrows the draw it saves
             # (tens of thousands of objects), playback is faster without the bake
             box.label(text=f"Last frame: {bake.STATE.changed:,} changed, {bake.STATE.apply_ms:.0f} ms update")
+            advice = bake.STATE.playback.advice()
+            if advice is not None:
+                box.label(text=f"The update ({advice[0]:.0f} ms a frame) outweighs the drawing", icon="ERROR")
+                box.label(text=f"it saves (about {advice[1]:.0f} ms): play without the bake")
 
 
 def _labelled(layout, data, prop, label):

@@ -125,7 +125,7 @@ def test_a_failed_chunk_fails_its_task(farm):
 
 
 BAKE_FIELDS = ("frame_start", "frame_end", "width", "hidden", "cameras", "envelopes", "held", "fingerprint",
-               "camera_digest", "summary")
+               "camera_digest", "summary", "shares")
 
 
 def blender_expr(blend, expr, env, cwd):

@@ -233,6 +233,10 @@ def inside(out_path, scene_name, seconds, fps):
                     "not_baked_set_max": max(rec["not_baked_set"], default=0),
                     "view_perspective": sorted(rec["perspective"]), "local_view": space.local_view is not None,
                     "stale": bake.STATE.stale, "known": bake.STATE.known,
+                    # the panel's estimate (core/playback.py): the drawing a frame's hiding saves
+                    "estimated_saved_ms": stats([x for _, x in bake.STATE.playback.samples], "m")["m_median"]
+                    if on and bake.STATE.playback.samples else None,
+                    "advice": bake.STATE.playback.advice() if on else None,
                     "draw_ms_by_frame": {f: float(np.median(v)) for f, v in sorted(rec["by_frame"].items())}}
 
         results["bake_off"] = yield from play(False)
