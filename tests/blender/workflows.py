@@ -94,7 +94,7 @@ KINDS = {
 # seeds that found a bug or a crash replay the same sequence with --skip of these).
 # (Their scenes' cameras see few objects occluded wholly inside the frame, which is all a
 # bake hides; the baked frames' truth with many hidden is tests/blender/test_bake.py's.)
-BAKE_KINDS = {"bake": 3, "bake_use": 1, "play": 5, "bake_render": 1}
+BAKE_KINDS = {"bake": 3, "bake_use": 1, "play": 5, "bake_render": 1, "render": 2}
 BAKE_SHARE = 0.06
 # Scene features, switched off like step kinds: a geometry-nodes instancer whose
 # instances stand far from its mesh, props animated by keyframes, props carried by
@@ -112,12 +112,12 @@ FEATURES = {"scene_gn", "scene_animated", "scene_parent", "scene_particles", "sc
 SOURCE_HIDES_INSTANCES = {"VERTS", "FACES", "COLLECTION"}
 # Steps that need the add-on enabled (its operators or properties).
 NEEDS_ADDON = {"cull", "restore", "never_cull", "exclude_setting", "live", "analyze", "settings", "bake", "bake_use",
-               "bake_render"}
+               "bake_render", "render"}
 # Steps after which Blender's undo system gets a step, as the UI pushes one after
 # every user edit (the add-on's Cull and Restore carry no UNDO flag: no push; an
 # analysis pushes its own step when it collects the never-visible objects).
 NO_PUSH = {"cull", "restore", "undo", "redo", "save_reload", "addon_toggle", "live", "analyze", "emitter_undo",
-           "revert", "bake", "bake_use", "play"}
+           "revert", "bake", "bake_use", "play", "render"}
 # Steps that run the add-on's own operations, checked by (h) around them (analyze:
 # around its operator only; the live pass after every step while live mode is on).
 ADDON_OPS = {"cull", "restore", "live", "addon_toggle", "bake", "bake_use", "bake_render"}
@@ -279,7 +279,8 @@ class World:
         self.undo_pos = -1
         self.history = []
         self.counts = {}
-        self.stats = {"truth_checks": 0, "hidden_at_checks": 0, "visible_at_checks": 0, "bake_checks": 0}
+        self.stats = {"truth_checks": 0, "hidden_at_checks": 0, "visible_at_checks": 0, "bake_checks": 0,
+                      "render_checks": 0}
         self.pending = []           # problems a step found itself (analyze)
         self.saved = None           # (path, model) of the file saved last
         self.note = ""              # what a step did before its own action (a first analysis)
@@ -1558,7 +1559,7 @@ def step_bake(w, kind):
             cam.keyframe_insert("location", frame=f)
         keyed = ", camera keyed"
     try:
-        r = sorted(bpy.ops.occ.bake_shot(frame_start=a, frame_end=a + 9))
+        r = bake_shot(w, a, a + 9)
         if not scene.occ_bake.use:
             bpy.ops.occ.bake_use()
     except RuntimeError as e:                  # an ERROR report: fine unless it is our bug
@@ -1616,17 +1617,140 @@ def step_bake_render(w, kind):
     fresh = ""
     try:
         if not scene.occ_bake.render_keys and w.rng.random() < 0.7:
-            if sum(v.use for v in scene.view_layers) > 1 and not scene.render.use_single_layer:
-                scene.render.use_single_layer = True   # as the refusal asks (the render's other layers)
-                fresh = "single layer, "
-            a = w.rng.randint(FRAMES[0], FRAMES[1] - 9)
-            fresh += f"baked {a}-{a + 9} {sorted(bpy.ops.occ.bake_shot(frame_start=a, frame_end=a + 9))}, "
+            fresh = fresh_bake(w)
         r = sorted(bpy.ops.occ.bake_render())
     except RuntimeError as e:                  # no bake, stale, or refused: an ERROR report
         if "failed" in str(e):
             raise
         r = f"report: {e}"
     return f"apply to render -> {fresh}{r}, keys: {bool(bpy.context.scene.occ_bake.render_keys)}"
+
+
+def add_behind_wall(w):
+    """A small static box added right behind the wall a ray from the camera hits, near the
+    middle of the frame (the workflow scene's occluded objects are mostly dynamic, which a
+    bake never hides); -> what it did."""
+    import bpy
+    from mathutils import Vector
+    scene = bpy.context.scene
+    cam = scene.camera
+    if cam is None or cam.type != "CAMERA" or "Walls" not in bpy.data.collections:
+        return ""
+    walls = set(bpy.data.collections["Walls"].all_objects)
+    dg = bpy.context.evaluated_depsgraph_get()
+    m = cam.matrix_world.normalized()
+    corners = [m @ c for c in cam.data.view_frame(scene=scene)]    # top right, bottom right, bottom left, top left
+    eye = m.translation
+    for _ in range(12):
+        u, v = w.rng.uniform(0.3, 0.7), w.rng.uniform(0.3, 0.7)
+        top = corners[3].lerp(corners[0], u)
+        bottom = corners[2].lerp(corners[1], u)
+        way = (bottom.lerp(top, v) - eye).normalized() if cam.data.type != "ORTHO" else \
+            (m.to_3x3() @ Vector((0, 0, -1))).normalized()
+        start = eye if cam.data.type != "ORTHO" else bottom.lerp(top, v)
+        hit, at, _, _, obj, _ = scene.ray_cast(dg, start, way)
+        if hit and obj is not None and obj.original in walls and (at - start).length > 1.0:
+            p = at + way * w.rng.uniform(0.5, 0.8)
+            # (in the scene's own collection: an object another scene links gets no render keys)
+            o = add_box(w, "Behind", tuple(p), (0.12, 0.12, 0.12), scene.collection, w.rng.uniform(0, 3))
+            w.model["objects"][o["wf_id"]] = object_intent(o)
+            return f"'{o.name}' added behind '{obj.original.name}', "
+    return ""
+
+
+def fresh_bake(w, behind=False):
+    """Bake Shot over ten frames from a random one, the render's other view layers off
+    first where several render (as Apply to Render asks); ``behind``: a box added behind
+    a wall the camera sees at the first of them (:func:`add_behind_wall`); -> what it did."""
+    import bpy
+    scene = bpy.context.scene
+    said = ""
+    if sum(v.use for v in scene.view_layers) > 1 and not scene.render.use_single_layer:
+        scene.render.use_single_layer = True
+        said = "single layer, "
+    a = w.rng.randint(FRAMES[0], FRAMES[1] - 9)
+    if behind:
+        scene.frame_set(a)                     # (the camera may be keyed)
+        said += add_behind_wall(w)
+    return said + f"baked {a}-{a + 9} {bake_shot(w, a, a + 9)}, "
+
+
+def bake_shot(w, a, b):
+    """``occ.bake_shot`` over frames ``a .. b``; a bake is an undo step of its own (the
+    operator pushes one where an undo history exists): so is the model's."""
+    import bpy
+    r = sorted(bpy.ops.occ.bake_shot(frame_start=a, frame_end=b))
+    if r == ["FINISHED"] and bpy.ops.ed.undo_history.poll():
+        mirror_undo_push(w)
+    return r
+
+
+def step_render(w, kind):
+    """A frame of the baked range as the final render takes it (sometimes half a frame on,
+    a motion-blur sample): what the render hides there, by the render keys standing
+    (Apply to Render) or by Render Baked Shot's set (where that renders with the bake), is
+    nothing the camera sees (the truth at the render size, the add-on's hides undone).
+    Pixels are not rendered here (EEVEE takes 30-60 s a frame at 160x90 on llvmpipe); the
+    in-Blender checks ``render_keys_workflow`` and ``render_baked_shot`` compare renders
+    pixel for pixel."""
+    import bpy
+    import numpy as np
+    scene, context = bpy.context.scene, bpy.context
+    bake = sys.modules[f"{ADDON_MODULE}.occ_addon.bake"]
+    keys = sys.modules[f"{ADDON_MODULE}.occ_addon.render_keys"]
+    b = scene.occ_bake
+    baked = bake.stored(scene)
+    fresh = ""
+    if (baked is None or bake.STATE.status(context, baked) is not None) and w.rng.random() < 0.7:
+        try:                                   # mostly a fresh bake (a workflow's goes stale soon) ...
+            fresh = fresh_bake(w, behind=w.rng.random() < 0.8)
+            if w.rng.random() < 0.5:           # ... half of them applied to the render
+                fresh += f"applied {sorted(bpy.ops.occ.bake_render())}, "
+        except RuntimeError as e:              # refused: an ERROR report, fine unless it is our bug
+            if "failed" in str(e):
+                raise
+            fresh += f"report: {e}, "
+    if not b.hidden:
+        return f"render: {fresh}no bake"
+    f = w.rng.randint(b.frame_start, b.frame_end)
+    sub = 0.5 if w.rng.random() < 0.3 and f < b.frame_end else 0.0
+    scene.frame_set(f, subframe=sub)
+    context.view_layer.update()
+    baked = bake.stored(scene)
+    if baked is None:
+        return f"render frame {f + sub}: {fresh}no bake decoded"
+    items = bpy.data.objects.values()
+    ids = bake.numbers()
+    hidden, how = set(), "whole"
+    if b.render_keys:
+        hidden = {o.name for o in keys.keyed_objects() if o.hide_render and scene.objects.get(o.name) is not None}
+        how = "keys"
+    elif bake.STATE.status(context, baked) is None and bake.render_reason(context, baked) is None:
+        try:
+            camera, _ = bake.scene_camera(context)
+        except Exception:                      # (no camera: the frame renders whole)
+            camera = None
+        if bake._camera_holds(baked, f, scene.frame_current_final, camera):
+            take = bake.frame_mask(baked.frame(f), ids) & ~np.array([o.hide_render for o in items], dtype=bool)
+            hidden = {items[i].name for i in np.flatnonzero(take).tolist()}
+            how = "render baked shot"
+    said = f"render {fresh}frame {f + sub}: {how}, {len(hidden)} hidden"
+    if not hidden:
+        return said
+    # The truth is the viewport's (what it draws, the add-on's hides undone): it stands for
+    # the render where every object the bake culled against is drawn there too (an occluder
+    # hidden in the viewport since the bake still renders, and occludes there).
+    held = [items[i] for i in np.flatnonzero(bake.usable(ids) & (ids < len(baked.held))).tolist()
+            if baked.held[ids[i]]]
+    if not all(o.visible_get() or hidden_by_addon(o) for o in held):
+        return said + " (an occluder not drawn in the viewport: no truth)"
+    seen, _ = truth_visible(w)
+    if seen is not None:
+        w.stats["render_checks"] += 1
+        wrong = sorted(hidden & set(seen))
+        if wrong:
+            w.pending.append(f"r: the render at frame {f + sub} hides {wrong[:5]}, which the camera sees ({how})")
+    return said
 
 
 def check_render_keys():
@@ -1657,7 +1781,7 @@ def bake_on():
 
 SCENE_STEPS = {
     "cull": step_cull, "bake": step_bake, "bake_use": step_bake_use, "play": step_play,
-    "bake_render": step_bake_render,
+    "bake_render": step_bake_render, "render": step_render,
     "restore": step_restore, "bad_value": lambda w, kind: do_bad_value(w),
     "live": step_live, "analyze": lambda w, kind: do_analyze(w), "camera_move": step_camera_move,
     "camera_nudge": step_camera_nudge, "camera_scale": step_camera_scale, "camera_lens": step_camera_lens,
