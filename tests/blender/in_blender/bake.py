@@ -356,6 +356,40 @@ def baked_frames_render_unchanged():
               and (any(hid) or tag == "workbench"), (r, hid, changed, noise))
         if shadows:
             check(f"bake_render_{tag}_slab_shadow_shows", all(c < 0 for c in changed[1::2]), (changed, noise))
+    _cycles_bake()
+
+
+def _cycles_bake():
+    """Cycles traces rays: a bake hides nothing there unless the user opts in (Cull Under Ray
+    Tracing).  With the opt-in it hides the crates behind the wall, and what that changes in
+    Cycles' pixels (indirect light, the mirror box) is what the opt-in accepts: counted, not
+    required to be none."""
+    from .policy import _lit_scene, _render
+    hid, changed = {}, {}
+    for opt_in in (False, True):
+        scene = _lit_scene()
+        scene.render.engine = "CYCLES"
+        scene.cycles.samples, scene.cycles.seed, scene.cycles.use_denoising = 4, 1, False
+        scene.occ.cull_raytraced = opt_in
+        for name, lo, hi in (("crate_a", (7.5, -3.0, 0.0), (8.3, -2.2, 0.8)),
+                             ("crate_b", (7.2, 1.5, 0.0), (7.8, 2.1, 1.5))):
+            box(name, lo, hi)
+        keyframes(scene.camera, [(1, (-10.0, -1.5, 3.0)), (4, (-9.0, 1.5, 3.2))])
+        scene.frame_start, scene.frame_end = 1, 4
+        r = bpy.ops.occ.bake_shot()
+        hid[opt_in] = [sorted(_expected(scene, f)) for f in range(1, 5)] if r == {"FINISHED"} else r
+        if opt_in and r == {"FINISHED"}:
+            scene.frame_set(1)
+            update()
+            a = _render(os.path.join(WORK, "bake_cycles_a.png"))
+            for o in bpy.data.objects:
+                o.hide_render = o.name in hid[True][0]
+            c = _render(os.path.join(WORK, "bake_cycles_c.png"))
+            for o in bpy.data.objects:
+                o.hide_render = False
+            changed[opt_in] = int((np.abs(c - a) > 1.0 / 255.0).any(axis=2).sum())
+    check("bake_render_cycles_hides_nothing", hid[False] == [[]] * 4, hid)
+    check("bake_render_cycles_opt_in_hides", isinstance(hid[True], list) and any(hid[True]), (hid, changed))
 
 
 def _render_hidden():
