@@ -4,7 +4,8 @@ command of every task it authors run as a worker would, in dependency order: the
 ``blender -b ... occ.analyze(frame_start, frame_end)`` with bpy as a module
 (blender_cli.py, with the extension installed from its zip in the worker's user folder) and
 the ``python -m core merge``.  The merged report is byte for byte the one of a single
-``occ.analyze`` over the whole range."""
+``occ.analyze`` over the whole range; with ``job`` BAKE_RENDER the merged bake is field for
+field one Bake Shot's over the whole range."""
 
 import json
 import os
