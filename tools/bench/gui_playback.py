@@ -20,7 +20,11 @@ whether the hidden set is the frame's baked one.  The two runs reach different f
 the same wall time: ``draw_ratio_off_on_common`` compares their draws over the frames both
 drew.  Prints one JSON object (with any traceback Blender's console shows).
 
-Inside Blender (``--python tools/bench/gui_playback.py -- OUT_JSON SCENE SECONDS FPS``) it is the playback itself.
+``--modal`` bakes as a click does: the operator's modal run (``INVOKE_DEFAULT``), the window
+drawing between its steps.
+
+Inside Blender (``--python tools/bench/gui_playback.py -- OUT_JSON SCENE SECONDS FPS [modal]``) it is the playback
+itself.
 """
 
 import os
@@ -47,11 +51,13 @@ def outside(argv):
     ap.add_argument("scene", nargs="?", default="city-small")
     ap.add_argument("--seconds", type=float, default=20.0, help="of playback, each of the bake off and on")
     ap.add_argument("--fps", type=int, default=1000, help="the scene's frame rate (sync NONE: every frame drawn)")
+    ap.add_argument("--modal", action="store_true",
+                    help="bake as a click does (the operator's modal run with its progress), not in one call")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         out = pathlib.Path(tmp, "playback.json")
-        rc, log = run_in_window(blender_env(pathlib.Path(tmp)), os.path.abspath(__file__),
-                                [str(out), args.scene, str(args.seconds), str(args.fps)], screen="1280x720")
+        inner = [str(out), args.scene, str(args.seconds), str(args.fps), *(["modal"] if args.modal else [])]
+        rc, log = run_in_window(blender_env(pathlib.Path(tmp)), os.path.abspath(__file__), inner, screen="1280x720")
         if not out.is_file():
             sys.stderr.write(f"gui_playback: Blender wrote no figures (exit {rc}); its log ends:\n{log[-3000:]}\n")
             return 1
@@ -122,7 +128,7 @@ def stats(values, name):
             f"{name}_mean": float(np.mean(values)) if values else None}
 
 
-def inside(out_path, scene_name, seconds, fps):
+def inside(out_path, scene_name, seconds, fps, modal=False):
     import bpy
     import numpy as np
 
@@ -144,7 +150,16 @@ def inside(out_path, scene_name, seconds, fps):
         yield
         t = time.perf_counter()
         with bpy.context.temp_override(**ctx):
-            done = bpy.ops.occ.bake_shot(frame_start=sc.frame_start, frame_end=sc.frame_end)
+            if modal:                              # as a click: the modal run, the window drawing between steps
+                done = bpy.ops.occ.bake_shot("INVOKE_DEFAULT", frame_start=sc.frame_start, frame_end=sc.frame_end)
+            else:
+                done = bpy.ops.occ.bake_shot(frame_start=sc.frame_start, frame_end=sc.frame_end)
+        session = sys.modules[f"{ADDON}.occ_addon.session"].SESSION
+        ticks = 0
+        while session.busy is not None and time.perf_counter() - t < 600:
+            ticks += 1
+            yield
+        results.update(bake_modal=modal, bake_ticks=ticks, bake_stored=bool(sc.occ_bake.hidden))
         results.update(bake_s=time.perf_counter() - t, bake_result=sorted(done),
                        bake_frames=sc.frame_end - sc.frame_start + 1, bake_summary=sc.occ_bake.summary)
         objs = bpy.data.objects
@@ -261,5 +276,5 @@ def inside(out_path, scene_name, seconds, fps):
 if __name__ == "__main__":
     if "bpy" not in sys.modules or "--" not in sys.argv:
         sys.exit(outside(sys.argv[1:]))
-    out_json, scene_arg, seconds_arg, fps_arg = sys.argv[sys.argv.index("--") + 1:][:4]
-    inside(out_json, scene_arg, float(seconds_arg), int(fps_arg))
+    out_json, scene_arg, seconds_arg, fps_arg, *rest = sys.argv[sys.argv.index("--") + 1:]
+    inside(out_json, scene_arg, float(seconds_arg), int(fps_arg), modal="modal" in rest)

@@ -1,0 +1,46 @@
+"""A baked shot in a real Blender window (Debian's Blender 3.4 under Xvfb, the checkout as a
+legacy add-on): Bake Shot run as a click runs it (modal, the window drawing between its
+steps), then the animation played as fast as Blender draws, Use Baked Shot off and on
+(``tools/bench/gui_playback.py city-small --seconds 3 --modal``).  Every sampled draw with
+the bake on hides exactly the frame's baked set, in the view through the camera, and
+turning the bake off shows everything.  Timings are recorded, never asserted."""
+
+import json
+import os
+
+import pytest
+
+from tests.gui.window import GUI_MARKS, ROOT, blender_env, run_in_window
+
+PLAYBACK = os.path.join(ROOT, "tools", "bench", "gui_playback.py")
+
+pytestmark = GUI_MARKS
+
+
+@pytest.fixture(scope="module")
+def played(tmp_path_factory):
+    work = tmp_path_factory.mktemp("gui_bake")
+    env, out = blender_env(work), work / "playback.json"
+    rc, log = run_in_window(env, PLAYBACK, [str(out), "city-small", "3", "1000", "modal"])
+    assert out.exists(), f"no results (rc {rc}):\n{log[-3000:]}"
+    return json.loads(out.read_text()), log
+
+
+def test_modal_bake_finishes_and_stores_the_shot(played):
+    r, log = played
+    assert "error" not in r, r.get("error")
+    assert "Traceback" not in log, log[-3000:]
+    assert r["bake_modal"] and r["bake_result"] == ["RUNNING_MODAL"], r
+    assert r["bake_ticks"] >= 2, r                  # the window ran between the bake's steps
+    assert r["bake_stored"] and r["bake_summary"].startswith(f"frames 1-{r['frame_end']}: "), r
+
+
+def test_playback_hides_exactly_each_frames_baked_set(played):
+    r, _ = played
+    on, off = r["bake_on"], r["bake_off"]
+    assert off["hidden_max"] == 0 and off["applies"] == 0, off
+    assert on["frames_advanced"] >= 2 and on["frames_applied"] > 0, on
+    assert on["samples"] > 0 and on["samples_not_baked_set"] == 0, on
+    assert on["hidden_max"] > 0 and on["view_perspective"] == ["CAMERA"] and on["local_view"], on
+    assert on["stale"] is None and on["known"], on
+    assert r["after_off"]["hidden"] == 0, r["after_off"]
