@@ -194,8 +194,10 @@ def write(context) -> Written:
         fc = _new_curve(o)
         fc.keyframe_points.add(len(pts))
         fc.keyframe_points.foreach_set("co", pts.ravel())
-        for k in fc.keyframe_points:
-            k.interpolation = "CONSTANT"
+        fc.keyframe_points.foreach_set("interpolation", np.zeros(len(pts), dtype=np.int32))    # CONSTANT
+        if fc.keyframe_points[0].interpolation != "CONSTANT":     # (an enum numbered otherwise)
+            for k in fc.keyframe_points:
+                k.interpolation = "CONSTANT"
         fc.update()
         objects += 1
         keys += len(pts)
