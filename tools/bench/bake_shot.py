@@ -12,8 +12,9 @@ one JSON object: bake seconds (per frame), the stored text's size, the objects h
 frame, the frame change off and on (median ms) and the bake's apply (median ms, objects
 changed per frame).
 
-``--render`` renders ``RENDER_FRAMES`` frames of the shot spread over it at ``--size`` with
-each engine, once as it is and once with the frame's baked set hidden from the render
+``--render`` bakes at ``--size`` (the bake holds for its render size only) and, per engine,
+bakes again with that engine (its rule) and renders ``RENDER_FRAMES`` frames of the shot
+spread over it at that size, once as it is and once with the frame's baked set hidden from the render
 (``hide_render``, as a final render would take the bake; set and cleared by this tool),
 and reports per engine the median render time (as it is: the faster of two renders), the
 largest peak resident memory of the process during a render (``VmHWM`` reset before each)
@@ -115,6 +116,10 @@ def render_figures(bake, engines, size, work):
         sc.render.engine = names[name]
         if name == "eevee":
             sc.eevee.taa_render_samples = 16
+        bpy.ops.occ.bake_shot()                     # for this engine (its rule and name are in the fingerprint)
+        holds = bake.STATE.status(bpy.context, bake.stored(sc)) is None
+        if bool(sc.occ_bake.use):
+            bpy.ops.occ.bake_use()
         rec = {"plain_s": [], "baked_s": [], "plain_peak": [], "baked_peak": [], "changed": [], "noise": 0.0,
                "hidden": []}
         for f in frames:
@@ -141,7 +146,8 @@ def render_figures(bake, engines, size, work):
                      "render_s_baked_median": float(np.median(rec["baked_s"])),
                      "peak_mb_plain_max": max(rec["plain_peak"]) / 2**20,
                      "peak_mb_baked_max": max(rec["baked_peak"]) / 2**20,
-                     "pixels_changed": rec["changed"], "noise": rec["noise"], "hidden": rec["hidden"]}
+                     "pixels_changed": rec["changed"], "noise": rec["noise"], "hidden": rec["hidden"],
+                     "bake_holds": holds}
     return out
 
 
@@ -198,6 +204,8 @@ def inside(zip_path, work, scene_name, frames, engines, size):
     sc.occ.source = "CAMERA"
     path = sample_scenes.default_camera_path(name, small=small)["frames"][:frames]
     key_camera(sc, path, core)
+    if engines:          # the bake is made for the render it is checked against (its size is in the fingerprint)
+        sc.render.resolution_x, sc.render.resolution_y = (int(v) for v in size.split("x"))
     sc.frame_set(1)
     bpy.context.view_layer.update()
     t = time.perf_counter()
