@@ -129,6 +129,7 @@ def render_figures(bake, engines, size, work):
             s0b, p0b, b = _render(os.path.join(work, f"{name}_{f}_b.png"))
             s0, p0 = min(s0, s0b), min(p0, p0b)          # (the first render of a frame may compile shaders)
             noise = float(np.abs(a - b).max())
+            rec.setdefault("plain_differing", []).append(int((np.abs(a - b) > 1.0 / 255.0).any(axis=2).sum()))
             items = bpy.data.objects.values()
             for i in np.flatnonzero(hide).tolist():
                 items[i].hide_render = True
@@ -147,7 +148,9 @@ def render_figures(bake, engines, size, work):
                      "peak_mb_plain_max": max(rec["plain_peak"]) / 2**20,
                      "peak_mb_baked_max": max(rec["baked_peak"]) / 2**20,
                      "pixels_changed": rec["changed"], "noise": rec["noise"], "hidden": rec["hidden"],
-                     "bake_holds": holds}
+                     "bake_holds": holds,
+                     # pixels the two plain renders differ in: the renderer's own run-to-run change
+                     "plain_pixels_differing": rec["plain_differing"]}
     return out
 
 
