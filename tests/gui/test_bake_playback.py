@@ -5,12 +5,11 @@ steps), then the animation played as fast as Blender draws, Use Baked Shot off a
 the bake on hides exactly the frame's baked set, in the view through the camera, and
 turning the bake off shows everything.  Timings are recorded, never asserted."""
 
-import json
 import os
 
 import pytest
 
-from tests.gui.window import GUI_MARKS, ROOT, blender_env, run_in_window
+from tests.gui.window import GUI_MARKS, ROOT, window_results
 
 PLAYBACK = os.path.join(ROOT, "tools", "bench", "gui_playback.py")
 
@@ -19,11 +18,9 @@ pytestmark = GUI_MARKS
 
 @pytest.fixture(scope="module")
 def played(tmp_path_factory):
-    work = tmp_path_factory.mktemp("gui_bake")
-    env, out = blender_env(work), work / "playback.json"
-    rc, log = run_in_window(env, PLAYBACK, [str(out), "city-small", "3", "1000", "modal"])
-    assert out.exists(), f"no results (rc {rc}):\n{log[-3000:]}"
-    return json.loads(out.read_text()), log
+    results, log, _ = window_results(tmp_path_factory.mktemp("gui_bake"), PLAYBACK,
+                                     ["{out}/playback.json", "city-small", "3", "1000", "modal"], "playback.json")
+    return results, log
 
 
 def test_modal_bake_finishes_and_stores_the_shot(played):

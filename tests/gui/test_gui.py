@@ -7,12 +7,11 @@ Skipped where ``blender`` or ``xvfb-run`` is missing (``.ci/run`` installs
 them) or where that Blender's Python cannot load this venv's moderngl wheel.
 """
 
-import json
 import os
 
 import pytest
 
-from tests.gui.window import GUI_MARKS, ROOT, blender_env, run_in_window
+from tests.gui.window import GUI_MARKS, ROOT, window_results
 
 BENCH = os.path.join(ROOT, "tools", "bench", "gui_benchmark.py")
 
@@ -21,12 +20,8 @@ pytestmark = GUI_MARKS
 
 @pytest.fixture(scope="module")
 def gui_run(tmp_path_factory):
-    work = tmp_path_factory.mktemp("gui")
-    env, out = blender_env(work), work / "out"
-    rc, log = run_in_window(env, BENCH, [str(out), "city-small"], screen="1600x900", extra=["--enable-event-simulate"])
-    path = out / "gui.json"
-    assert path.exists(), f"no results (rc {rc}):\n{log[-3000:]}"
-    return json.loads(path.read_text()), log, out
+    return window_results(tmp_path_factory.mktemp("gui"), BENCH, ["{out}", "city-small"], "gui.json",
+                          screen="1600x900", extra=["--enable-event-simulate"])
 
 
 def test_run_finished_without_errors(gui_run):

@@ -4,6 +4,7 @@ glcontext and trimesh on its path.  Skips where that Blender's Python cannot loa
 this venv's compiled wheels."""
 
 import importlib.util
+import json
 import os
 import shutil
 import subprocess
@@ -52,3 +53,14 @@ def run_in_window(env, script, args, screen="1280x720", extra=()):
     p = subprocess.run(["xvfb-run", "-a", "-s", f"-screen 0 {screen}x24", "blender", *extra, "--python", script,
                         "--", *args], env=env, capture_output=True, text=True, timeout=600)
     return p.returncode, p.stdout + p.stderr
+
+
+def window_results(work, script, args, result, **kw):
+    """Run ``script`` in a window with a profile in ``work`` (``args`` may name ``{out}``, a
+    folder in ``work``); -> ``(the JSON it wrote to {out}/result, its log, {out})``."""
+    env, out = blender_env(work), work / "out"
+    out.mkdir(exist_ok=True)
+    rc, log = run_in_window(env, script, [a.format(out=out) for a in args], **kw)
+    path = out / result
+    assert path.exists(), f"no results (rc {rc}):\n{log[-3000:]}"
+    return json.loads(path.read_text()), log, out
