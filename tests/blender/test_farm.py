@@ -205,4 +205,8 @@ def test_bake_merge_refuses_chunks_that_do_not_make_the_shot(farm):
     edit = "import bpy; bpy.data.objects['wall'].location.z += 0.5; bpy.context.view_layer.update(); "
     rc, out = blender_expr(blend, edit + merge.split("; ", 1)[1], env, cwd)
     assert rc == 1 and "before an edit of this one" in out, out[-3000:]
-    assert bake_of(blend, env, cwd)["hidden"] == ""                      # the file has no bake
+    # in the same process, the refused merge leaves the scene's bake as it was (none)
+    caught = (f"\ntry:\n    bpy.ops.occ.bake_merge(directory={str(chunks)!r})\nexcept RuntimeError as e:\n"
+              "    print('OCC_REFUSED', e)\n")
+    after = bake_of(blend, env, cwd, edit + caught)
+    assert after["hidden"] == "" and after["fingerprint"] == "" and after["frame_end"] < after["frame_start"], after
