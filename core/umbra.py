@@ -34,6 +34,7 @@ PER_MESH = 16          # polygons kept per mesh (its largest)
 OBJECTS = 256          # objects whose polygons are tried per pass (largest on screen)
 POLYGONS = 512         # polygons tried per pass (largest on screen)
 BOX_CHUNK = 256        # boxes per matrix product (x 5 planes x POLYGONS doubles)
+GROUP = 64             # near boxes whose bounding box is tested first (hidden_by_polygons)
 COPLANAR_COS = 1.0 - 1e-9   # two triangles' normals this close are one plane ...
 COPLANAR_REL = 1e-9         # ... when the other's far vertex is this close to it (x mesh size)
 
@@ -162,6 +163,23 @@ def umbra_planes(polys, radius, near_eff=0.0):
     return normals, offsets
 
 
+def morton_order(points):
+    """Indices that put ``points`` ``(m, 3)`` in Morton (Z-curve) order over their bounds,
+    10 bits an axis: near points mostly fall near each other in the order."""
+    p = np.asarray(points, dtype=np.float64)
+    if len(p) < 2:
+        return np.arange(len(p))
+    lo = p.min(axis=0)
+    span = float(np.ptp(p, axis=0).max())
+    if not np.isfinite(span) or span <= 0.0:
+        return np.arange(len(p))
+    q = np.clip((p - lo) * (1023.0 / span), 0, 1023).astype(np.uint64)
+    for shift, mask in ((16, 0x30000FF), (8, 0x300F00F), (4, 0x30C30C3), (2, 0x9249249)):
+        q = (q | (q << np.uint64(shift))) & np.uint64(mask)
+    code = q[:, 0] | (q[:, 1] << np.uint64(1)) | (q[:, 2] << np.uint64(2))
+    return np.argsort(code, kind="stable")
+
+
 def hidden_by_polygons(boxes, polys, distance, near_eff=0.0, depth_guard=None):
     """``(m,) bool``: boxes (camera-relative, ``(m, 2, 3)``) hidden from every eye
     within ``distance`` of the origin by at least one of the convex polygons
@@ -172,8 +190,13 @@ def hidden_by_polygons(boxes, polys, distance, near_eff=0.0, depth_guard=None):
     rounding in front of it, or through it).
 
     The umbra is convex, so a box is in it when its corner nearest each bounding plane
-    is: per box and plane one dot product, all of them one matrix product per chunk of
-    :data:`BOX_CHUNK` boxes."""
+    is: per box and plane one dot product.  Boxes go in groups of :data:`GROUP`, near
+    boxes together (Morton order of their centres), and each group's bounding box is
+    tested first: a group inside an umbra is hidden whole, and a polygon whose umbra
+    misses the group's box (its farthest corner short of some plane) can hide none of
+    its boxes.  Only the polygons left, the umbras the group's box straddles, are tried
+    box by box.  The answer is the flat test's, pair by pair (a box lies in its group's
+    box and its guards are at most the group's): the groups change the work only."""
     m, k = len(boxes), len(polys)
     out = np.zeros(m, dtype=bool)
     if not m or not k:
@@ -189,25 +212,62 @@ def hidden_by_polygons(boxes, polys, distance, near_eff=0.0, depth_guard=None):
     none = ~np.isfinite(offsets)
     normals[none] = np.broadcast_to(normals[:, :1], normals.shape)[none]
     offsets[none] = np.broadcast_to(offsets[:, :1], offsets.shape)[none]
-    # one matrix product per chunk: [lo, hi, guard, 1] x [max(n, 0); min(n, 0); -1; -offset] is each
-    # plane's least value over the box, less the box's rounding guard, less the plane's offset;
-    # columns plane-major (the five planes of every polygon, one block each)
+    # [lo, hi, guard, 1] x [max(n, 0); min(n, 0); -1; -offset] is each plane's least value
+    # over the box, less the box's rounding guard, less the plane's offset ([hi, lo, 0, 1]:
+    # its greatest, less the offset); columns plane-major (one block per plane)
+    kk = len(normals)
     planes = normals.transpose(1, 0, 2).reshape(-1, 3)
     weights = np.concatenate([np.maximum(planes, 0.0).T, np.minimum(planes, 0.0).T,
                               -np.ones((1, len(planes))), -offsets.T.reshape(1, -1)])
-    kk = len(normals)
-    rows = np.empty((min(m, BOX_CHUNK), 8))
+    rows = np.empty((m, 8))
+    rows[:, 0:3], rows[:, 3:6] = boxes[:, MIN], boxes[:, MAX]
+    rows[:, 6] = tol.box_grow_rel * np.abs(boxes).max(axis=(1, 2))
     rows[:, 7] = 1.0
-    for s in range(0, m, BOX_CHUNK):
-        b = boxes[s:s + BOX_CHUNK]
-        r = rows[:len(b)]
-        r[:, 0:3], r[:, 3:6] = b[:, MIN], b[:, MAX]
-        r[:, 6] = tol.box_grow_rel * np.abs(b).max(axis=(1, 2))
-        low = (r @ weights).reshape(len(b), 5, kk)
-        if depth_guard is not None:
-            low[:, 0] -= depth_guard[s:s + BOX_CHUNK, None]
-        least = low[:, 0]
-        for e in range(1, 5):
-            np.minimum(least, low[:, e], out=least)
-        out[s:s + BOX_CHUNK] = (least >= 0.0).any(axis=1)
+    guard = np.zeros(m) if depth_guard is None else np.asarray(depth_guard, dtype=np.float64)
+    if m <= GROUP:
+        out[:] = _inside_any(rows, guard, weights, kk)
+        return out
+    order = morton_order(0.5 * (boxes[:, MIN] + boxes[:, MAX]))
+    rows, guard = rows[order], guard[order]
+    n_groups = -(-m // GROUP)
+    pad = n_groups * GROUP - m
+    edge = np.concatenate([rows, np.repeat(rows[-1:], pad, axis=0)]).reshape(n_groups, GROUP, 8)
+    group = np.empty((n_groups, 8))
+    group[:, 0:3] = edge[:, :, 0:3].min(axis=1)
+    group[:, 3:6] = edge[:, :, 3:6].max(axis=1)
+    group[:, 6] = edge[:, :, 6].max(axis=1)
+    group[:, 7] = 1.0
+    group_guard = np.concatenate([guard, np.repeat(guard[-1:], pad)]).reshape(n_groups, GROUP).max(axis=1)
+    whole = _inside_any(group, group_guard, weights, kk)
+    far = group[:, [3, 4, 5, 0, 1, 2, 6, 7]]
+    far[:, 6] = 0.0
+    reach = _least_over_planes(far @ weights, kk) >= 0.0        # (groups, polygons): straddled or inside
+    hidden = np.zeros(m, dtype=bool)
+    w5 = weights.reshape(8, 5, kk)
+    for g in np.flatnonzero(~whole & reach.any(axis=1)):
+        cand = np.flatnonzero(reach[g])
+        s = slice(g * GROUP, min((g + 1) * GROUP, m))
+        hidden[s] = _inside_any(rows[s], guard[s], w5[:, :, cand].reshape(8, -1), len(cand))
+    hidden[:m] |= np.repeat(whole, GROUP)[:m]
+    out[order] = hidden
+    return out
+
+
+def _least_over_planes(values, kk):
+    """``(n, 5 kk)`` plane-major values to ``(n, kk)``: the least of each polygon's five."""
+    least = values[:, :kk].copy()
+    for e in range(1, 5):
+        np.minimum(least, values[:, e * kk:(e + 1) * kk], out=least)
+    return least
+
+
+def _inside_any(rows, guard, weights, kk):
+    """``(n,) bool``: rows ``[lo, hi, guard, 1]`` inside at least one of ``kk`` umbras
+    (plane-major weights), each row a further ``guard`` beyond the polygon's plane;
+    :data:`BOX_CHUNK` rows a matrix product."""
+    out = np.zeros(len(rows), dtype=bool)
+    for s in range(0, len(rows), BOX_CHUNK):
+        low = rows[s:s + BOX_CHUNK] @ weights
+        low[:, :kk] -= guard[s:s + BOX_CHUNK, None]
+        out[s:s + BOX_CHUNK] = (_least_over_planes(low, kk) >= 0.0).any(axis=1)
     return out

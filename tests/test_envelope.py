@@ -385,10 +385,12 @@ def test_envelope_holds_at_the_display_resolution(ctx):
     assert hidden > 0
 
 
-def test_the_polygon_proof_does_not_depend_on_order_or_chunks(ctx, monkeypatch):
-    """The proof is an OR over box-polygon pairs: the polygons' order and the chunks of boxes
-    change the work only.  Polygons shuffled and chunks of 7 boxes give the answer of the
-    envelope pass's own inputs."""
+@pytest.mark.parametrize("group", [1, 5, 10**9])
+def test_the_polygon_proof_does_not_depend_on_order_chunks_or_groups(ctx, monkeypatch, group):
+    """The proof is an OR over box-polygon pairs: the polygons' order, the chunks of boxes and
+    the groups whose bounding boxes are tested first change the work only.  Polygons
+    shuffled, chunks of 7 boxes and groups of 1, 5 or every box in one (the flat test) give
+    the answer of the envelope pass's own inputs."""
     from core import envelope as envmod
     from core import umbra
     calls = []
@@ -409,8 +411,81 @@ def test_the_polygon_proof_does_not_depend_on_order_or_chunks(ctx, monkeypatch):
         proved += int(want.sum())
         with monkeypatch.context() as m:
             m.setattr(umbra, "BOX_CHUNK", 7)
+            m.setattr(umbra, "GROUP", group)
             assert np.array_equal(hidden_by_polygons(boxes, polys[rng.permutation(len(polys))], *rest, **k), want)
     assert calls and proved > 0
+
+
+def _flat_polygon_proof(boxes, polys, distance, depth_guard=None):
+    """Every box against every polygon, one at a time (the groups' reference)."""
+    guard = np.zeros(len(boxes)) if depth_guard is None else depth_guard
+    return np.array([any(hidden_by_polygons(boxes[i:i + 1], polys[p:p + 1], distance,
+                                            depth_guard=guard[i:i + 1])[0] for p in range(len(polys)))
+                     for i in range(len(boxes))], dtype=bool)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_grouped_boxes_get_the_answer_of_each_box_alone(seed):
+    """Boxes in three clusters (deep behind a polygon: groups hidden whole; around the eye,
+    short of every polygon's plane: groups that miss every umbra; around the polygons:
+    groups that straddle them) and
+    scattered, with depth guards: the grouped proof hides exactly the boxes that a polygon
+    hides when each box is tested alone."""
+    from core import umbra
+    rng = np.random.default_rng(300 + seed)
+    polys = _random_polygons(rng, 10)
+    g = umbra.GROUP
+    n = 6 * g + 7                                              # a last group of 7
+    centres = polys.mean(axis=1)[rng.integers(0, 10, n)] * rng.uniform(1.05, 2.5, (n, 1))
+    deep = polys[0].mean(axis=0) * 1.5
+    centres[:2 * g] = deep + rng.normal(scale=0.01, size=(2 * g, 3))
+    centres[2 * g:4 * g] = rng.normal(scale=0.3, size=(2 * g, 3))
+    half = rng.uniform(0.02, 1.0, (n, 1, 3))
+    half[:4 * g] = 0.01
+    boxes = np.concatenate([centres[:, None] - half, centres[:, None] + half], axis=1)
+    guard = rng.uniform(0.0, 0.3, n) * (rng.random(n) < 0.5)
+    guard[:2 * g] = 0.0
+    distance = float(rng.uniform(0.1, 1.0))
+    got = hidden_by_polygons(boxes, polys, distance, depth_guard=guard)
+    assert np.array_equal(got, _flat_polygon_proof(boxes, polys, distance, guard))
+    assert got[:2 * g].all() and not got[2 * g:4 * g].any()
+    assert 0 < got[4 * g:].sum() < n - 4 * g
+
+
+def test_the_polygon_proof_degenerate_inputs():
+    """No boxes, no polygons, one box, boxes all at one point (no Morton span) and one more
+    box than a group: the answers of each box alone."""
+    from core import umbra
+    square = np.array([[[-2, -2, -10], [2, -2, -10], [2, 2, -10], [-2, 2, -10]]], dtype=float)
+    behind = np.array([[-0.5, -0.5, -14], [0.5, 0.5, -13]])
+    beside = behind + (5.0, 0.0, 0.0)
+    assert hidden_by_polygons(np.zeros((0, 2, 3)), square, 0.5).shape == (0,)
+    assert hidden_by_polygons(behind[None], np.zeros((0, 4, 3)), 0.5).tolist() == [False]
+    assert hidden_by_polygons(behind[None], square, 0.5).tolist() == [True]
+    same = np.repeat(behind[None], umbra.GROUP * 2 + 1, axis=0)
+    assert hidden_by_polygons(same, square, 0.5).all()
+    mixed = np.concatenate([same[:umbra.GROUP], beside[None]])
+    want = [True] * umbra.GROUP + [False]
+    assert hidden_by_polygons(mixed, square, 0.5).tolist() == want
+    assert hidden_by_polygons(mixed[::-1], square, 0.5).tolist() == want[::-1]
+    # a polygon whose plane the ball reaches hides nothing, grouped or not
+    assert not hidden_by_polygons(same, square, 10.5).any()
+
+
+def test_morton_order_visits_each_octant_whole():
+    """A 4 x 4 x 4 grid in Morton order: every run of 8 is one 2 x 2 x 2 cell, every run of 64
+    the grid; a permutation for any points, the identity for one point repeated."""
+    from core.umbra import morton_order
+    grid = np.stack(np.meshgrid(*[np.arange(4.0)] * 3, indexing="ij"), axis=-1).reshape(-1, 3)
+    rng = np.random.default_rng(0)
+    shuffled = grid[rng.permutation(len(grid))]
+    order = morton_order(shuffled)
+    assert sorted(order.tolist()) == list(range(64))
+    cells = (shuffled[order] // 2).reshape(8, 8, 3)
+    assert all((c == c[0]).all() for c in cells)
+    assert len({tuple(c[0]) for c in cells}) == 8
+    assert morton_order(np.ones((5, 3))).tolist() == list(range(5))
+    assert morton_order(np.zeros((0, 3))).tolist() == []
 
 
 def test_a_result_carries_the_envelope_it_holds_for(ctx):
