@@ -124,6 +124,7 @@ class Culler:
         self.max_children = max_children
         self.chunking = (chunk_triangles, chunk_min_triangles)
         self.chunk_cache = chunk_cache if chunk_cache is not None else ChunkCache()
+        self._unit_bounds_memo = None
         self._build(scene, ctx)
 
     def _build(self, scene, ctx, previous=None):
@@ -263,7 +264,19 @@ class Culler:
 
     def unit_bounds(self) -> NDArray[np.float64]:
         """World boxes of the draw units, ``(u, 2, 3)``; :data:`EMPTY_BOX` for the
-        units of invalid objects."""
+        units of invalid objects.  A new array each call; the last answer is kept while
+        the scene, its units, matrices and invalid objects are the same (value for value)."""
+        memo = self._unit_bounds_memo
+        scene = self.scene
+        if memo is not None and memo[0] is scene and memo[1] is self.units and memo[2] == self.exact_bounds \
+                and np.array_equal(memo[3], scene.matrices) and np.array_equal(memo[4], scene.invalid):
+            return memo[5].copy()
+        ub = self._unit_bounds()
+        self._unit_bounds_memo = (scene, self.units, self.exact_bounds, scene.matrices.copy(),
+                                  scene.invalid.copy(), ub.copy())
+        return ub
+
+    def _unit_bounds(self):
         invalid = self.scene.invalid
         ub = self.units.world_bounds(np.where(invalid[:, None, None], np.eye(4), self.scene.matrices))
         if self.exact_bounds:

@@ -644,7 +644,10 @@ def occluder_polygons(culler, eye):
     gap = np.linalg.norm(np.maximum(np.maximum(box[:, MIN], -box[:, MAX]), 0.0), axis=1)
     with np.errstate(divide="ignore"):
         score = size / np.maximum(gap, tol.tiny)
-    objs = valid[np.argsort(-score)[:umbra.OBJECTS]]
+    top = np.arange(len(score))
+    if len(score) > umbra.OBJECTS:
+        top = np.argpartition(-score, umbra.OBJECTS - 1)[:umbra.OBJECTS]
+    objs = valid[top[np.argsort(-score[top], kind="stable")]]
     cache = culler.mesh_polygons
     local = []
     for o in objs:

@@ -62,6 +62,7 @@ class Scene:
     invalid: np.ndarray = field(init=False)
     mesh_valid: np.ndarray = field(init=False)
     _tri: np.ndarray = field(init=False, default=None, repr=False)
+    _bounds_memo: tuple = field(init=False, default=None, repr=False)
 
     def __post_init__(self):
         n = len(self.names)
@@ -130,10 +131,17 @@ class Scene:
 
     @property
     def bounds(self):
-        """World boxes of the objects, ``(n, 2, 3) float64``."""
+        """World boxes of the objects, ``(n, 2, 3) float64`` (a new array each call; the
+        last answer is kept while the matrices are the same, value for value)."""
         if not len(self):
             return np.zeros((0, 2, 3))
-        return transform_boxes(self.mesh_bounds[self.mesh_of], self.matrices)
+        memo = self._bounds_memo
+        if memo is not None and np.array_equal(memo[0], self.matrices) and np.array_equal(memo[1], self.mesh_of):
+            return memo[2].copy()
+        out = transform_boxes(self.mesh_bounds[self.mesh_of], self.matrices)
+        # kept with copies of its inputs: a matrix changed in place (a move) is a new answer
+        self._bounds_memo = (self.matrices.copy(), self.mesh_of.copy(), out.copy())
+        return out
 
     def exact_bounds(self):
         """World boxes from the transformed vertices, ``(n, 2, 3) float64``.

@@ -105,6 +105,32 @@ def test_moving_objects_refits(ctx):
         assert culler.truth(cam)[hidden]
 
 
+def test_kept_bounds_follow_matrices_changed_in_place(ctx):
+    """The scene's and the culler's world boxes are kept between passes while the matrices
+    stay the same, value for value: a matrix written in place (no set_matrices), a NaN
+    matrix and a caller that writes into an answer each get the boxes computed afresh."""
+    from core.bounds import transform_boxes
+    scene = scenes.random_city(3, 40)[0]
+    with Culler(scene, (32, 32), ctx=ctx) as culler:
+        def fresh():
+            return transform_boxes(scene.mesh_bounds[scene.mesh_of], scene.matrices)
+        first = culler.unit_bounds()
+        kept = first.copy()
+        assert np.array_equal(scene.bounds, fresh())
+        first[:] = 0.0                                 # the caller's copy only
+        scene.bounds[:] = 0.0
+        assert np.array_equal(culler.unit_bounds(), culler._unit_bounds())
+        assert np.array_equal(scene.bounds, fresh())
+        scene.matrices[5, :3, 3] += (7.0, -3.0, 2.0)  # in place, the culler not told
+        assert np.array_equal(scene.bounds, fresh())
+        assert np.array_equal(culler.unit_bounds(), culler._unit_bounds())
+        moved = culler.units.object == 5
+        assert moved.any() and not np.array_equal(culler.unit_bounds()[moved], kept[moved])
+        assert np.array_equal(culler.unit_bounds()[~moved], kept[~moved])
+        scene.matrices[6, 0, 0] = np.nan
+        assert np.isnan(scene.bounds[6]).any()
+
+
 def joined(scene):
     """All objects of a scene merged into one mesh (world coordinates), as users import CAD."""
     from core import Scene
