@@ -265,25 +265,23 @@ class Culler:
     def unit_bounds(self) -> NDArray[np.float64]:
         """World boxes of the draw units, ``(u, 2, 3)``; :data:`EMPTY_BOX` for the
         units of invalid objects.  A new array each call; the last answer is kept while
-        the scene, its units, matrices and invalid objects are the same (value for value)."""
-        memo = self._unit_bounds_memo
+        the scene, its units, matrices and invalid objects are the same (value for value;
+        not with ``exact_bounds``, whose vertices are read afresh)."""
         scene = self.scene
-        if memo is not None and memo[0] is scene and memo[1] is self.units and memo[2] == self.exact_bounds \
-                and np.array_equal(memo[3], scene.matrices) and np.array_equal(memo[4], scene.invalid):
-            return memo[5].copy()
-        ub = self._unit_bounds()
-        self._unit_bounds_memo = (scene, self.units, self.exact_bounds, scene.matrices.copy(),
-                                  scene.invalid.copy(), ub.copy())
-        return ub
-
-    def _unit_bounds(self):
-        invalid = self.scene.invalid
-        ub = self.units.world_bounds(np.where(invalid[:, None, None], np.eye(4), self.scene.matrices))
+        memo = self._unit_bounds_memo
+        if memo is not None and memo[0] is scene and memo[1] is self.units and not self.exact_bounds \
+                and np.array_equal(memo[2], scene.matrices) and np.array_equal(memo[3], scene.invalid):
+            return memo[4].copy()
+        # computed from copies of the matrices, kept with them: a matrix changed in place
+        # (even during this call) is a new answer
+        matrices, invalid = scene.matrices.copy(), scene.invalid.copy()
+        ub = self.units.world_bounds(np.where(invalid[:, None, None], np.eye(4), matrices))
         if self.exact_bounds:
             whole = np.flatnonzero([t is None for t in self.units.trees] & ~invalid)
             if len(whole):
                 ub[np.concatenate([self.units.of_object[o] for o in whole])] = self.scene.exact_bounds()[whole]
         ub[invalid[self.units.object]] = EMPTY_BOX
+        self._unit_bounds_memo = (scene, self.units, matrices, invalid, ub.copy())
         return ub
 
     def truth(self, camera: Camera) -> NDArray[np.bool_]:

@@ -138,9 +138,11 @@ class Scene:
         memo = self._bounds_memo
         if memo is not None and np.array_equal(memo[0], self.matrices) and np.array_equal(memo[1], self.mesh_of):
             return memo[2].copy()
-        out = transform_boxes(self.mesh_bounds[self.mesh_of], self.matrices)
-        # kept with copies of its inputs: a matrix changed in place (a move) is a new answer
-        self._bounds_memo = (self.matrices.copy(), self.mesh_of.copy(), out.copy())
+        # kept with copies of its inputs, computed from those copies: a matrix changed in
+        # place (a move, even during this call) is a new answer
+        matrices, mesh_of = self.matrices.copy(), self.mesh_of.copy()
+        out = transform_boxes(self.mesh_bounds[mesh_of], matrices)
+        self._bounds_memo = (matrices, mesh_of, out.copy())
         return out
 
     def exact_bounds(self):

@@ -196,7 +196,8 @@ def hidden_by_polygons(boxes, polys, distance, near_eff=0.0, depth_guard=None):
     misses the group's box (its farthest corner short of some plane) can hide none of
     its boxes.  Only the polygons left, the umbras the group's box straddles, are tried
     box by box.  The answer is the flat test's, pair by pair (a box lies in its group's
-    box and its guards are at most the group's): the groups change the work only."""
+    box and its guards are at most the group's; exactly so up to rounding, which the
+    guards exceed by far): the groups change the work only."""
     m, k = len(boxes), len(polys)
     out = np.zeros(m, dtype=bool)
     if not m or not k:
@@ -229,15 +230,12 @@ def hidden_by_polygons(boxes, polys, distance, near_eff=0.0, depth_guard=None):
         return out
     order = morton_order(0.5 * (boxes[:, MIN] + boxes[:, MAX]))
     rows, guard = rows[order], guard[order]
-    n_groups = -(-m // GROUP)
-    pad = n_groups * GROUP - m
-    edge = np.concatenate([rows, np.repeat(rows[-1:], pad, axis=0)]).reshape(n_groups, GROUP, 8)
-    group = np.empty((n_groups, 8))
-    group[:, 0:3] = edge[:, :, 0:3].min(axis=1)
-    group[:, 3:6] = edge[:, :, 3:6].max(axis=1)
-    group[:, 6] = edge[:, :, 6].max(axis=1)
+    starts = np.arange(0, m, GROUP)
+    group = np.empty((len(starts), 8))
+    group[:, 0:3] = np.minimum.reduceat(rows[:, 0:3], starts)
+    group[:, 3:7] = np.maximum.reduceat(rows[:, 3:7], starts)
     group[:, 7] = 1.0
-    group_guard = np.concatenate([guard, np.repeat(guard[-1:], pad)]).reshape(n_groups, GROUP).max(axis=1)
+    group_guard = np.maximum.reduceat(guard, starts)
     whole = _inside_any(group, group_guard, weights, kk)
     far = group[:, [3, 4, 5, 0, 1, 2, 6, 7]]
     far[:, 6] = 0.0
@@ -248,7 +246,7 @@ def hidden_by_polygons(boxes, polys, distance, near_eff=0.0, depth_guard=None):
         cand = np.flatnonzero(reach[g])
         s = slice(g * GROUP, min((g + 1) * GROUP, m))
         hidden[s] = _inside_any(rows[s], guard[s], w5[:, :, cand].reshape(8, -1), len(cand))
-    hidden[:m] |= np.repeat(whole, GROUP)[:m]
+    hidden |= np.repeat(whole, GROUP)[:m]
     out[order] = hidden
     return out
 
