@@ -53,6 +53,7 @@ AT_REST = AtRest.ENVELOPE
 REST_LOOK_S = 0.05           # a view unchanged for this long between two looks has stopped moving
 MAX_ANGLE_DEG = 30.0         # a wider envelope hides little; a faster turn shows all until it slows
 FIRST_LATENCY_S = 0.1        # a pass's time before any was measured
+UNPAID_RUN = 2               # sets in a row during a motion that do not pay: no more passes until it rests
 
 
 @dataclass(frozen=True)
@@ -63,6 +64,10 @@ class LivePolicy:
     # (the next pass starts once the displayed set would not outlast one: it lands in time)
     hold_passes: float = 1.0
     hold_min_s: float = 0.05     # and at least this long (a redraw and a half at 30 Hz)
+    # and, once Blender's update is measured, long enough for the set's saving to pay for it
+    # (the last pass's share hidden), up to this long: a longer one covers so much motion that
+    # it hides little (at the city's drag speed, a second is a fifth of the scene)
+    hold_max_s: float = 1.0
     margin_steps: float = 2.0    # and this many steps of the last motion beyond that
     # the envelope at rest: the first step of a motion must stay inside it (the guard cannot
     # change the redraw it runs before).  0.6 % of the scene and 10 degrees hold an orbit at
@@ -71,31 +76,41 @@ class LivePolicy:
     rest_rel: float = 0.006      # this share of the scene's size ...
     rest_deg: float = 10.0       # ... and this many degrees
 
-    def envelope(self, speed, turn_deg_s, latency_s, step_move, step_turn_deg, scene_size):
-        """The envelope of a pass that lands ``latency_s`` from now, the view moving at
-        ``speed`` (scene units per second) and turning ``turn_deg_s``."""
-        horizon = latency_s + self.hold_s(latency_s)
+    def envelope(self, speed, turn_deg_s, latency_s, step_move, step_turn_deg, scene_size, hold_s=None):
+        """The envelope of a pass that lands ``latency_s`` from now and is shown for
+        ``hold_s`` after (None: :meth:`hold_s`'s least), the view moving at ``speed``
+        (scene units per second) and turning ``turn_deg_s``."""
+        horizon = latency_s + (self.hold_s(latency_s) if hold_s is None else hold_s)
         d = max(speed * horizon + self.margin_steps * step_move, self.rest_rel * scene_size)
         a = max(turn_deg_s * horizon + self.margin_steps * step_turn_deg, self.rest_deg)
         # the turn measured is the frame's (roll included): a narrower view than any roll
         return Envelope(d, min(a, MAX_ANGLE_DEG), any_roll=False)
 
-    def hold_s(self, latency_s):
+    def hold_s(self, latency_s, share=None, update_ms=None):
         """How long a set made during motion is shown before the next one replaces it (or
-        the view leaves it): the hold after landing that :meth:`envelope` sizes."""
-        return max(self.hold_passes * latency_s, self.hold_min_s)
+        the view leaves it): the hold after landing that :meth:`envelope` sizes.  At least
+        a pass's time (the next set lands about then) and :attr:`hold_min_s`; with
+        Blender's update measured (``update_ms``) and the share of the triangles in the
+        view the last pass hid (``share``), long enough for a set hiding as much to pay
+        for its update (:meth:`worth`), up to :attr:`hold_max_s`.  A longer hold is a
+        wider envelope, which hides less: the next pass's share sizes the next hold."""
+        hold = max(self.hold_passes * latency_s, self.hold_min_s)
+        if update_ms is not None and share is not None and share > 0.0:
+            hold = max(hold, min(update_ms / (1e3 * share), self.hold_max_s))
+        return hold
 
-    def worth(self, hidden_share, latency_s, update_ms):
+    def worth(self, hidden_share, hold_s, update_ms):
         """Whether a set made during motion pays for Blender's update: while the user
         navigates the view redraws back to back, so a set hiding ``hidden_share`` of the
         triangles in the view saves about that share of the redraw time it is shown for
-        (:meth:`hold_s`: during motion the next set lands about then), and costs its own
-        update (``update_ms``, the last measured; None: none yet, it lands), which holds
-        Blender's main thread.  A set that saves less than that is not shown: the redraws
-        meanwhile draw what they drew, and the main thread keeps the time."""
+        (``hold_s``, what its envelope was sized for: the next set replaces it about
+        then), and costs its own update (``update_ms``, the last measured; None: none yet,
+        it lands), which holds Blender's main thread.  A set that saves less than that is
+        not shown: the redraws meanwhile draw what they drew, and the main thread keeps
+        the time."""
         if update_ms is None:
             return True
-        return 1e3 * self.hold_s(latency_s) * hidden_share >= update_ms
+        return 1e3 * hold_s * hidden_share >= update_ms
 
     def reachable(self, turn_deg_s, latency_s, step_turn_deg):
         """Whether a pass that lands ``latency_s`` from now can hold when it lands: the turn
@@ -153,9 +168,10 @@ class MotionTracker:
             self.turns = (self.turns + [turn / dt])[-self.SPEEDS:]
         self.view, self.t = camera, now
 
-    def envelope(self, policy, latency_s, scene_size):
-        """The envelope ``policy`` gives a pass that lands ``latency_s`` from now."""
-        return policy.envelope(max(self.speeds), max(self.turns), latency_s, *self.step, scene_size)
+    def envelope(self, policy, latency_s, scene_size, hold_s=None):
+        """The envelope ``policy`` gives a pass that lands ``latency_s`` from now and is
+        shown for ``hold_s`` after."""
+        return policy.envelope(max(self.speeds), max(self.turns), latency_s, *self.step, scene_size, hold_s)
 
     def safe(self, policy, centre, envelope, view):
         """Whether ``view`` and the next step stay inside ``envelope`` around ``centre``."""
@@ -176,6 +192,7 @@ class Flight:
     envelope: object
     started: float
     rest: bool = False          # made with a given envelope (at rest): its time sizes no motion's
+    hold: float = 0.0           # how long its set is to be shown after it lands (during motion)
 
 
 class LiveLoop:
@@ -194,11 +211,14 @@ class LiveLoop:
     - :meth:`land`: the pass in flight finished; its set is shown only if the view is
       still inside its envelope (with room for the next step) and, during motion, its
       saving pays for Blender's update (:meth:`LivePolicy.worth`; the update measured
-      after each set that changed something, :meth:`updated`).  Where no set could pay
-      (the update outlasts a hold), the passes of this motion end: the next starts at
-      rest.  A pass's time during motion (start to landing, the slowest of the last few) sizes the next envelope; a
-      pass at rest is other work (a small envelope, the image probed: the city-xl's took
-      0.9 s on llvmpipe where its passes during motion took 35 ms) and sizes none.
+      after each set that changed something, :meth:`updated`).  A set is held long
+      enough to pay, as far as the last pass's share says (:meth:`hold`); where
+      :data:`UNPAID_RUN` sets in a row did not pay, or none could (the update outlasts
+      the longest hold), the passes of this motion end: the next starts at rest.  A
+      pass's time during motion (start to landing, the slowest of the last few) sizes
+      the next envelope; a pass at rest is other work (a small envelope, the image
+      probed: the city-xl's took 0.9 s on llvmpipe where its passes during motion took
+      35 ms) and sizes none.
     """
 
     LATENCIES = 3
@@ -211,6 +231,8 @@ class LiveLoop:
         self.update_ms: float | None = None      # Blender's update after the last set that changed something
         self.paused = False                      # no set during this motion can pay for its update
         self.unworthy = False                    # the last set to land during motion did not pay for it
+        self.share: float | None = None          # of the triangles in the view, the share the last pass hid
+        self.unpaid = 0                          # sets in a row during this motion that did not pay
 
     def updated(self, blender_ms):
         """A set was shown that changed what is hidden; Blender's update took ``blender_ms``."""
@@ -235,15 +257,22 @@ class LiveLoop:
         return shown is None or shown[0] is None or not t.lasts(self.policy, shown[0], shown[1], view,
                                                                   self.latency())
 
+    def hold(self):
+        """How long a set made by a pass started now is to be shown after it lands
+        (:meth:`LivePolicy.hold_s`: long enough to pay for Blender's update)."""
+        return self.policy.hold_s(self.latency(), self.share, self.update_ms)
+
     def start(self, view, now, scene_size=None, envelope=None):
         """A pass starts from ``view``: its envelope, the measured motion's over the pass's
-        time (``envelope`` given, e.g. :data:`AT_REST`: that one)."""
+        time and its hold (``envelope`` given, e.g. :data:`AT_REST`: that one)."""
         rest = envelope is not None
         if rest:
             self.paused = False
+            self.unpaid = 0
+        hold = self.hold()
         if envelope is None:
-            envelope = self.tracker.envelope(self.policy, self.latency(), scene_size)
-        self.flight = Flight(view, envelope, now, rest)
+            envelope = self.tracker.envelope(self.policy, self.latency(), scene_size, hold)
+        self.flight = Flight(view, envelope, now, rest, hold)
         return envelope
 
     def land(self, shown, view, now, hidden_share=None):
@@ -251,17 +280,24 @@ class LiveLoop:
         holds for; ``hidden_share``: of the triangles in the view (what Blender draws), the
         share its set hides (None: not known, no saving weighed).  Whether its set may be
         shown for ``view``."""
-        rest = self.flight.rest
+        flight, self.flight = self.flight, None
+        rest = flight.rest
         if not rest:
-            self.latencies = (self.latencies + [max(now - self.flight.started, 0.0)])[-self.LATENCIES:]
-        self.flight = None
+            self.latencies = (self.latencies + [max(now - flight.started, 0.0)])[-self.LATENCIES:]
+        if hidden_share is not None:
+            self.share = hidden_share             # what the next pass may hide: it sizes the next hold
         self.unworthy = (not rest and hidden_share is not None
-                         and not self.policy.worth(hidden_share, self.latency(), self.update_ms))
+                         and not self.policy.worth(hidden_share, flight.hold, self.update_ms))
         if self.unworthy:
-            # where not even a set hiding everything would pay, passes during this motion only
-            # cost the main thread their reads: none until the next rest
-            self.paused = not self.policy.worth(1.0, self.latency(), self.update_ms)
+            # the next hold is sized from this share; where that did not pay either (or not
+            # even a set hiding everything, held as long as any, would), passes during this
+            # motion only cost the main thread their reads: none until the next rest
+            self.unpaid += 1
+            self.paused = (self.unpaid >= UNPAID_RUN
+                           or not self.policy.worth(1.0, self.policy.hold_max_s, self.update_ms))
             return False
+        if not rest:
+            self.unpaid = 0
         return self.holds(shown, view)
 
     def drop(self):

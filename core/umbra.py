@@ -31,8 +31,8 @@ from .bounds import MAX, MIN
 from .tolerance import tol
 
 PER_MESH = 16          # polygons kept per mesh (its largest)
-OBJECTS = 256          # objects whose polygons are tried per pass (largest on screen)
-POLYGONS = 512         # polygons tried per pass (largest on screen)
+OBJECTS = 512          # objects whose polygons are tried per pass (highest scores: occluder_polygons)
+POLYGONS = 512         # polygons tried per pass (heaviest: polygon_weights)
 BOX_CHUNK = 256        # boxes per matrix product (x 5 planes x POLYGONS doubles)
 GROUP = 64             # near boxes whose bounding box is tested first (hidden_by_polygons)
 COPLANAR_COS = 1.0 - 1e-9   # two triangles' normals this close are one plane ...
@@ -106,6 +106,39 @@ def convex_polygons(vertices, faces, keep=PER_MESH):
     areas = np.asarray(areas)
     best = np.argsort(-areas)[:keep]
     return np.asarray(polys)[best], areas[best]
+
+
+def width_factor(width, distance):
+    """How much of a polygon's solid angle its umbra keeps from a ball of radius
+    ``distance``: ``min(1, width / 2 distance)^2``.  A polygon narrower than the ball
+    hides a point only within a short reach behind it (its umbra closes at about
+    ``r width / (2 distance - width)``, ``r`` its distance), a wider one along every ray
+    beyond it."""
+    w = np.asarray(width, dtype=np.float64)
+    if distance <= 0.0:
+        return np.ones_like(w)
+    return np.minimum(w / (2.0 * distance), 1.0) ** 2
+
+
+def polygon_weights(polys, distance):
+    """How much each convex polygon ``(k, 4, 3)`` (camera-relative) may hide from the ball
+    of radius ``distance`` around the origin, to pick the few a pass tries: its solid
+    angle (area times the cosine of its normal to the eye, over the squared distance)
+    times :func:`width_factor` of its narrow width (the longer of each pair of opposite
+    sides, the shorter of the two).  On the city at 8 units from a path's frames, the 512
+    heaviest by this hide 2.5-3.5x the boxes that the 512 largest by area over squared
+    distance hide (grazing faces and small near faces hide little)."""
+    p = np.asarray(polys, dtype=np.float64)
+    centre = p.mean(axis=1)
+    r2 = np.maximum(np.einsum("kj,kj->k", centre, centre), tol.tiny)
+    d02, d13 = p[:, 2] - p[:, 0], p[:, 3] - p[:, 1]
+    n = np.stack([d02[:, 1] * d13[:, 2] - d02[:, 2] * d13[:, 1],
+                  d02[:, 2] * d13[:, 0] - d02[:, 0] * d13[:, 2],
+                  d02[:, 0] * d13[:, 1] - d02[:, 1] * d13[:, 0]], axis=1)   # twice the area, normal
+    projected = 0.5 * np.abs(np.einsum("kj,kj->k", n, centre)) / (r2 * np.sqrt(r2))
+    side = np.linalg.norm(np.roll(p, -1, axis=1) - p, axis=2)                # edges 01, 12, 23, 30
+    width = np.minimum(np.maximum(side[:, 0], side[:, 2]), np.maximum(side[:, 1], side[:, 3]))
+    return projected * width_factor(width, distance)
 
 
 def umbra_planes(polys, radius, near_eff=0.0):

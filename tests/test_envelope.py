@@ -618,3 +618,52 @@ def test_covering_holds_every_sampled_view_and_widens_as_asked(seed):
     turned = Camera.look_at((0, 0, 1), (5 * math.cos(math.radians(MAX_COVER_TURN_DEG + 5)),
                                         5 * math.sin(math.radians(MAX_COVER_TURN_DEG + 5)), 1), (0, 0, 1), 50.0)
     assert covering(centre, [turned]) is False
+
+
+def test_polygon_weights_favour_wide_faces_that_face_the_eye():
+    from core.umbra import polygon_weights, width_factor
+
+    def quad(centre, u, v):
+        c, u, v = (np.asarray(a, dtype=float) for a in (centre, u, v))
+        return np.array([c - u - v, c + u - v, c + u + v, c - u + v])
+
+    facing = quad((0, 0, 50), (10, 0, 0), (0, 10, 0))          # 20 x 20, facing the eye at 50
+    grazing = quad((0, 0, 50), (10, 0, 0), (0, 0, 10))         # the same, edge-on
+    narrow = quad((0, 0, 50), (1, 0, 0), (0, 100, 0))          # 2 x 200: the same area, facing
+    near_small = quad((0, 0, 10), (2, 0, 0), (0, 2, 0))        # 4 x 4 at 10: the same solid angle
+    w = polygon_weights(np.stack([facing, grazing, narrow, near_small]), 8.0)
+    assert w[1] < 1e-12 * w[0]                                  # edge-on: no solid angle
+    # of the same solid angle the narrow one keeps (2 / 16)^2, the small near one (4 / 16)^2:
+    # a wide far face outweighs both from a ball of radius 8
+    assert np.isclose(w[2] / w[0], width_factor(2.0, 8.0) / width_factor(20.0, 8.0), rtol=1e-3)
+    assert w[0] > w[3] > w[2]
+    assert np.isclose(polygon_weights(near_small[None], 0.0)[0] / polygon_weights(facing[None], 0.0)[0],
+                      (16 / 10 ** 2) / (400 / 50 ** 2), rtol=1e-6)   # no ball: the solid angle alone
+    assert np.isclose(width_factor(32.0, 8.0), 1.0) and width_factor(4.0, 0.0) == 1.0
+
+
+def test_the_envelope_finds_a_far_wall_behind_more_near_clutter_than_it_tries():
+    """More near clutter than umbra.OBJECTS (boxes of 0.8 within 2.5-3.5 units of the eye,
+    larger in angle than the wall, hiding nothing from a ball of 2 units) and one far wall:
+    the wall's polygons are still tried, and the box behind it is hidden from the whole
+    envelope."""
+    from core import umbra
+    from core.envelope import occluder_polygons
+    rng = np.random.default_rng(5)
+    items = []
+    for _ in range(umbra.OBJECTS + 40):                          # around the eye, behind it
+        d = rng.normal(size=3)
+        d[1] = -abs(d[1]) - 0.5
+        c = d / np.linalg.norm(d) * rng.uniform(2.9, 3.9)
+        items.append((tuple(c - 0.4), tuple(c + 0.4)))
+    items.append(((-20.0, 150.0, -20.0), (20.0, 151.0, 20.0)))  # the wall, 40 x 40, 150 ahead
+    items.append(((-0.5, 170.0, -0.5), (0.5, 171.0, 0.5)))      # behind it
+    scene = scenes.boxes_scene(items)
+    camera = scenes.cam((0, 0, 0), (0, 1, 0), near=0.05, far=500, fov_y_deg=60, aspect=1.0)
+    with Culler(scene, (64, 64)) as c:
+        polys = occluder_polygons(c, camera.eye, 2.0)
+        # the wall's facing side (camera-relative y = 150) is among the polygons tried
+        assert np.any(np.all(np.isclose(polys[:, :, 1], 150.0), axis=1))
+        r = c.cull(camera, envelope=Envelope(2.0, 5.0, any_roll=False), fresh=True)
+    assert not r.visible[-1]
+    assert r.visible[-2]

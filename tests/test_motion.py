@@ -99,32 +99,49 @@ def test_a_pass_lands_only_where_the_view_stayed_inside_its_envelope():
 
 def test_a_set_during_motion_lands_only_where_its_saving_pays_for_blenders_update():
     policy = LivePolicy()
-    # hold: max(1 x 0.2 s, 0.05 s) = 0.2 s; 60 % of the triangles hidden saves 120 ms of redraws
+    # hold, no update measured: max(1 x 0.2 s, 0.05 s) = 0.2 s
     assert np.isclose(policy.hold_s(0.2), 0.2) and np.isclose(policy.hold_s(0.01), policy.hold_min_s)
     assert policy.worth(0.6, 0.2, None)                          # no update measured yet: it lands
-    assert policy.worth(0.6, 0.2, 120.0)                         # 120 ms saved >= its update
+    assert policy.worth(0.6, 0.2, 120.0)                         # 0.2 s x 60 % = 120 ms saved >= its update
     assert not policy.worth(0.6, 0.2, 121.0)
     assert not policy.worth(0.0, 10.0, 0.001)                    # hiding nothing saves nothing
     loop = LiveLoop(policy)
     view = moving(loop, speed=3.0)
     env = loop.start(view, 1.0, scene_size=100.0)
+    assert np.isclose(loop.flight.hold, 0.1)                     # nothing known: one pass time
     loop.updated(30.0)                                           # 3,000 objects: 30 ms an update
-    assert not loop.land((view, env), view, 1.2, hidden_share=0.1)   # 0.2 s x 10 % < 30 ms
+    assert not loop.land((view, env), view, 1.2, hidden_share=0.1)   # 0.1 s x 10 % < 30 ms
     assert loop.unworthy and not loop.paused and loop.due(None, view)   # another set may pay
-    env = loop.start(view, 1.3, scene_size=100.0)
+    assert loop.share == 0.1
+    # the next hold is sized to pay for the update at that share: 30 ms / 10 % = 0.3 s, and
+    # the envelope covers the motion over the pass and that hold
+    wider = loop.start(view, 1.3, scene_size=100.0)
+    assert np.isclose(loop.flight.hold, 0.3)
+    assert wider.distance >= 3.0 * (loop.latency() + 0.3) > env.distance
+    assert loop.land((view, wider), view, 1.5, hidden_share=0.1)    # 0.3 s x 10 % = 30 ms: it pays
+    assert not loop.unworthy and loop.unpaid == 0
     loop.updated(400.0)                                          # 50,000 objects: 0.4 s an update
-    assert not loop.land((view, env), view, 1.5, hidden_share=0.9)   # 0.2 s x 90 % < 0.4 s
-    assert loop.paused and not loop.due(None, view)             # none can: no more passes this motion
-    loop.start(view, 2.0, envelope=policy.rest(100.0))          # ... until one at rest
-    assert not loop.paused
+    env = loop.start(view, 1.6, scene_size=100.0)
+    assert np.isclose(loop.flight.hold, policy.hold_max_s)       # 4 s would pay: the longest hold
+    assert not loop.land((view, env), view, 1.8, hidden_share=0.1)   # 1 s x 10 % < 0.4 s
+    assert not loop.paused                                       # the hold was sized: one more try
+    env = loop.start(view, 1.9, scene_size=100.0)
+    assert not loop.land((view, env), view, 2.1, hidden_share=0.1)
+    assert loop.paused and not loop.due(None, view)             # two sets in a row that did not pay
+    loop.start(view, 2.2, envelope=policy.rest(100.0))          # ... until one at rest
+    assert not loop.paused and loop.unpaid == 0
     assert loop.land((view, env), view, 3.0, hidden_share=0.0)   # at rest a set always lands
+    loop.updated(1500.0)                                         # an update longer than any hold
     env = loop.start(view, 4.0, scene_size=100.0)
-    loop.updated(30.0)                                           # 3,000 objects: 30 ms
-    assert loop.land((view, env), view, 4.2, hidden_share=0.9)   # 0.2 s x 90 % = 180 ms >= 30 ms
-    assert not loop.unworthy
-    assert not loop.paused
-    env = loop.start(view, 5.0, scene_size=100.0)
-    assert loop.land((view, env), view, 5.2)                     # no share given: nothing weighed
+    assert not loop.land((view, env), view, 4.2, hidden_share=0.9)
+    assert loop.paused                                           # none can pay: at once
+    loop.start(view, 5.0, envelope=policy.rest(100.0))
+    loop.land((view, env), view, 5.5)
+    loop.updated(30.0)
+    env = loop.start(view, 6.0, scene_size=100.0)
+    assert loop.land((view, env), view, 6.2, hidden_share=0.9)   # 90 % pays at once
+    env = loop.start(view, 7.0, scene_size=100.0)
+    assert loop.land((view, env), view, 7.2)                     # no share given: nothing weighed
 
 
 def test_a_sets_saving_counts_the_triangles_blender_would_draw():

@@ -126,8 +126,8 @@ def replay(culler, views, policy=None, latency_s=None, update_ms=None):
     loop.look(views[0], 0.0)
     loop.start(views[0], 0.0, envelope=loop.policy.rest(culler.scene_size))
     hidden = nothing
-    h, shown, took, _ = run(views[0], loop.flight.envelope, probe=True)   # at rest: hidden before it moves
-    loop.land(shown, views[0], took)
+    h, shown, took, share = run(views[0], loop.flight.envelope, probe=True)   # at rest: hidden before it moves
+    loop.land(shown, views[0], took, share)
     shows(h)
     flight = None                        # (hidden, shown, when it lands, its share) of the pass in flight
     for k, view in enumerate(views):
