@@ -68,6 +68,11 @@ class LivePolicy:
     # (the last pass's share hidden), up to this long: a longer one covers so much motion that
     # it hides little (at the city's drag speed, a second is a fifth of the scene)
     hold_max_s: float = 1.0
+    # a hold sized from the last share is sized for this many times the update: a longer
+    # hold is a wider envelope, whose set hides less (the city at 30 ms an update: 45 % of
+    # the triangles with a 0.05 s hold, 40 % with 0.07 s; with a factor of 1 two sets in a row
+    # fell just short and ended the motion's passes)
+    pay_slack: float = 1.5
     margin_steps: float = 2.0    # and this many steps of the last motion beyond that
     # the envelope at rest: the first step of a motion must stay inside it (the guard cannot
     # change the redraw it runs before).  0.6 % of the scene and 10 degrees hold an orbit at
@@ -92,11 +97,11 @@ class LivePolicy:
         a pass's time (the next set lands about then) and :attr:`hold_min_s`; with
         Blender's update measured (``update_ms``) and the share of the triangles in the
         view the last pass hid (``share``), long enough for a set hiding as much to pay
-        for its update (:meth:`worth`), up to :attr:`hold_max_s`.  A longer hold is a
+        for :attr:`pay_slack` times its update (:meth:`worth`), up to :attr:`hold_max_s`.  A longer hold is a
         wider envelope, which hides less: the next pass's share sizes the next hold."""
         hold = max(self.hold_passes * latency_s, self.hold_min_s)
         if update_ms is not None and share is not None and share > 0.0:
-            hold = max(hold, min(update_ms / (1e3 * share), self.hold_max_s))
+            hold = max(hold, min(self.pay_slack * update_ms / (1e3 * share), self.hold_max_s))
         return hold
 
     def worth(self, hidden_share, hold_s, update_ms):

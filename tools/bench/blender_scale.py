@@ -12,6 +12,8 @@ do) and builds, each in a fresh file, the scenes of the scale issue:
 - ``grid``: one grid mesh of V vertices (default 10 million), partly behind a wall;
 - ``analyze``: ``occ.analyze`` over F frames (default 200) of a 3,000-object scene.
 
+``--envelope`` makes each click's pass the envelope pass at rest of a click from a 3D view.
+
 and times, from the scene camera (with the add-on's ``--hide-in`` setting; each
 pass's note splits Blender's own updates from the add-on's work): the first ``occ.cull`` (extraction, build,
 pass, hiding), the passes after small turns of the camera to and fro (median of
@@ -472,6 +474,8 @@ def child_main(args):
     scene.occ.hide_in = args.hide_in
     if args.strategy:
         scene.occ.strategy = args.strategy
+    if args.envelope:
+        scene.occ.live = True
     build_s = time.perf_counter() - t
     base, _ = memory()
     print(f"{label}: scene built in {build_s:.1f} s, resident {base / MB:.0f} MB", flush=True)
@@ -580,6 +584,10 @@ def blender_main(argv):
                     help="also time the first cull's steps (extraction, chunking, hierarchy, upload, "
                          "pass), each with its peak resident set above the scene's own")
     ap.add_argument("--strategy", help="the add-on's strategy setting (default: the add-on's default)")
+    ap.add_argument("--envelope", action="store_true",
+                    help="each Cull click hides only what stays hidden for live mode's envelope at rest, as "
+                         "a click from a 3D view does (the scene's Live setting on: background mode runs no "
+                         "timers, so nothing else of live mode runs)")
     ap.add_argument("--json", help="write every scene's rows here")
     ap.add_argument("--child", help=argparse.SUPPRESS)
     ap.add_argument("--zip", help=argparse.SUPPRESS)
