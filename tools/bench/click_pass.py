@@ -2,12 +2,14 @@
 cubes behind a wall, culled as the add-on's engine culls them.
 
     .venv/bin/python tools/bench/click_pass.py [--objects 50000] [--passes 20] [--steady]
-                                         [--query-pixels] [--profile TOP]
+                                         [--envelope] [--query-pixels] [--profile TOP]
 
 A click restarts the strategy (``cull(fresh=True)``: a new engine's first pass, the
 same click the same answer); ``--steady`` times the passes live mode makes after a
 small view change instead (the strategy's memory kept).  The camera turns to and fro
 by 0.01 rad between passes, at 1280x720 (the scale tool's render size and lens).
+``--envelope``: the pass of a click from a 3D view (or with Live on), which hides only what
+stays hidden for live mode's envelope at rest (its image drawn: the add-on's click probes).
 Prints the median wall time of a pass, its process CPU time (llvmpipe's threads
 included) and the pass's CPU time outside GL (``PassStats.cpu_ms``).  The add-on's
 engine counts no query pixels (``Culler(query_pixels=False)``); ``--query-pixels``
@@ -60,6 +62,7 @@ def main():
     ap.add_argument("--objects", type=int, default=50_000)
     ap.add_argument("--passes", type=int, default=20)
     ap.add_argument("--steady", action="store_true", help="live mode's passes: the strategy's memory kept")
+    ap.add_argument("--envelope", action="store_true", help="live mode's envelope at rest (a click from a 3D view)")
     ap.add_argument("--query-pixels", action="store_true", help="count the query boxes' pixels (the bench's)")
     ap.add_argument("--profile", type=int, metavar="TOP", help="print the TOP entries of a cProfile of the passes")
     args = ap.parse_args()
@@ -75,7 +78,11 @@ def main():
         kw["query_pixels"] = args.query_pixels
     t = time.perf_counter()
     culler = core.Culler(scene, SIZE, **kw)
-    first = culler.cull(camera(0.0), fresh=True)
+    pass_kw = {}
+    if args.envelope:
+        from core.motion import LivePolicy
+        pass_kw = {"envelope": LivePolicy().rest(culler.scene_size), "probe": True}
+    first = culler.cull(camera(0.0), fresh=True, **pass_kw)
     print(f"{args.objects:,} cubes and a wall: built and culled in {time.perf_counter() - t:.2f} s, "
           f"{first.stats.occluded:,} occluded ({ROOT})")
     prof = cProfile.Profile() if args.profile else None
@@ -85,13 +92,13 @@ def main():
         t, c = time.perf_counter(), time.process_time()
         if prof:
             prof.enable()
-        r = culler.cull(cam, fresh=not args.steady)
+        r = culler.cull(cam, fresh=not args.steady, **pass_kw)
         if prof:
             prof.disable()
         wall.append(time.perf_counter() - t)
         cpu.append(time.process_time() - c)
         outside.append(r.stats.cpu_ms)
-    kind = "steady pass" if args.steady else "click's pass"
+    kind = ("steady pass" if args.steady else "click's pass") + (", envelope at rest" if args.envelope else "")
     print(f"{kind}, median of {args.passes}: {1e3 * np.median(wall):.1f} ms, process CPU "
           f"{1e3 * np.median(cpu):.1f} ms, CPU outside GL {np.median(outside):.1f} ms "
           f"({r.stats.queries:,} queries, {r.stats.occluded:,} occluded)")

@@ -96,7 +96,9 @@ def inside(out_path, scene_name, seconds, speed):
             if bpy.context.region_data == rv3d:
                 if began:
                     draw_ms.append(1e3 * (time.perf_counter() - began[0]))
-                shown = [o.name for o in objs if o.visible_in_viewport_get(space)]
+                # (visible_in_viewport_get reads no object drawn while the add-on's local view is
+                # entered on 3.4: its bits are stale; the base's, through the view layer, are not)
+                shown = [o.name for o in objs if o.visible_get(view_layer=win.view_layer, viewport=space)]
                 drawn.append(len(shown))
                 drawn_tris.append(sum(tris.get(n, 0) for n in shown))
 
