@@ -97,8 +97,9 @@ class LivePolicy:
         a pass's time (the next set lands about then) and :attr:`hold_min_s`; with
         Blender's update measured (``update_ms``) and the share of the triangles in the
         view the last pass hid (``share``), long enough for a set hiding as much to pay
-        for :attr:`pay_slack` times its update (:meth:`worth`), up to :attr:`hold_max_s`.  A longer hold is a
-        wider envelope, which hides less: the next pass's share sizes the next hold."""
+        for :attr:`pay_slack` times its update (:meth:`worth`), up to :attr:`hold_max_s`.
+        A longer hold is a wider envelope, which hides less: the next pass's share sizes
+        the next hold."""
         hold = max(self.hold_passes * latency_s, self.hold_min_s)
         if update_ms is not None and share is not None and share > 0.0:
             hold = max(hold, min(self.pay_slack * update_ms / (1e3 * share), self.hold_max_s))
