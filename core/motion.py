@@ -53,7 +53,9 @@ AT_REST = AtRest.ENVELOPE
 REST_LOOK_S = 0.05           # a view unchanged for this long between two looks has stopped moving
 MAX_ANGLE_DEG = 30.0         # a wider envelope hides little; a faster turn shows all until it slows
 FIRST_LATENCY_S = 0.1        # a pass's time before any was measured
-UNPAID_RUN = 2               # sets in a row during a motion that do not pay: no more passes until it rests
+UNPAID_RUN = 2               # sets in a row during a motion that do not pay: the next pass waits ...
+RETRY_S = 0.5                # ... this long, twice as long after each such run, up to ...
+RETRY_MAX_S = 4.0            # ... this (the motion may slow down; each pass costs its reads)
 
 
 @dataclass(frozen=True)
@@ -219,8 +221,10 @@ class LiveLoop:
       saving pays for Blender's update (:meth:`LivePolicy.worth`; the update measured
       after each set that changed something, :meth:`updated`).  A set is held long
       enough to pay, as far as the last pass's share says (:meth:`hold`); where
-      :data:`UNPAID_RUN` sets in a row did not pay, or none could (the update outlasts
-      the longest hold), the passes of this motion end: the next starts at rest.  A
+      :data:`UNPAID_RUN` sets in a row did not pay, the next pass waits
+      (:data:`RETRY_S`, doubling up to :data:`RETRY_MAX_S`), and where none could (the
+      update outlasts the longest hold), the passes of this motion end: the next starts
+      at rest.  A
       pass's time during motion (start to landing, the slowest of the last few) sizes
       the next envelope; a pass at rest is other work (a small envelope, the image
       probed: the city-xl's took 0.9 s on llvmpipe where its passes during motion took
@@ -239,6 +243,8 @@ class LiveLoop:
         self.unworthy = False                    # the last set to land during motion did not pay for it
         self.share: float | None = None          # of the triangles in the view, the share the last pass hid
         self.unpaid = 0                          # sets in a row during this motion that did not pay
+        self.retries = 0                         # runs of unpaid sets during this motion
+        self.resume_at: float | None = None      # no pass during motion starts before this (the loop's clock)
 
     def updated(self, blender_ms):
         """A set was shown that changed what is hidden; Blender's update took ``blender_ms``."""
@@ -260,6 +266,8 @@ class LiveLoop:
         t = self.tracker
         if self.flight is not None or self.paused or not self.policy.reachable(max(t.turns), self.latency(), t.step[1]):
             return False
+        if self.resume_at is not None and t.t is not None and t.t < self.resume_at:
+            return False
         return shown is None or shown[0] is None or not t.lasts(self.policy, shown[0], shown[1], view,
                                                                   self.latency())
 
@@ -274,7 +282,8 @@ class LiveLoop:
         rest = envelope is not None
         if rest:
             self.paused = False
-            self.unpaid = 0
+            self.unpaid = self.retries = 0
+            self.resume_at = None
         hold = self.hold()
         if envelope is None:
             envelope = self.tracker.envelope(self.policy, self.latency(), scene_size, hold)
@@ -295,15 +304,19 @@ class LiveLoop:
         self.unworthy = (not rest and hidden_share is not None
                          and not self.policy.worth(hidden_share, flight.hold, self.update_ms))
         if self.unworthy:
-            # the next hold is sized from this share; where that did not pay either (or not
-            # even a set hiding everything, held as long as any, would), passes during this
-            # motion only cost the main thread their reads: none until the next rest
+            # the next hold is sized from this share.  Where that did not pay either, passes
+            # during this motion only cost the main thread their reads: the next waits
+            # (RETRY_S, doubling); where not even a set hiding everything, held as long as
+            # any, would pay, none starts until the next rest
             self.unpaid += 1
-            self.paused = (self.unpaid >= UNPAID_RUN
-                           or not self.policy.worth(1.0, self.policy.hold_max_s, self.update_ms))
+            self.paused = not self.policy.worth(1.0, self.policy.hold_max_s, self.update_ms)
+            if self.unpaid >= UNPAID_RUN:
+                self.resume_at = now + min(RETRY_S * 2.0 ** self.retries, RETRY_MAX_S)
+                self.retries += 1
+                self.unpaid = 0
             return False
-        if not rest:
-            self.unpaid = 0
+        if not rest and hidden_share is not None:
+            self.unpaid = self.retries = 0
         return self.holds(shown, view)
 
     def drop(self):

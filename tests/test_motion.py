@@ -5,7 +5,7 @@ import numpy as np
 
 from core.camera import Camera
 from core.envelope import Envelope
-from core.motion import FIRST_LATENCY_S, MAX_ANGLE_DEG, LiveLoop, LivePolicy, occluded_share
+from core.motion import FIRST_LATENCY_S, MAX_ANGLE_DEG, RETRY_S, LiveLoop, LivePolicy, occluded_share
 
 
 def walk(x, yaw_deg=0.0, fov=60.0):
@@ -128,14 +128,23 @@ def test_a_set_during_motion_lands_only_where_its_saving_pays_for_blenders_updat
     assert not loop.paused                                       # the hold was sized: one more try
     env = loop.start(view, 1.9, scene_size=100.0)
     assert not loop.land((view, env), view, 2.1, hidden_share=0.1)
-    assert loop.paused and not loop.due(None, view)             # two sets in a row that did not pay
-    loop.start(view, 2.2, envelope=policy.rest(100.0))          # ... until one at rest
-    assert not loop.paused and loop.unpaid == 0
-    assert loop.land((view, env), view, 3.0, hidden_share=0.0)   # at rest a set always lands
+    # two sets in a row that did not pay: the next pass waits RETRY_S, then twice as long
+    assert not loop.paused and np.isclose(loop.resume_at, 2.1 + RETRY_S)
+    loop.tracker.t = 2.1 + 0.9 * RETRY_S
+    assert not loop.due(None, view)
+    loop.tracker.t = 2.1 + RETRY_S
+    assert loop.due(None, view)
+    for t in (2.7, 2.9):
+        env = loop.start(view, t, scene_size=100.0)
+        assert not loop.land((view, env), view, t + 0.1, hidden_share=0.1)
+    assert np.isclose(loop.resume_at, 3.0 + 2 * RETRY_S)
+    loop.start(view, 3.5, envelope=policy.rest(100.0))          # a rest ends the waits
+    assert not loop.paused and loop.unpaid == 0 and loop.resume_at is None and loop.retries == 0
+    assert loop.land((view, env), view, 4.0, hidden_share=0.0)   # at rest a set always lands
     loop.updated(1500.0)                                         # an update longer than any hold
-    env = loop.start(view, 4.0, scene_size=100.0)
-    assert not loop.land((view, env), view, 4.2, hidden_share=0.9)
-    assert loop.paused                                           # none can pay: at once
+    env = loop.start(view, 4.5, scene_size=100.0)
+    assert not loop.land((view, env), view, 4.7, hidden_share=0.9)
+    assert loop.paused and not loop.due(None, view)              # none can pay: until the next rest
     loop.start(view, 5.0, envelope=policy.rest(100.0))
     loop.land((view, env), view, 5.5)
     loop.updated(30.0)

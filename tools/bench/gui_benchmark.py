@@ -203,6 +203,7 @@ def live_motion(win, area, region, rv3d, sess, frames, core):
         yield
     rested = sess.shown is not None
     held, passes_before = [], sess.version
+    counts_before = dict(live.COUNTS)
     for k in range(1, 13):
         a = np.radians(2.0 * k)                        # the view turns 2 degrees a step
         turn = np.array([[np.cos(a), -np.sin(a), 0, 0], [np.sin(a), np.cos(a), 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
@@ -217,8 +218,11 @@ def live_motion(win, area, region, rv3d, sess, frames, core):
         held.append(hidden == 0 or (shown is not None and shown[1].holds(shown[0], camera)))
     with bpy.context.temp_override(**ctx):
         live.stop(bpy.context)
+    # live mode's own counts over the turn (begun, landed, dropped and why): what to read when
+    # no pass landed
+    counts = {k: v - counts_before.get(k, 0) for k, v in live.COUNTS.items() if v != counts_before.get(k, 0)}
     results["live_motion"] = {"rested_with_envelope": rested, "held": held,
-                              "passes": sess.version - passes_before}
+                              "passes": sess.version - passes_before, "counts": counts}
 
 
 def modal_operators(win, area, region, sess, frames):
