@@ -642,12 +642,15 @@ def occluder_polygons(culler, eye, distance):
     valid = np.flatnonzero(~scene.invalid)
     if not len(valid):
         return np.zeros((0, 4, 3))
-    lo, hi = scene.bounds[valid, MIN] - eye, scene.bounds[valid, MAX] - eye
+    bounds = scene.bounds if len(valid) == len(scene) else scene.bounds[valid]
+    lo, hi = bounds[:, MIN] - eye, bounds[:, MAX] - eye
     side = hi - lo
     gap = np.maximum(np.maximum(lo, -hi), 0.0)
+    x, y, z = side.T
+    middle = np.maximum(np.minimum(x, y), np.minimum(np.maximum(x, y), z))
     with np.errstate(divide="ignore", invalid="ignore"):
         score = np.einsum("ij,ij->i", side, side) / np.maximum(np.einsum("ij,ij->i", gap, gap), tol.tiny) \
-            * umbra.width_factor(np.median(side, axis=1), distance)
+            * umbra.width_factor(middle, distance)
     top = np.arange(len(score))
     if len(score) > umbra.OBJECTS:
         top = np.argpartition(-score, umbra.OBJECTS - 1)[:umbra.OBJECTS]
