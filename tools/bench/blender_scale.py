@@ -12,8 +12,6 @@ do) and builds, each in a fresh file, the scenes of the scale issue:
 - ``grid``: one grid mesh of V vertices (default 10 million), partly behind a wall;
 - ``analyze``: ``occ.analyze`` over F frames (default 200) of a 3,000-object scene.
 
-``--envelope`` makes each click's pass the envelope pass at rest of a click from a 3D view.
-
 and times, from the scene camera (with the add-on's ``--hide-in`` setting; each
 pass's note splits Blender's own updates from the add-on's work): the first ``occ.cull`` (extraction, build,
 pass, hiding), the passes after small turns of the camera to and fro (median of
@@ -29,6 +27,9 @@ and the first pass, with the peak memory of each phase above the scene's own
 arrays; ``--numpy`` adds each phase's peak of traced allocations (numpy's
 arrays, through ``tracemalloc``), which the allocator's caching of freed memory
 does not blur.
+
+``--envelope`` makes each Cull click's pass the envelope pass at rest of a click from a 3D
+view (the scene's Live setting on).
 """
 
 import argparse
