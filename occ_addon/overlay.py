@@ -47,7 +47,7 @@ def _geometry():
     if last is None:
         return None
     if not _drawn or _drawn[0].version != SESSION.version:
-        boxes = last.bounds[last.hidden]
+        boxes = last.hidden_bounds
         if len(boxes) > MAX_BOXES:
             size = np.prod(np.maximum(boxes[:, 1] - boxes[:, 0], 1e-9), axis=1)
             boxes = boxes[np.argsort(size)[-MAX_BOXES:]]

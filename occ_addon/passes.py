@@ -34,9 +34,10 @@ class LastPass:
     """The last applied pass over the engine's ``k`` objects.
 
     state: ``(k,) uint8`` :class:`..core.Visibility`; protected: ``(k,) bool`` never
-    hidden (:mod:`.policy`); local_boxes: ``(k, 2, 3)`` the objects' boxes in their own
-    space and matrices: ``(k, 4, 4)`` their world matrices then (:attr:`bounds`, the world
-    boxes, are made from them when asked: the overlay, not every pass); occupancy: the
+    hidden (:mod:`.policy`); hidden_local: ``(h, 2, 3)`` the boxes of the objects it hid
+    (:attr:`hidden`, in order) in their own space and hidden_matrices: ``(h, 4, 4)`` their
+    world matrices then (:attr:`hidden_bounds`, the world boxes, are made from them when
+    asked: the overlay, not every pass; only the hidden ones are kept); occupancy: the
     occupancy map ``(rows, cols) bool`` or None; stats: the engine's figures
     (:attr:`..core.CullResult.stats`); ms: the whole pass, Blender's update included;
     blender_ms: of it, Blender's own updates (the edits pending before the pass, and
@@ -51,8 +52,8 @@ class LastPass:
 
     state: np.ndarray
     protected: np.ndarray
-    local_boxes: np.ndarray
-    matrices: np.ndarray
+    hidden_local: np.ndarray
+    hidden_matrices: np.ndarray
     occupancy: np.ndarray | None
     stats: PassStats
     ms: float
@@ -62,9 +63,11 @@ class LastPass:
     rule: str = ""
 
     @cached_property
-    def bounds(self) -> np.ndarray:
-        """``(k, 2, 3)`` the objects' world boxes at the pass."""
-        return transform_boxes(self.local_boxes, self.matrices) if len(self.matrices) else np.zeros((0, 2, 3))
+    def hidden_bounds(self) -> np.ndarray:
+        """``(h, 2, 3)`` the world boxes at the pass of the objects it hid (:attr:`hidden`)."""
+        if not len(self.hidden_matrices):
+            return np.zeros((0, 2, 3))
+        return transform_boxes(self.hidden_local, self.hidden_matrices)
 
     @property
     def hidden(self) -> np.ndarray:

@@ -19,6 +19,8 @@ Analyze counts the same instances as seen wherever they are drawn, and the membe
 of every visible instance as seen (:func:`members_seen`).
 """
 
+from typing import NamedTuple
+
 import numpy as np
 
 from ..core import Visibility
@@ -50,14 +52,20 @@ def drawn_beyond_depth(view_rule, state: np.ndarray, cull_raytraced: bool) -> np
     return np.zeros(n, dtype=bool)
 
 
-def never_hidden(context, objects: list, uids: np.ndarray, collection: np.ndarray, culled: np.ndarray,
-                 extractor) -> np.ndarray:
-    """``(k,) bool`` over the engine's objects (``objects``, their session ids ``uids``
-    and ``collection``: which are collection instances): never hidden (see the module
-    docstring).  ``culled``: where the engine would hide; the per-object questions
-    (dynamic, an instance's members) are asked only there."""
+class Settled(NamedTuple):
+    """What :func:`never_hidden` knows before the engine answers: ``flagged``, ``(k,)
+    bool`` never hidden whatever it answers, and ``instances``, ``[(collection, [k, ...])]``
+    the collection instances among the engine's objects by collection (never hidden
+    where one is culled and the collection draws beyond its geometry)."""
+
+    flagged: np.ndarray
+    instances: list
+
+
+def settled(context, objects: list, uids: np.ndarray, collection: np.ndarray) -> Settled:
+    """The part of :func:`never_hidden` that does not depend on the engine's answer
+    (the same arguments): read while the engine culls."""
     settings = context.scene.occ
-    out = np.zeros(len(objects), dtype=bool)
     flagged = [identity.uids()[identity.flags("occ_never_cull")]]
     coll = settings.exclude_collection
     if coll is not None:
@@ -66,10 +74,8 @@ def never_hidden(context, objects: list, uids: np.ndarray, collection: np.ndarra
     for k in np.flatnonzero(collection):
         c = objects[k].instance_collection
         colls.setdefault(ident(c), (c, []))[1].append(k)
-    for c, at in colls.values():
+    for c, _ in colls.values():
         flagged.append(identity.uids(c.all_objects))
-        if culled[at].any() and draws_beyond_geometry(c.all_objects):
-            out[at] = True
     # ... and so are those of instances the engine does not hold (drawn as wire or
     # bounds, in front): hiding a member would take it out of them too
     for o in bystanders(context.view_layer, uids):
@@ -78,7 +84,22 @@ def never_hidden(context, objects: list, uids: np.ndarray, collection: np.ndarra
     # ... and what a particle system instances (its object, its collection's members):
     # hiding one takes it out of the particles' instances, which may be seen
     flagged.append(identity.idents(visibility.particle_instanced()))
-    out[np.isin(uids, np.concatenate(flagged))] = True
+    return Settled(np.isin(uids, np.concatenate(flagged)), list(colls.values()))
+
+
+def never_hidden(context, objects: list, uids: np.ndarray, collection: np.ndarray, culled: np.ndarray,
+                 extractor, known: Settled | None = None) -> np.ndarray:
+    """``(k,) bool`` over the engine's objects (``objects``, their session ids ``uids``
+    and ``collection``: which are collection instances): never hidden (see the module
+    docstring).  ``culled``: where the engine would hide; the per-object questions
+    (dynamic, an instance's members) are asked only there.  ``known``: :func:`settled`
+    of the same objects, read in the same pass (default: read here)."""
+    if known is None:
+        known = settled(context, objects, uids, collection)
+    out = known.flagged.copy()
+    for c, at in known.instances:
+        if culled[at].any() and draws_beyond_geometry(c.all_objects):
+            out[at] = True
     at = np.flatnonzero(culled & ~out)                 # cached, in bulk: what Blender has no bulk form of
     out[at] = extractor.dynamic_of(objects, uids, at)
     return out

@@ -462,11 +462,14 @@ class Session:
             settings = context.scene.occ
             held, objects, view, blender_s = pending.held, pending.objects, pending.view, pending.blender_s
             try:
+                # what the policy reads whatever the engine answers, read while it culls (a
+                # Cull click finishes at once; live mode once the answer is in)
+                known = policy.settled(context, objects, held.uids, held.collection)
                 result = pending.job.result()
                 state = result.state
                 culled = state != Visibility.VISIBLE
                 protected = policy.never_hidden(context, objects, held.uids, held.collection, culled,
-                                                self.extractor)
+                                                self.extractor, known)
                 protected |= policy.drawn_beyond_depth(pending.rule, state, settings.cull_raytraced)
             except BaseException:
                 self._unpick()                     # the pass failed: the selection as it was
@@ -496,9 +499,9 @@ class Session:
                 self.applying = False
             changed = visibility.COUNT["changed"] - before
             # the pass's time, from its first read until it landed (Blender's update included)
-            hidden = culled & ~protected
+            hidden = np.flatnonzero(culled & ~protected)
             scene = self.culler.scene
-            self.last = LastPass(state, protected, scene.mesh_bounds[scene.mesh_of], scene.matrices.copy(),
+            self.last = LastPass(state, protected, scene.mesh_bounds[scene.mesh_of[hidden]], scene.matrices[hidden],
                                  result.occupancy, result.stats,
                                  1e3 * (time.perf_counter() - pending.started), 1e3 * blender_s, changed,
                                  int(self.culler.scene.triangle_counts[hidden].sum()), pending.rule.why)

@@ -26,6 +26,7 @@ import numpy as np
 
 from ..core.lights import Light
 from ..core.tolerance import tol
+from . import identity
 from .cameras import find_viewport
 
 EEVEE = ("BLENDER_EEVEE", "BLENDER_EEVEE_NEXT")
@@ -124,13 +125,17 @@ def scene_lights_of(scene):
     """Every light object drawn in the scene's view layer that casts shadows, as
     :class:`..core.lights.Light` (world space)."""
     out = []
+    if not any(light.use_shadow for light in bpy.data.lights):    # no light data that casts shadows
+        return out
     layer = scene.view_layers[0] if scene.view_layers else None
-    objects = scene.objects
-    found = objects
-    if BULK_ENUMS:
-        # the lights' positions in the list, from one bulk read of every object's type:
-        # no attribute read per object
-        types = np.zeros(len(objects), dtype=np.int32)
+    found = scene.objects
+    if BULK_ENUMS and layer is not None:
+        # the lights' positions in bpy.data.objects, from one bulk read of every object's
+        # type (no attribute read per object; its length is known in a pass, where the
+        # scene's own list is walked through its collections); the view layer's
+        # visibility below keeps the scene's
+        objects = bpy.data.objects
+        types = np.zeros(identity.count(), dtype=np.int32)
         objects.foreach_get("type", types)
         at = np.flatnonzero(types == LIGHT_TYPE).tolist()
         items = objects.values() if at else []       # one list; indexing the collection is O(i)

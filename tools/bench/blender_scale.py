@@ -434,6 +434,24 @@ def profile_engine_thread():
     worker.run = profiled
 
 
+def engine_waits():
+    """Count the main thread's time blocked on the engine thread (``Job.wait`` and
+    ``Job.result`` of the add-on's worker) into the returned dict's ``"s"``."""
+    job = _addon("occ_addon.worker").Job
+    waited = {"s": 0.0}
+
+    def timed(fn):
+        def call(self):
+            t = time.perf_counter()
+            try:
+                return fn(self)
+            finally:
+                waited["s"] += time.perf_counter() - t
+        return call
+    job.wait, job.result = timed(job.wait), timed(job.result)
+    return waited
+
+
 def _false_negatives(bpy):
     """Objects the add-on hid that the engine's object-ID truth of the same view shows."""
     try:
@@ -505,16 +523,19 @@ def child_main(args):
         cull_row["note"] = (f"{r}, {hidden} hidden, false negatives {fn}; Blender's updates "
                             f"{blender_s:.3f} s, add-on {cull_row['seconds'] - blender_s:.3f} s")
         result.update(false_negatives=fn, hidden=hidden, first_blender_s=last.blender_ms / 1e3)
+        waited = engine_waits()
         for turn in args.turn_rad:
-            times, cpus, blender, changed = [], [], [], []
+            times, cpus, blender, changed, waits = [], [], [], [], []
             peak_before = memory()[1]
             for k in range(args.turns):
                 cam.rotation_euler.z += turn * (1 if k % 2 == 0 else -1)   # to and fro: objects come and go
                 # the move is evaluated before the pass, as the user's own move is before a click
                 bpy.context.view_layer.update()
                 p = Phase([], f"turn{k}", base, prof if k == 0 else None)
+                waited["s"] = 0.0
                 with p:
                     bpy.ops.occ.cull()
+                waits.append(waited["s"])
                 last = _addon("occ_addon.session").SESSION.last
                 times.append(p.table[-1]["seconds"])
                 cpus.append(p.table[-1]["cpu_seconds"])
@@ -525,14 +546,19 @@ def child_main(args):
                     result["false_negatives"] = (result["false_negatives"] or 0) + fn_k
             rss = memory()[0]
             med = float(np.median(times)) if times else float("nan")
+            # the add-on's own part: the pass less Blender's updates and the main thread's
+            # waits for the engine thread (its reads, policy and writes)
+            own = float(np.median(np.array(times) - np.array(blender) - np.array(waits))) if times else float("nan")
             rows.append({"phase": f"pass after {turn:g} rad turn (median of {len(times)})",
                          "seconds": med, "cpu_seconds": float(np.median(cpus)) if cpus else float("nan"),
                          "peak_above_MB": (max(memory()[1], peak_before) - base) / MB,
                          "after_above_MB": (rss - base) / MB,
                          "note": f"max {max(times, default=0):.3f} s; Blender's updates median "
-                                 f"{np.median(blender):.3f} s, add-on {med - np.median(blender):.3f} s; "
+                                 f"{np.median(blender):.3f} s, add-on {med - np.median(blender):.3f} s "
+                                 f"(waiting for the engine {np.median(waits):.3f} s, its own {own:.3f} s); "
                                  f"hiding changed {min(changed, default=0)}-{max(changed, default=0)} objects"})
             result[f"turn_{turn:g}"] = {"seconds": med, "blender_s": float(np.median(blender)),
+                                        "engine_wait_s": float(np.median(waits)), "addon_own_s": own,
                                         "changed": changed}
         with Phase(rows, "restore (the operator)", base, prof):
             bpy.ops.occ.restore()
