@@ -442,6 +442,30 @@ def view_rules():
           (hidden_by_addon("target"), hidden_by_addon("outside"), rule()))
 
 
+def scene_lights():
+    """The scene's shadow-casting lights (shading.scene_lights_of): none without light data
+    that casts shadows, those of this scene's view layer only, not one hidden there."""
+    scene = new_scene()
+    lights_of = addon("shading").scene_lights_of
+    dim = bpy.data.lights.new("dim", "POINT")
+    dim.use_shadow = False
+    scene.collection.objects.link(bpy.data.objects.new("dim", dim))
+    check("lights_none_without_shadow", lights_of(scene) == [], lights_of(scene))
+    lamp = bpy.data.lights.new("lamp", "POINT")
+    lamp.use_shadow = True
+    scene.collection.objects.link(bpy.data.objects.new("lamp", lamp))
+    other = bpy.data.scenes.new("other")
+    other.collection.objects.link(bpy.data.objects.new("elsewhere", lamp))
+    hidden = bpy.data.objects.new("hidden_lamp", lamp)
+    scene.collection.objects.link(hidden)
+    hidden.hide_set(True)
+    update()
+    found = lights_of(scene)
+    check("lights_found_in_scene", len(found) == 1 and found[0].kind == "point", found)
+    other_found = lights_of(other)
+    check("lights_other_scene_kept_apart", len(other_found) == 1, other_found)
+
+
 def _see_through(name, how):
     """A material for the wall: opaque (``opaque``, ``mix_opaque``) or one way of letting
     what is behind show."""
