@@ -5,8 +5,9 @@ kept by renames, never reused in a session), or on Blender 3.4 its address.  The
 add-on's per-object records (``Object.occ_culled``, ``Object.occ_view_culled``), the
 identities of ``bpy.data.objects`` and its length are read once a pass
 (:func:`one_pass`): inside an operator's call no user action, undo or file load runs,
-and every write of a record is :func:`store`'s, which keeps the memo current.  This
-module imports nothing of the add-on: every other module may use it.
+every write of a record is :func:`store`'s, which keeps the memo current, and the
+length is read again after each update (:func:`evaluate`).  This module imports nothing
+of the add-on: every other module may use it.
 """
 
 import contextlib
@@ -41,13 +42,29 @@ def one_pass():
 
 def count() -> int:
     """``len(bpy.data.objects)``: a walk of Blender's list (about 1 ms at 50,000 objects),
-    made once within :func:`one_pass`, where no object is added or removed."""
+    made once within :func:`one_pass` and again after each :func:`evaluate` in it (only
+    handlers, inside an update, can add or remove an object during a pass); a memo whose
+    length differs is read again."""
     if _memo is None:
         return len(bpy.data.objects)
     n = _memo.get("n")
     if n is None:
         n = _memo["n"] = len(bpy.data.objects)
     return n
+
+
+def evaluate(view_layer) -> None:
+    """``view_layer.update()`` within a pass: every handler runs inside it (another
+    add-on's may add or delete objects), so :func:`count` walks the list again after it."""
+    view_layer.update()
+    after_update()
+
+
+def after_update() -> None:
+    """Something ran that may have run handlers (an update, an operator): :func:`count`
+    walks the list again at its next call."""
+    if _memo is not None:
+        _memo.pop("n", None)
 
 
 def flags(prop, collection=None):

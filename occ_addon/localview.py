@@ -32,7 +32,7 @@ import bpy
 import numpy as np
 
 from . import bus
-from .identity import uids
+from .identity import after_update, uids
 from .worker import quiet
 
 
@@ -81,6 +81,13 @@ def _toggle(win, area) -> None:
     the one the pass makes after hiding covers them); 5.2's operators are called as they
     are (its ``bpy.ops`` has no Python-side call left to go around)."""
     quiet()                                          # no engine thread runs while the operator does
+    try:
+        _call_toggle(win, area)
+    finally:
+        after_update()                               # handlers may have run inside it
+
+
+def _call_toggle(win, area) -> None:
     with bpy.context.temp_override(window=win, area=area, region=_region(area)):
         op, kw = bpy.ops.view3d.localview, {"frame_selected": False}
         try:

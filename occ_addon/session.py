@@ -205,7 +205,7 @@ class Session:
         cand = self.extractor.candidates(context, verify, every)
         if len(cand.give_back):
             visibility.release(np.isin(identity.uids(), cand.give_back))
-            context.view_layer.update()
+            identity.evaluate(context.view_layer)
             cand = self.extractor.candidates(context)
         self.extractor.check_shown(cand)
         return cand
@@ -350,7 +350,7 @@ class Session:
         picked = localview.pick(win, area)
         if picked is not None:
             self.picked = (picked, win.view_layer)
-            win.view_layer.update()
+            identity.evaluate(win.view_layer)
 
     def _unpick(self) -> None:
         """Deselect what :meth:`_meanwhile` selected (its evaluation joins the pass's last update)."""
@@ -389,7 +389,7 @@ class Session:
             t = time.perf_counter()
             visibility.reconcile()                 # what the user showed is the user's
             t_update = time.perf_counter()
-            context.view_layer.update()            # edits still pending reach the handler now, not below
+            identity.evaluate(context.view_layer)   # edits still pending reach the handler now, not below
             blender_s = time.perf_counter() - t_update
             view_rule = shading.rule(context)
             view = None if show_only else hide_view(context)
@@ -493,7 +493,7 @@ class Session:
                 # changed since the update above, so evaluate now and let the handler
                 # ignore it all: hiding never costs an engine rebuild on the next pass.
                 t_update = time.perf_counter()
-                context.view_layer.update()
+                identity.evaluate(context.view_layer)
                 blender_s += time.perf_counter() - t_update
             finally:
                 self.applying = False

@@ -31,7 +31,8 @@ def records_read_once_a_pass():
     """Within one pass (identity.one_pass) the records read from the memo are what a
     fresh bulk read of Blender's data gives, through a seeded run of the module's
     writes (item by item and in bulk), over all objects and over a view layer holding
-    some of them; outside a pass a write not of the module's (a script) is seen."""
+    some of them; an object a handler adds inside a pass's update is seen after it
+    (identity.evaluate); outside a pass a write not of the module's (a script) is seen."""
     import random
 
     import numpy as np
@@ -74,16 +75,31 @@ def records_read_once_a_pass():
         bpy.data.objects.foreach_get("session_uid", out)
         return out
 
+    added = []
+
+    def add_extra(*_):                                # another add-on's handler that adds an object
+        bpy.app.handlers.depsgraph_update_post.remove(add_extra)
+        added.append(box("a_extra", (0, 5, 0), (1, 6, 1)))   # (first by name: every index moves)
+
     with ids.one_pass():                              # identities: read once, and a new object seen
         first = ids.uids()
         if not np.array_equal(first, fresh_uids()) or not np.array_equal(ids.uids(), first):
             bad.append("uids in a pass")
-        extra = box("extra", (0, 5, 0), (1, 6, 1))
-        if not np.array_equal(ids.uids(), fresh_uids()) or ids.ident(extra) not in ids.uids():
-            bad.append("uids after an object was added")
+        bpy.app.handlers.depsgraph_update_post.append(add_extra)
+        bpy.data.objects["b0"].location.x += 0.25     # an edit, evaluated by the pass's update
+        ids.evaluate(bpy.context.view_layer)
+        if not added:
+            bad.append("the handler did not run inside the update")
+        elif not np.array_equal(ids.uids(), fresh_uids()) or ids.ident(added[0]) not in ids.uids():
+            bad.append("uids after an object was added inside an update")
+        if not np.array_equal(ids.flags("occ_culled"), fresh("occ_culled")):
+            bad.append("records after an object was added inside an update")
         if not np.array_equal(ids.layer_flags("occ_culled", ids.uids(layer), layer), fresh("occ_culled", layer)):
-            bad.append("layer records after an object was added")
-    bpy.data.objects.remove(extra)
+            bad.append("layer records after an object was added inside an update")
+    if add_extra in bpy.app.handlers.depsgraph_update_post:
+        bpy.app.handlers.depsgraph_update_post.remove(add_extra)
+    for extra in added:
+        bpy.data.objects.remove(extra)
     ob = bpy.data.objects["b5"]
     before = bool(ids.flags("occ_culled")[list(bpy.data.objects).index(ob)])
     ob.occ_culled = not before                        # a script's write, outside any pass
