@@ -5,6 +5,7 @@
     truth = culler.truth(camera)           # (n,) bool, exact at this resolution
 """
 
+import dataclasses
 import time
 import warnings
 from copy import copy
@@ -16,7 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 from .bounds import MAX, MIN
 from .camera import Camera
 from .cull import DEFAULT_STRATEGY, REGISTRY, CullPass, CullResult, PassStats, Visibility, make_strategy
-from .envelope import Envelope, ImageSchedule, envelope_pass
+from .envelope import Envelope, ImageSchedule, envelope_pass, floor_cut
 from .errors import OccError
 from .hierarchy import build_hierarchy
 from .scene import Scene
@@ -338,6 +339,10 @@ class Culler:
     def _envelope_cull(self, camera, envelope, lights=None, probe=True):
         if not isinstance(envelope, Envelope):
             envelope = Envelope(*envelope)
+        if envelope.above_floor and envelope.floor is None and not camera.is_orthographic:
+            floor = floor_cut(self, camera.eye, envelope.distance)
+            if floor is not None:                      # the pass's envelope (its result carries it)
+                envelope = dataclasses.replace(envelope, floor=floor)
         image = self.envelope_image.draws(probe)
         state, stats = envelope_pass(self, camera, envelope, lights=lights, occluders=self.envelope_occluders,
                                      image=image)

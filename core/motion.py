@@ -90,8 +90,9 @@ class LivePolicy:
         horizon = latency_s + (self.hold_s(latency_s) if hold_s is None else hold_s)
         d = max(speed * horizon + self.margin_steps * step_move, self.rest_rel * scene_size)
         a = max(turn_deg_s * horizon + self.margin_steps * step_turn_deg, self.rest_deg)
-        # the turn measured is the frame's (roll included): a narrower view than any roll
-        return Envelope(d, min(a, MAX_ANGLE_DEG), any_roll=False)
+        # the turn measured is the frame's (roll included): a narrower view than any roll;
+        # every view is checked against the pass's envelope: it may keep its eyes above a floor
+        return Envelope(d, min(a, MAX_ANGLE_DEG), any_roll=False, above_floor=True)
 
     def hold_s(self, latency_s, share=None, update_ms=None):
         """How long a set made during motion is shown before the next one replaces it (or
@@ -129,7 +130,7 @@ class LivePolicy:
     def rest(self, scene_size):
         """The envelope of a pass made at rest: what the first steps of a motion need
         before the check before each redraw sees them."""
-        return Envelope(self.rest_rel * scene_size, self.rest_deg, any_roll=False)
+        return Envelope(self.rest_rel * scene_size, self.rest_deg, any_roll=False, above_floor=True)
 
     def safe(self, centre, envelope, view, step_move, step_turn_deg):
         """Whether ``view`` and the next step (as large as ``margin_steps`` of the last)
@@ -142,8 +143,10 @@ class LivePolicy:
         if not np.array_equal(centre.projection, view.projection):
             return False                                          # another lens: the envelope says nothing
         move, turn = view_change(centre, view, frame=not envelope.any_roll)
-        return (move + speed * seconds + self.margin_steps * step_move <= envelope.distance
-                and turn + turn_deg_s * seconds + self.margin_steps * step_turn_deg <= envelope.angle_deg)
+        ahead = speed * seconds + self.margin_steps * step_move     # the eye's way on, any direction
+        return (move + ahead <= envelope.distance
+                and turn + turn_deg_s * seconds + self.margin_steps * step_turn_deg <= envelope.angle_deg
+                and envelope.height(view.eye) >= ahead)
 
 
 class MotionTracker:

@@ -141,7 +141,20 @@ def polygon_weights(polys, distance):
     return projected * width_factor(width, distance)
 
 
-def umbra_planes(polys, radius, near_eff=0.0):
+def cap_support(d, radius, cut):
+    """``(m,)`` the support function ``max x . d`` of the eyes ``E = B(0, radius) ∩ {f . x
+    >= s}`` (``cut = (f, s)``, ``f`` a unit vector) for unit rows ``d`` ``(m, 3)``: the
+    ball's ``radius`` where its own farthest point ``radius d`` is an eye of ``E``, else the
+    farthest point of the rim circle where the cut plane meets the sphere (the linear
+    maximum over a convex set lies on its boundary, and on the sphere's part of it only
+    at ``radius d`` or on the rim)."""
+    f, s = cut
+    fd = d @ f
+    rim = s * fd + np.sqrt(np.maximum(radius * radius - s * s, 0.0)) * np.sqrt(np.maximum(1.0 - fd * fd, 0.0))
+    return np.where(radius * fd >= s, radius, rim)
+
+
+def umbra_planes(polys, radius, near_eff=0.0, cut=None):
     """The umbra of each convex polygon ``(k, 4, 3)`` (camera-relative, a triangle
     repeating its last corner) from the ball ``B(0, radius)``, as five half-spaces
     ``normals @ x >= offsets`` (``(k, 5, 3)``, ``(k, 5)``): the polygon's plane (row 0:
@@ -152,9 +165,22 @@ def umbra_planes(polys, radius, near_eff=0.0):
     edge's tangent plane, given ``x`` beyond the polygon).  A repeated corner's edge is
     always true (a zero row, offset ``-inf``); a polygon that cannot hide (degenerate, its
     plane within ``radius`` of the eye or nearer than ``near_eff``) is never true (offset
-    ``+inf`` in row 0).  ``radius`` is ``(k,)`` or a number."""
+    ``+inf`` in row 0).  ``radius`` is ``(k,)`` or a number.
+
+    ``cut = (f, s)``: the eyes are only the ball's points with ``f . x >= s`` (a unit
+    ``f``; an envelope kept above a floor, :attr:`core.envelope.Envelope.floor`).  Each
+    edge's plane then turns from the ball's tangent towards the plane through the eye and
+    the edge, as far as the cut eyes stay on its positive side (:func:`cap_support`,
+    bisected; the plane kept is always one they are on the positive side of, so the
+    umbra is the cut eyes' own or a little smaller).  The polygon's own plane keeps the
+    whole ball's test."""
     k = len(polys)
     radius = np.broadcast_to(np.asarray(radius, dtype=np.float64), (k,))
+    if cut is not None and k:
+        f, level = np.asarray(cut[0], dtype=np.float64), float(cut[1])
+        level -= tol.near_guard_rel * float(radius.max())          # (rounding: a few more eyes)
+        # a cut that misses the ball, or leaves out the centre eye, changes nothing
+        cut = (f, level) if -float(radius.max()) < level < 0.0 else None
     n = np.cross(polys[:, 1] - polys[:, 0], polys[:, 2] - polys[:, 0])
     n2 = np.cross(polys[:, 2] - polys[:, 0], polys[:, 3] - polys[:, 0])
     n = np.where((np.linalg.norm(n, axis=1) >= np.linalg.norm(n2, axis=1))[:, None], n, n2)
@@ -186,14 +212,46 @@ def umbra_planes(polys, radius, near_eff=0.0):
         beta = np.sqrt(np.maximum(1.0 - alpha * alpha, 0.0))
         inward = centre - a0
         gv = np.einsum("kj,kj->k", v, inward)
-        g = alpha[:, None] * w + (np.where(gv >= 0.0, beta, -beta))[:, None] * v
-        # the tangent plane keeps the polygon on the ball's side (one of the two does)
+        side = np.where(gv >= 0.0, 1.0, -1.0)[:, None] * v      # towards the polygon, in the eye's plane
+        g = alpha[:, None] * w + beta[:, None] * side
+        offset = -radius
+        if cut is not None:
+            g, offset = _cut_edge_planes(w, side, rho, np.arctan2(beta, alpha), radius, cut, edge)
+        # the tangent plane keeps the polygon on the eyes' side (one of the two does)
         edge &= np.einsum("kj,kj->k", g, inward) > 0.0
         good &= edge | (length == 0.0)
         normals[:, 1 + e] = np.where(edge[:, None], g, 0.0)
-        offsets[:, 1 + e] = np.where(edge, -radius + guard, -np.inf)
+        offsets[:, 1 + e] = np.where(edge, offset + guard, -np.inf)
     offsets[~good, 0] = np.inf
     return normals, offsets
+
+
+CUT_STEPS = 40             # bisection steps of a cut edge plane's angle (2^-40 of under a right angle)
+
+
+def _cut_edge_planes(w, side, rho, ball_angle, radius, cut, edge):
+    """Per edge, the plane through it that the cut eyes (:func:`cap_support`) are on the
+    positive side of, turned from the ball's tangent (angle ``ball_angle``) towards the
+    plane through the eye (angle pi/2), in the pencil ``cos(phi) w + sin(phi) side``
+    (offset ``rho cos(phi)``, the edge's line at ``rho w``).  The eyes are on the positive
+    side over an interval of angles that holds the ball's tangent; bisection keeps its
+    upper end inside that interval, so the plane returned always has them there."""
+    lo = np.full(len(w), 0.5 * np.pi)
+    hi = np.where(edge, ball_angle, 0.5 * np.pi)
+
+    def eyes_inside(phi):
+        g = np.cos(phi)[:, None] * w + np.sin(phi)[:, None] * side
+        return -cap_support(-g, radius, cut) >= rho * np.cos(phi)
+
+    for _ in range(CUT_STEPS):
+        mid = 0.5 * (lo + hi)
+        ok = eyes_inside(mid)
+        hi = np.where(ok, mid, hi)
+        lo = np.where(ok, lo, mid)
+    sound = edge & eyes_inside(hi)
+    hi = np.where(sound | ~edge, hi, ball_angle)                 # (rounding: the ball's, always sound)
+    g = np.cos(hi)[:, None] * w + np.sin(hi)[:, None] * side
+    return g, np.where(sound, rho * np.cos(hi), -radius)
 
 
 def morton_order(points):
@@ -213,10 +271,11 @@ def morton_order(points):
     return np.argsort(code, kind="stable")
 
 
-def hidden_by_polygons(boxes, polys, distance, near_eff=0.0, depth_guard=None):
+def hidden_by_polygons(boxes, polys, distance, near_eff=0.0, depth_guard=None, cut=None):
     """``(m,) bool``: boxes (camera-relative, ``(m, 2, 3)``) hidden from every eye
     within ``distance`` of the origin by at least one of the convex polygons
-    ``(k, 4, 3)`` (camera-relative; see the module doc).  ``near_eff``: a polygon
+    ``(k, 4, 3)`` (camera-relative; see the module doc); ``cut``: only the eyes ``x`` with
+    ``f . x >= s`` of them (:func:`umbra_planes`).  ``near_eff``: a polygon
     whose plane passes nearer the centre eye than this occludes nothing (an eye's near
     plane may cut it).  ``depth_guard``: ``(m,)``, how far beyond a polygon's plane each
     box must lie besides (a depth buffer draws a surface closer behind a polygon than its
@@ -237,7 +296,7 @@ def hidden_by_polygons(boxes, polys, distance, near_eff=0.0, depth_guard=None):
         return out
     mag = np.abs(polys).max(axis=(1, 2))
     radius = distance * (1.0 + tol.near_guard_rel) + tol.box_grow_rel * mag
-    normals, offsets = umbra_planes(polys, radius, near_eff)
+    normals, offsets = umbra_planes(polys, radius, near_eff, cut)
     keep = np.isfinite(offsets[:, 0])
     if not keep.any():
         return out

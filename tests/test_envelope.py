@@ -275,6 +275,75 @@ def test_the_tangent_planes_prove_what_the_edge_planes_prove(seed):
     assert got.any()
 
 
+def _cap_eyes(rng, distance, cut, count):
+    """Eyes of the ball cut by ``f . x >= s``: inside it, on its sphere and on its rim."""
+    f, s = cut
+    out = []
+    while len(out) < count:
+        e = rng.normal(size=3)
+        e *= distance * (rng.random() ** (1 / 3) if len(out) % 3 else 1.0) / np.linalg.norm(e)
+        if len(out) % 5 == 4:                              # on the rim: the cut plane meets the sphere
+            t = np.cross(f, e)
+            t *= np.sqrt(max(distance ** 2 - s ** 2, 0.0)) / max(np.linalg.norm(t), 1e-12)
+            e = s * f + t
+        if f @ e >= s:
+            out.append(e)
+    return np.array(out)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_cut_ball_hides_what_the_ball_hides_and_no_ray_from_its_eyes_reaches_it(seed):
+    """Eyes kept above a floor (``cut``): everything the whole ball's polygons hide is
+    still hidden, and for every box hidden, segments from eyes of the cut ball
+    (inside, on the sphere, on the rim) to points of the box all cross a polygon that
+    hides it (the same independent check as the ball's, below)."""
+    rng = np.random.default_rng(300 + seed)
+    polys = _random_polygons(rng, 16)
+    centres = polys.mean(axis=1)[rng.integers(0, 16, 300)] * rng.uniform(1.05, 2.0, (300, 1))
+    half = rng.uniform(0.05, 1.5, (300, 1, 3))
+    boxes = np.concatenate([centres[:, None] - half, centres[:, None] + half], axis=1)
+    distance = float(rng.uniform(0.5, 2.5))
+    f = rng.normal(size=3)
+    f /= np.linalg.norm(f)
+    cut = (f, -float(rng.uniform(0.05, 0.9)) * distance)
+    ball = hidden_by_polygons(boxes, polys, distance)
+    capped = hidden_by_polygons(boxes, polys, distance, cut=cut)
+    assert not (ball & ~capped).any()
+    checked = 0
+    for i in np.flatnonzero(capped):
+        by = [p for p in range(len(polys))
+              if hidden_by_polygons(boxes[i:i + 1], polys[p:p + 1], distance, cut=cut)[0]]
+        poly = polys[by[0]]
+        eyes = _cap_eyes(rng, distance, cut, 40)
+        pts = rng.uniform(boxes[i, 0], boxes[i, 1], (40, 3))
+        pts[:8] = corners(boxes[i:i + 1])[0]
+        n = np.cross(poly[1] - poly[0], poly[2] - poly[0])
+        b, x = eyes[:, None], pts[None]                    # every eye against every point
+        t = ((poly[0] - b) @ n) / ((x - b) @ n)
+        assert ((t > 0.0) & (t < 1.0)).all(), (seed, i)    # the segment meets the polygon's plane ...
+        q = b + t[..., None] * (x - b)
+        for e in range(4):                                 # ... inside the polygon
+            a0, a1 = poly[e], poly[(e + 1) % 4]
+            if not np.array_equal(a0, a1):
+                inner = np.cross(a1 - a0, poly.mean(axis=0) - a0)
+                assert (np.cross(a1 - a0, q - a0) @ inner >= 0.0).all(), (seed, i)
+        checked += 1
+    assert checked > 3
+
+
+def test_a_facade_hides_a_box_on_the_ground_only_from_eyes_kept_above_it():
+    """A facade standing on the ground 10 ahead, a box on the ground behind it, eyes 1.7
+    above the ground within 2: an eye of the ball below the ground sees the box under
+    the facade's lower edge (no proof), eyes kept 0.5 above the ground do not."""
+    facade = np.array([[[10, -5, -1.7], [10, 5, -1.7], [10, 5, 1.5], [10, -5, 1.5]]], float)
+    box = np.array([[[14, -1, -1.7], [15, 1, -1.0]]], float)
+    up = np.array([0.0, 0.0, 1.0])
+    assert not hidden_by_polygons(box, facade, 2.0)[0]
+    assert hidden_by_polygons(box, facade, 2.0, cut=(up, -1.2))[0]
+    assert not hidden_by_polygons(box, facade, 2.0, cut=(up, -1.9))[0]      # eyes below the ground again
+    assert not hidden_by_polygons(box, facade, 2.0, cut=(-up, -1.2))[0]     # a ceiling: the low eyes stay
+
+
 @pytest.mark.parametrize("seed", range(3))
 def test_what_the_polygons_hide_no_ray_from_the_ball_reaches(seed):
     """Independent of both formulas: for every box the proof hides, segments from points of

@@ -10,7 +10,7 @@ skipped by the occupancy map, query rectangle pixels, false negatives and R/V'
 
 import resource
 import time
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
@@ -204,6 +204,8 @@ def _envelope_row(culler, seer, cameras, truths, envelope, tri_total):
     from ..envelope import sample_views
     rng = np.random.default_rng(0)
     tri = culler.scene.triangle_counts
+    # as live mode asks it: the pass may keep the eyes above a floor (its result's envelope)
+    envelope = replace(envelope, above_floor=True)
     culler.set_strategy(DEFAULT_STRATEGY)
     culler.cull(cameras[0], envelope=envelope)                       # warm-up
     rows, point_hidden, env_hidden, point_tri, env_tri = [], 0, 0, 0, 0
@@ -211,7 +213,7 @@ def _envelope_row(culler, seer, cameras, truths, envelope, tri_total):
         point = culler.cull(cam)
         r = culler.cull(cam, envelope=envelope)
         seen = truth.copy()
-        for view in sample_views(cam, envelope, ENVELOPE_VIEWS, rng):
+        for view in sample_views(cam, r.envelope, ENVELOPE_VIEWS, rng):
             seen |= seer.truth(view)
         hidden = ~r.visible
         point_hidden += int((~point.visible).sum())

@@ -5,22 +5,26 @@ For each frame of a sample scene's path: the point pass (the default strategy), 
 envelope pass, and the object-ID truth from the frame's view and from VIEWS seeded views of
 the envelope (``core.envelope.sample_views``: eyes in the ball, directions in the cone).
 An object no sampled view sees is in the ceiling: every sound envelope pass hides at most
-those (sampling misses a view that sees one, so the ceiling is high, never low).  Printed
+those (sampling misses a view that sees one, so the ceiling is high, never low).  The
+envelope is live mode's (its eyes kept above a floor under the eye, where the pass finds
+one: the views are sampled from the envelope the pass used); ``--ball`` keeps every eye
+of the ball.  Printed
 per frame and summed: the point pass's hidden objects, the envelope's, the ceiling, the
 envelope's share of the ceiling and the false negatives against the sampled views (0 for a
 sound pass).
 
     .venv/bin/python tools/bench/envelope_ceiling.py city --frames 12 --views 150 --envelope 2,10
 
-``--raise H`` lifts every frame's eye by H scene units (along +Z) first: how much of the
-gap comes from the eyes of the ball that reach below a floor (on the city at 2,10, from an
-eye 1.7 above the ground, the ball reaches 0.3 below it).
+``--raise H`` lifts every frame's eye by H scene units (along +Z) first: with ``--ball``,
+how much of the gap comes from the eyes of the ball that reach below a floor (on the city
+at 2,10, from an eye 1.7 above the ground, the ball reaches 0.3 below it).
 """
 
 import argparse
 import json
 import os
 import sys
+from dataclasses import replace
 
 import numpy as np
 
@@ -41,9 +45,10 @@ def ceiling(scene, cameras, envelope, views, resolution=(640, 360), seed=1):
     try:
         for cam in cameras:
             point = ~culler.cull(cam).visible
-            hidden = ~culler.cull(cam, envelope=envelope).visible
+            r = culler.cull(cam, envelope=envelope)
+            hidden = ~r.visible
             seen = culler.truth(cam).copy()
-            for view in sample_views(cam, envelope, views, rng):
+            for view in sample_views(cam, r.envelope, views, rng):      # above its floor, if it has one
                 seen |= culler.truth(view)
             rows.append({"point": int(point.sum()), "envelope": int(hidden.sum()),
                          "ceiling": int((~seen).sum()), "false_negatives": int((hidden & seen).sum())})
@@ -66,10 +71,13 @@ def main(argv=None):
     ap.add_argument("--views", type=int, default=150, help="sampled views of the envelope per frame")
     ap.add_argument("--envelope", default="2,10", help="D,A: distance (scene units), angle (degrees)")
     ap.add_argument("--raise", dest="lift", type=float, default=0.0, help="lift every eye this much (+Z)")
+    ap.add_argument("--ball", action="store_true",
+                    help="the whole ball of eyes (live mode's envelope keeps them above a floor under the eye)")
     ap.add_argument("--json", action="store_true", help="print the rows and sums as JSON")
     args = ap.parse_args(argv)
     try:
         envelope = Envelope.parse(args.envelope)
+        envelope = replace(envelope, above_floor=not args.ball)
         if args.frames < 1 or args.views < 1:
             raise OccError("--frames and --views must be at least 1")
     except (OccError, ValueError) as e:

@@ -133,8 +133,9 @@ def search(seeds, strategies, frames, ctx, report=print):
 
 def envelope_search(seeds, frames, ctx, views=8, report=print):
     """Envelope passes over every seed's walk (a seeded envelope per seed, far planes that
-    may cut the scene), each against the object-ID truth of ``views`` seeded views of its
-    envelope: ``(passes, hidden, [(seed, pass, envelope, missed names), ...])``."""
+    may cut the scene; half of them may keep their eyes above a floor, as live mode's do),
+    each against the object-ID truth of ``views`` seeded views of the envelope the pass
+    used: ``(passes, hidden, [(seed, pass, envelope, missed names), ...])``."""
     from core.envelope import Envelope, sample_views
     passes, hidden, failures = 0, 0, []
     for seed in seeds:
@@ -142,7 +143,8 @@ def envelope_search(seeds, frames, ctx, views=8, report=print):
         res = (int(rng.integers(31, 330)), int(rng.integers(23, 200)))
         scene, offset, size = scene_for(seed)
         cams = walk_for(seed, offset, size, frames, far_range=(0.3, 4))
-        env = Envelope(size * 10.0 ** rng.uniform(-4, -1.5), rng.uniform(0, 20), any_roll=bool(rng.random() < 0.5))
+        env = Envelope(size * 10.0 ** rng.uniform(-4, -1.5), rng.uniform(0, 20), any_roll=bool(rng.random() < 0.5),
+                       above_floor=bool(rng.random() < 0.5))
         with Culler(scene, res, ctx=ctx) as c:
             for k, cam in enumerate(cams):
                 r = c.cull(cam, envelope=env)
@@ -150,7 +152,7 @@ def envelope_search(seeds, frames, ctx, views=8, report=print):
                 hide = ~r.visible
                 hidden += int(hide.sum())
                 seen = np.zeros(len(scene), dtype=bool)
-                for view in sample_views(cam, env, views, rng):
+                for view in sample_views(cam, r.envelope, views, rng):     # (above its floor, if it found one)
                     seen |= c.renderer.visible_truth(view)
                 missed = np.flatnonzero(seen & hide)
                 if len(missed):
