@@ -196,48 +196,55 @@ def umbra_planes(polys, radius, near_eff=0.0, cut=None):
     offsets = np.full((k, 5), -np.inf)
     normals[:, 0] = n
     offsets[:, 0] = h + guard
-    centre = polys.mean(axis=1)
-    for e in range(4):
-        a0, a1 = polys[:, e], polys[:, (e + 1) % 4]
-        ed = a1 - a0
-        length = np.linalg.norm(ed, axis=1)
-        edge = length > 0.0
-        u = ed / np.where(edge, length, 1.0)[:, None]
-        m0 = np.cross(u, a0)                                  # along the plane through the eye and the edge
-        rho = np.linalg.norm(m0, axis=1)                      # the edge's line from the eye (>= h > radius)
-        edge &= rho > radius
-        v = m0 / np.where(edge, rho, 1.0)[:, None]
-        w = np.cross(v, u)                                    # from the eye's foot on the line, outwards
-        alpha = -radius / np.where(edge, rho, 1.0)
-        beta = np.sqrt(np.maximum(1.0 - alpha * alpha, 0.0))
-        inward = centre - a0
-        gv = np.einsum("kj,kj->k", v, inward)
-        side = np.where(gv >= 0.0, 1.0, -1.0)[:, None] * v      # towards the polygon, in the eye's plane
-        g = alpha[:, None] * w + beta[:, None] * side
-        offset = -radius
-        if cut is not None:
-            g, offset = _cut_edge_planes(w, side, rho, np.arctan2(beta, alpha), radius, cut, edge)
-        # the tangent plane keeps the polygon on the eyes' side (one of the two does)
-        edge &= np.einsum("kj,kj->k", g, inward) > 0.0
-        good &= edge | (length == 0.0)
-        normals[:, 1 + e] = np.where(edge[:, None], g, 0.0)
-        offsets[:, 1 + e] = np.where(edge, offset + guard, -np.inf)
+    # the four edges at once, (k, 4, ...)
+    a0, a1 = polys, np.roll(polys, -1, axis=1)
+    ed = a1 - a0
+    length = np.linalg.norm(ed, axis=2)
+    edge = length > 0.0
+    u = ed / np.where(edge, length, 1.0)[..., None]
+    m0 = np.cross(u, a0)                                      # along the plane through the eye and the edge
+    rho = np.linalg.norm(m0, axis=2)                          # the edge's line from the eye (>= h > radius)
+    r4 = radius[:, None]
+    edge &= rho > r4
+    v = m0 / np.where(edge, rho, 1.0)[..., None]
+    w = np.cross(v, u)                                        # from the eye's foot on the line, outwards
+    alpha = -r4 / np.where(edge, rho, 1.0)
+    beta = np.sqrt(np.maximum(1.0 - alpha * alpha, 0.0))
+    inward = polys.mean(axis=1)[:, None] - a0
+    gv = np.einsum("kej,kej->ke", v, inward)
+    side = np.where(gv >= 0.0, 1.0, -1.0)[..., None] * v     # towards the polygon, in the eye's plane
+    g = alpha[..., None] * w + beta[..., None] * side
+    offset = np.broadcast_to(-r4, edge.shape).copy()
+    if cut is not None:
+        # only where the ball's tangent touches it below the cut (its point -radius g) does
+        # the plane turn: elsewhere that point is an eye of the cut ball, the same tangent
+        need = edge & (np.einsum("kej,j->ke", -g, cut[0]) * r4 < cut[1])
+        if need.any():
+            at = np.nonzero(need)
+            g[at], offset[at] = _cut_edge_planes(w[at], side[at], rho[at], np.arctan2(beta[at], alpha[at]),
+                                                 np.broadcast_to(r4, edge.shape)[at], cut)
+    # the tangent plane keeps the polygon on the eyes' side (one of the two does)
+    edge &= np.einsum("kej,kej->ke", g, inward) > 0.0
+    good &= (edge | (length == 0.0)).all(axis=1)
+    normals[:, 1:] = np.where(edge[..., None], g, 0.0)
+    offsets[:, 1:] = np.where(edge, offset + guard[:, None], -np.inf)
     offsets[~good, 0] = np.inf
     return normals, offsets
 
 
-CUT_STEPS = 40             # bisection steps of a cut edge plane's angle (2^-40 of under a right angle)
+CUT_STEPS = 24             # bisection steps of a cut edge plane's angle (2^-24 of under a right angle)
 
 
-def _cut_edge_planes(w, side, rho, ball_angle, radius, cut, edge):
-    """Per edge, the plane through it that the cut eyes (:func:`cap_support`) are on the
-    positive side of, turned from the ball's tangent (angle ``ball_angle``) towards the
-    plane through the eye (angle pi/2), in the pencil ``cos(phi) w + sin(phi) side``
-    (offset ``rho cos(phi)``, the edge's line at ``rho w``).  The eyes are on the positive
-    side over an interval of angles that holds the ball's tangent; bisection keeps its
-    upper end inside that interval, so the plane returned always has them there."""
+def _cut_edge_planes(w, side, rho, ball_angle, radius, cut):
+    """Per edge (rows), the plane through it that the cut eyes (:func:`cap_support`) are on
+    the positive side of, turned from the ball's tangent (angle ``ball_angle``) towards
+    the plane through the eye (angle pi/2), in the pencil ``cos(phi) w + sin(phi) side``
+    (offset ``rho cos(phi)``, the edge's line at ``rho w``): ``(normals, offsets)``.  The
+    eyes are on the positive side over an interval of angles that holds the ball's
+    tangent; bisection keeps its upper end inside that interval, so the plane returned
+    always has them there."""
     lo = np.full(len(w), 0.5 * np.pi)
-    hi = np.where(edge, ball_angle, 0.5 * np.pi)
+    hi = ball_angle.copy()
 
     def eyes_inside(phi):
         g = np.cos(phi)[:, None] * w + np.sin(phi)[:, None] * side
@@ -248,10 +255,8 @@ def _cut_edge_planes(w, side, rho, ball_angle, radius, cut, edge):
         ok = eyes_inside(mid)
         hi = np.where(ok, mid, hi)
         lo = np.where(ok, lo, mid)
-    sound = edge & eyes_inside(hi)
-    hi = np.where(sound | ~edge, hi, ball_angle)                 # (rounding: the ball's, always sound)
-    g = np.cos(hi)[:, None] * w + np.sin(hi)[:, None] * side
-    return g, np.where(sound, rho * np.cos(hi), -radius)
+    hi = np.where(eyes_inside(hi), hi, ball_angle)             # (rounding: the ball's, always sound)
+    return np.cos(hi)[:, None] * w + np.sin(hi)[:, None] * side, rho * np.cos(hi)
 
 
 def morton_order(points):
