@@ -132,21 +132,33 @@ class LivePolicy:
         before the check before each redraw sees them."""
         return Envelope(self.rest_rel * scene_size, self.rest_deg, any_roll=False, above_floor=True)
 
-    def safe(self, centre, envelope, view, step_move, step_turn_deg):
-        """Whether ``view`` and the next step (as large as ``margin_steps`` of the last)
-        stay inside ``envelope`` around ``centre``."""
-        return self.lasts(centre, envelope, view, 0.0, 0.0, 0.0, step_move, step_turn_deg)
+    def safe(self, centre, envelope, view, step_move, step_turn_deg, step_eye=None):
+        """Whether ``view`` and the next step (as large as ``margin_steps`` of the last;
+        towards a floor, as far as ``margin_steps`` of the last one's way down) stay inside
+        ``envelope`` around ``centre``."""
+        return self.lasts(centre, envelope, view, 0.0, 0.0, 0.0, step_move, step_turn_deg, step_eye=step_eye)
 
-    def lasts(self, centre, envelope, view, seconds, speed, turn_deg_s, step_move, step_turn_deg):
+    def lasts(self, centre, envelope, view, seconds, speed, turn_deg_s, step_move, step_turn_deg,
+              velocities=None, step_eye=None):
         """Whether ``view``, moving on at ``speed`` and ``turn_deg_s`` for ``seconds``, and
-        then the next step, stays inside ``envelope`` around ``centre``."""
+        then the next step, stays inside ``envelope`` around ``centre``.  Above the
+        envelope's floor the eye sinks as measured: at the fastest of ``velocities`` (the
+        last looks' ``(3,)`` eye velocities), then the next step as the last one
+        (``step_eye``, ``(3,)``); without them, at ``speed`` and a step any way."""
         if not np.array_equal(centre.projection, view.projection):
             return False                                          # another lens: the envelope says nothing
         move, turn = view_change(centre, view, frame=not envelope.any_roll)
-        ahead = speed * seconds + self.margin_steps * step_move     # the eye's way on, any direction
-        return (move + ahead <= envelope.distance
-                and turn + turn_deg_s * seconds + self.margin_steps * step_turn_deg <= envelope.angle_deg
-                and envelope.height(view.eye) >= ahead)
+        step = self.margin_steps * step_move
+        if move + speed * seconds + step > envelope.distance \
+                or turn + turn_deg_s * seconds + self.margin_steps * step_turn_deg > envelope.angle_deg:
+            return False
+        if envelope.floor is None:
+            return True
+        up = np.asarray(envelope.floor[:3])
+        sink = speed if velocities is None else max(0.0, *(-float(np.dot(v, up)) for v in velocities))
+        if step_eye is not None:
+            step = self.margin_steps * max(0.0, -float(np.dot(step_eye, up)))
+        return envelope.height(view.eye) >= sink * seconds + step
 
 
 class MotionTracker:
@@ -163,6 +175,8 @@ class MotionTracker:
         self.step = (0.0, 0.0)
         self.speeds = [0.0]
         self.turns = [0.0]
+        self.velocities = [np.zeros(3)]     # the eye's, the last looks' (which way it goes)
+        self.step_eye = np.zeros(3)         # the last step's eye move
 
     def observe(self, camera, now):
         """Look at the view: a step when it moved (or held still for a while) since the
@@ -176,6 +190,8 @@ class MotionTracker:
             # a view that held still since the last look has stopped: no step to allow for
             self.step = (move, turn)
             self.speeds = (self.speeds + [move / dt])[-self.SPEEDS:]
+            self.step_eye = camera.eye - prev.eye
+            self.velocities = (self.velocities + [self.step_eye / dt])[-self.SPEEDS:]
             self.turns = (self.turns + [turn / dt])[-self.SPEEDS:]
         self.view, self.t = camera, now
 
@@ -186,12 +202,13 @@ class MotionTracker:
 
     def safe(self, policy, centre, envelope, view):
         """Whether ``view`` and the next step stay inside ``envelope`` around ``centre``."""
-        return policy.safe(centre, envelope, view, *self.step)
+        return policy.safe(centre, envelope, view, *self.step, step_eye=self.step_eye)
 
     def lasts(self, policy, centre, envelope, view, seconds):
         """Whether the view, moving on as measured for ``seconds``, then the next step,
         stays inside ``envelope`` around ``centre``."""
-        return policy.lasts(centre, envelope, view, seconds, max(self.speeds), max(self.turns), *self.step)
+        return policy.lasts(centre, envelope, view, seconds, max(self.speeds), max(self.turns), *self.step,
+                            velocities=self.velocities, step_eye=self.step_eye)
 
 
 @dataclass(frozen=True)
