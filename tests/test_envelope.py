@@ -736,3 +736,65 @@ def test_the_envelope_finds_a_far_wall_behind_more_near_clutter_than_it_tries():
         r = c.cull(camera, envelope=Envelope(2.0, 5.0, any_roll=False), fresh=True)
     assert not r.visible[-1]
     assert r.visible[-2]
+
+
+def _street():
+    """A ground slab (top at z = 0), a facade standing on it at x = 10 (10 wide, 3.2 high)
+    and a crate on the ground behind it; the eye 1.7 above the ground, looking +x."""
+    boxes = [((-50, -50, -0.2), (50, 50, 0.0)), ((10, -5, 0.0), (10.3, 5, 3.2)), ((14, -1, 0.0), (15, 1, 0.7))]
+    scene = scenes.boxes_scene(boxes, ["ground", "facade", "crate"])
+    camera = scenes.cam((0, 0, 1.7), (1, 0, 1.7), near=0.1, far=200, fov_y_deg=50, aspect=1.5)
+    return scene, camera
+
+
+def test_live_envelopes_keep_their_eyes_above_the_ground_and_then_a_facade_hides_what_stands_behind(ctx):
+    """The ball of 2 reaches 0.3 under the ground: from there a ray to the crate passes
+    under the facade's lower edge (through the ground), so the facade alone proves
+    nothing for the whole ball.  Live mode's envelope (eyes kept above a floor) finds the
+    ground, keeps its eyes 0.425 above it (a quarter of the eye's height), and there the
+    facade alone hides the crate; no sampled view of that envelope sees it."""
+    scene, camera = _street()
+    with Culler(scene, resolution=(120, 80), ctx=ctx) as c:
+        ball = c.cull(camera, envelope=Envelope(2.0, 10.0, any_roll=False))
+        live = c.cull(camera, envelope=Envelope(2.0, 10.0, any_roll=False, above_floor=True))
+        seen = _seen_from(c, sample_views(camera, live.envelope, 60, np.random.default_rng(2)))
+    assert ball.envelope.floor is None and ball.state[2] == Visibility.VISIBLE
+    assert live.envelope.floor == pytest.approx((0.0, 0.0, 1.0, 1.7 - 0.75 * 1.7))
+    assert live.state[2] == Visibility.OCCLUDED
+    assert not (seen & ~live.visible).any() and not seen[2]
+
+
+def test_no_floor_where_the_ball_stays_above_it_or_nothing_lies_under_the_eye(ctx):
+    scene, camera = _street()
+    high = scenes.cam((0, 0, 2.5), (1, 0, 2.5), near=0.1, far=200, fov_y_deg=50, aspect=1.5)
+    beside = scenes.cam((0, 80, 1.7), (1, 80, 1.7), near=0.1, far=200, fov_y_deg=50, aspect=1.5)
+    with Culler(scene, resolution=(120, 80), ctx=ctx) as c:
+        assert c.cull(high, envelope=Envelope(2.0, 10.0, above_floor=True)).envelope.floor is None
+        assert c.cull(beside, envelope=Envelope(2.0, 10.0, above_floor=True)).envelope.floor is None
+        assert c.cull(camera, envelope=Envelope(0.0, 10.0, above_floor=True)).envelope.floor is None
+
+
+def test_a_floor_is_checked_by_holds_lasts_and_sampled_views():
+    """Views under the floor's plane are not the envelope's; live mode's checks ask for the
+    height a sinking eye needs (measured velocities and last step), a level move none."""
+    from core.motion import LivePolicy
+    _, camera = _street()
+    env = Envelope(2.0, 10.0, any_roll=False, floor=(0.0, 0.0, 1.0, 0.5))
+    low = scenes.cam((0, 0, 0.4), (1, 0, 0.4), near=0.1, far=200, fov_y_deg=50, aspect=1.5)
+    assert env.holds(camera, camera) and not env.holds(camera, low)
+    assert env.height(camera.eye) == pytest.approx(1.2) and Envelope(1, 1).height(camera.eye) == math.inf
+    views = sample_views(camera, env, 200, np.random.default_rng(4))
+    assert min(v.eye[2] for v in views) >= 0.5 and min(v.eye[2] for v in views) < 0.8
+    policy = LivePolicy()
+    level, down = np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, -1.0])
+    assert policy.lasts(camera, env, camera, 0.3, 1.0, 0.0, 0.1, 0.0, velocities=[level], step_eye=0.1 * level)
+    assert not policy.lasts(camera, env, camera, 0.3, 1.0, 0.0, 0.1, 0.0, velocities=[level, 5 * down],
+                            step_eye=0.1 * level)
+    assert not policy.safe(camera, env, camera, 0.7, 0.0, step_eye=0.7 * down)      # 2 steps: 1.4 > 1.2
+    assert policy.safe(camera, env, camera, 0.5, 0.0, step_eye=0.5 * level)
+
+
+@pytest.mark.parametrize("floor", [(0.0, 0.0, 2.0, 0.0), (0.0, 0.0, 1.0), (0.0, 0.0, 1.0, math.nan)])
+def test_a_bad_floor_gets_one_clear_error(floor):
+    with pytest.raises(OccError, match="floor"):
+        Envelope(1.0, 1.0, floor=floor)
