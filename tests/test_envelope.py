@@ -276,6 +276,30 @@ def test_the_tangent_planes_prove_what_the_edge_planes_prove(seed):
     assert got.any()
 
 
+def _boxes_behind(rng, polys, count=300):
+    """Boxes beyond the polygons (around their centres, pushed 5-100 % farther out)."""
+    centres = polys.mean(axis=1)[rng.integers(0, len(polys), count)] * rng.uniform(1.05, 2.0, (count, 1))
+    half = rng.uniform(0.05, 1.5, (count, 1, 3))
+    return np.concatenate([centres[:, None] - half, centres[:, None] + half], axis=1)
+
+
+def _every_segment_crosses(poly, eyes, points):
+    """Whether every segment from one of ``eyes`` to one of ``points`` meets the convex
+    polygon ``poly`` ``(4, 3)`` (a triangle repeating a corner) strictly between its ends."""
+    n = np.cross(poly[1] - poly[0], poly[2] - poly[0])
+    b, x = eyes[:, None], points[None]                     # every eye against every point
+    t = ((poly[0] - b) @ n) / ((x - b) @ n)
+    if not ((t > 0.0) & (t < 1.0)).all():                  # the segment meets the polygon's plane ...
+        return False
+    q = b + t[..., None] * (x - b)
+    for e in range(4):                                     # ... inside the polygon
+        a0, a1 = poly[e], poly[(e + 1) % 4]
+        if not np.array_equal(a0, a1) and not (np.cross(a1 - a0, q - a0) @ np.cross(a1 - a0, poly.mean(axis=0) - a0)
+                                               >= 0.0).all():
+            return False
+    return True
+
+
 def _cap_eyes(rng, distance, cut, count):
     """Eyes of the ball cut by ``f . x >= s``: inside it, on its sphere and on its rim."""
     f, s = cut
@@ -300,9 +324,7 @@ def test_a_cut_ball_hides_what_the_ball_hides_and_no_ray_from_its_eyes_reaches_i
     hides it (the same independent check as the ball's, below)."""
     rng = np.random.default_rng(300 + seed)
     polys = _random_polygons(rng, 16)
-    centres = polys.mean(axis=1)[rng.integers(0, 16, 300)] * rng.uniform(1.05, 2.0, (300, 1))
-    half = rng.uniform(0.05, 1.5, (300, 1, 3))
-    boxes = np.concatenate([centres[:, None] - half, centres[:, None] + half], axis=1)
+    boxes = _boxes_behind(rng, polys)
     distance = float(rng.uniform(0.5, 2.5))
     f = rng.normal(size=3)
     f /= np.linalg.norm(f)
@@ -315,19 +337,9 @@ def test_a_cut_ball_hides_what_the_ball_hides_and_no_ray_from_its_eyes_reaches_i
         by = [p for p in range(len(polys))
               if hidden_by_polygons(boxes[i:i + 1], polys[p:p + 1], distance, cut=cut)[0]]
         poly = polys[by[0]]
-        eyes = _cap_eyes(rng, distance, cut, 40)
         pts = rng.uniform(boxes[i, 0], boxes[i, 1], (40, 3))
         pts[:8] = corners(boxes[i:i + 1])[0]
-        n = np.cross(poly[1] - poly[0], poly[2] - poly[0])
-        b, x = eyes[:, None], pts[None]                    # every eye against every point
-        t = ((poly[0] - b) @ n) / ((x - b) @ n)
-        assert ((t > 0.0) & (t < 1.0)).all(), (seed, i)    # the segment meets the polygon's plane ...
-        q = b + t[..., None] * (x - b)
-        for e in range(4):                                 # ... inside the polygon
-            a0, a1 = poly[e], poly[(e + 1) % 4]
-            if not np.array_equal(a0, a1):
-                inner = np.cross(a1 - a0, poly.mean(axis=0) - a0)
-                assert (np.cross(a1 - a0, q - a0) @ inner >= 0.0).all(), (seed, i)
+        assert _every_segment_crosses(poly, _cap_eyes(rng, distance, cut, 40), pts), (seed, i)
         checked += 1
     assert checked > 3
 
@@ -352,9 +364,7 @@ def test_what_the_polygons_hide_no_ray_from_the_ball_reaches(seed):
     inside) all cross one of the polygons that hide it."""
     rng = np.random.default_rng(100 + seed)
     polys = _random_polygons(rng, 16)
-    centres = polys.mean(axis=1)[rng.integers(0, 16, 300)] * rng.uniform(1.05, 2.0, (300, 1))
-    half = rng.uniform(0.05, 1.5, (300, 1, 3))
-    boxes = np.concatenate([centres[:, None] - half, centres[:, None] + half], axis=1)
+    boxes = _boxes_behind(rng, polys)
     distance = float(rng.uniform(0.2, 2.0))
     checked = 0
     for i in np.flatnonzero(hidden_by_polygons(boxes, polys, distance)):
@@ -365,15 +375,7 @@ def test_what_the_polygons_hide_no_ray_from_the_ball_reaches(seed):
         eyes[:16] *= distance / np.linalg.norm(eyes[:16], axis=1)[:, None]      # on the sphere
         pts = rng.uniform(boxes[i, 0], boxes[i, 1], (64, 3))
         pts[:8] = corners(boxes[i:i + 1])[0]
-        n = np.cross(poly[1] - poly[0], poly[2] - poly[0])
-        for b, x in zip(eyes, pts, strict=True):
-            t = (n @ (poly[0] - b)) / (n @ (x - b))
-            assert 0.0 < t < 1.0, (seed, i)                # the segment meets the polygon's plane ...
-            q = b + t * (x - b)
-            for e in range(4):                             # ... inside the polygon
-                a0, a1 = poly[e], poly[(e + 1) % 4]
-                if not np.array_equal(a0, a1):
-                    assert np.cross(a1 - a0, q - a0) @ np.cross(a1 - a0, poly.mean(axis=0) - a0) >= 0.0, (seed, i)
+        assert _every_segment_crosses(poly, eyes, pts), (seed, i)
         checked += 1
     assert checked > 3
 
