@@ -81,8 +81,8 @@ class Envelope:
 
     ``floor``: ``(nx, ny, nz, c)``, the eye also stays on the side ``n . eye >= c`` of a
     plane (world space, ``n`` a unit vector), or None.  ``above_floor``: the pass may set
-    ``floor`` itself (:func:`floor_cut`: a little above a big face under the eye that the
-    ball reaches through) and returns the envelope it used
+    ``floor`` itself (:func:`floor_cut`: a little short of the nearest face the ball
+    reaches through, a ground or a wall) and returns the envelope it used
     (:attr:`core.cull.CullResult.envelope`); only for a caller that checks every view
     against the returned envelope before drawing (live mode: a view that leaves it,
     through the floor too, is drawn with everything shown).  Eyes under a floor see
@@ -716,18 +716,18 @@ def _polygons_of(culler, objs, eye):
 
 
 FLOOR_OBJECTS = 64         # the objects nearest the eye whose faces may be the floor (floor_cut)
-FLOOR_RISE = 0.25          # the cut stands this share of the eye's height above the floor's face
+FLOOR_RISE = 0.25          # the cut stands this share of the eye's distance to the face in front of it
 
 
 def floor_cut(culler, eye, distance):
     """The plane an envelope's eyes stay above (:attr:`Envelope.floor`), or None: the
-    nearest face under the eye (its foot inside the face, the face turned towards the
-    eye) that the ball of ``distance`` reaches through, among the convex faces of the
-    :data:`FLOOR_OBJECTS` objects nearest the eye, raised by :data:`FLOOR_RISE` of the
-    eye's height above it (so no eye of the envelope stands in the floor, or within a
-    near plane of it).  Any plane would be sound (the eyes beyond it are simply not the
-    envelope's, and the caller checks every view against it); this one only keeps out
-    views a user does not take."""
+    nearest face (its foot inside the face, the face turned towards the eye, any way it
+    faces: the ground under a street view, a wall beside an interior view) that the ball of
+    ``distance`` reaches through, among the convex faces of the :data:`FLOOR_OBJECTS`
+    objects nearest the eye, moved towards the eye by :data:`FLOOR_RISE` of its distance
+    (so no eye of the envelope stands in the floor, or within a near plane of it).  Any
+    plane would be sound (the eyes beyond it are simply not the envelope's, and the caller
+    checks every view against it); this one only keeps out views a user does not take."""
     scene = culler.scene
     valid = np.flatnonzero(~scene.invalid)
     if distance <= 0.0 or not len(valid):

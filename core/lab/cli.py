@@ -368,7 +368,7 @@ def build_parser():
     b.add_argument("--display", help="display resolution WxH: queries at --resolution, conservative at this "
                    "one; false negatives counted against the truth at this one")
     b.add_argument("--envelope", metavar="D,A", help="also a row 'envelope D,A': " + ENVELOPE_HELP +
-                   ", as live mode asks it (the eyes kept above a floor under the eye where the pass "
+                   ", as live mode asks it (the eyes kept off the nearest face where the pass "
                    "finds one); its FN counts views of the envelope each pass used too (a few per frame)")
     b.add_argument("--out", help="report folder (default reports/ with --plot or --snapshot)")
     b.add_argument("--plot", action="store_true", help="PNG plots along the path")

@@ -6,10 +6,9 @@ envelope pass, and the object-ID truth from the frame's view and from VIEWS seed
 the envelope (``core.envelope.sample_views``: eyes in the ball, directions in the cone).
 An object no sampled view sees is in the ceiling: every sound envelope pass hides at most
 those (sampling misses a view that sees one, so the ceiling is high, never low).  The
-envelope is live mode's (its eyes kept above a floor under the eye, where the pass finds
-one: the views are sampled from the envelope the pass used); ``--ball`` keeps every eye
-of the ball.  Printed
-per frame and summed: the point pass's hidden objects, the envelope's, the ceiling, the
+envelope is live mode's (its eyes kept off the nearest face, where the pass finds one: the
+views are sampled from the envelope the pass used); ``--ball`` keeps every eye of the ball.
+Printed per frame and summed: the point pass's hidden objects, the envelope's, the ceiling, the
 envelope's share of the ceiling and the false negatives against the sampled views (0 for a
 sound pass).
 
@@ -72,7 +71,7 @@ def main(argv=None):
     ap.add_argument("--envelope", default="2,10", help="D,A: distance (scene units), angle (degrees)")
     ap.add_argument("--raise", dest="lift", type=float, default=0.0, help="lift every eye this much (+Z)")
     ap.add_argument("--ball", action="store_true",
-                    help="the whole ball of eyes (live mode's envelope keeps them above a floor under the eye)")
+                    help="the whole ball of eyes (live mode's envelope keeps them off the nearest face)")
     ap.add_argument("--json", action="store_true", help="print the rows and sums as JSON")
     args = ap.parse_args(argv)
     try:
