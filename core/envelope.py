@@ -742,15 +742,8 @@ def floor_cut(culler, eye, distance):
     polys = _polygons_of(culler, valid[near], eye)
     if not len(polys):
         return None
-    n = np.cross(polys[:, 1] - polys[:, 0], polys[:, 2] - polys[:, 0])
-    n2 = np.cross(polys[:, 2] - polys[:, 0], polys[:, 3] - polys[:, 0])
-    n = np.where((np.linalg.norm(n, axis=1) >= np.linalg.norm(n2, axis=1))[:, None], n, n2)
-    nn = np.linalg.norm(n, axis=1)
-    ok = nn > tol.tiny * np.abs(polys).max(axis=(1, 2))
-    n = n / np.where(ok, nn, 1.0)[:, None]
-    h = np.einsum("kj,kj->k", n, polys[:, 0])                 # the plane at n . x = h, the eye at 0
-    f = -np.sign(h)[:, None] * n                              # from the face towards the eye
-    height = np.abs(h)
+    away, height, ok = umbra.facing_planes(polys)             # the eye at 0, the face at height
+    f = -away                                                 # from the face towards the eye
     ok &= (height > tol.near_guard_rel * distance) & (height < distance)
     foot = -height[:, None] * f
     centre = polys.mean(axis=1)
@@ -962,13 +955,11 @@ def sample_views(camera, envelope, count, rng):
     r = camera.view[:3, :3]
     out = []
     for _ in range(count):
-        v = rng.normal(size=3)
-        v *= envelope.distance * rng.random() ** (1.0 / 3.0) / max(np.linalg.norm(v), tol.tiny)
-        for _ in range(64):                          # above the floor (the eye itself is)
-            if envelope.height(eye + v) >= 0.0:
-                break
+        for _ in range(64):                          # an eye above the floor (the centre is)
             v = rng.normal(size=3)
             v *= envelope.distance * rng.random() ** (1.0 / 3.0) / max(np.linalg.norm(v), tol.tiny)
+            if envelope.height(eye + v) >= 0.0:
+                break
         else:
             v = np.zeros(3)
         a = math.radians(envelope.angle_deg) * math.sqrt(rng.random())

@@ -154,6 +154,22 @@ def cap_support(d, radius, cut):
     return np.where(radius * fd >= s, radius, rim)
 
 
+def facing_planes(polys):
+    """The planes of convex polygons ``(k, 4, 3)`` (camera-relative, a triangle repeating
+    its last corner): ``(normals, distances, good)``, unit normals pointing away from the
+    eye at the origin, the plane at ``normals . x = distances >= 0``; ``good``: the
+    polygon has an area (the larger of its two corner triangles' normals is taken)."""
+    n = np.cross(polys[:, 1] - polys[:, 0], polys[:, 2] - polys[:, 0])
+    n2 = np.cross(polys[:, 2] - polys[:, 0], polys[:, 3] - polys[:, 0])
+    n = np.where((np.linalg.norm(n, axis=1) >= np.linalg.norm(n2, axis=1))[:, None], n, n2)
+    nn = np.linalg.norm(n, axis=1)
+    good = nn > 0.0
+    n = n / np.where(good, nn, 1.0)[:, None]
+    h = np.einsum("kj,kj->k", n, polys[:, 0])
+    n = np.where((h < 0.0)[:, None], -n, n)                   # the normal points away from the eye
+    return n, np.abs(h), good
+
+
 def umbra_planes(polys, radius, near_eff=0.0, cut=None):
     """The umbra of each convex polygon ``(k, 4, 3)`` (camera-relative, a triangle
     repeating its last corner) from the ball ``B(0, radius)``, as five half-spaces
@@ -181,15 +197,7 @@ def umbra_planes(polys, radius, near_eff=0.0, cut=None):
         level -= tol.near_guard_rel * float(radius.max())          # (rounding: a few more eyes)
         # a cut that misses the ball, or leaves out the centre eye, changes nothing
         cut = (f, level) if -float(radius.max()) < level < 0.0 else None
-    n = np.cross(polys[:, 1] - polys[:, 0], polys[:, 2] - polys[:, 0])
-    n2 = np.cross(polys[:, 2] - polys[:, 0], polys[:, 3] - polys[:, 0])
-    n = np.where((np.linalg.norm(n, axis=1) >= np.linalg.norm(n2, axis=1))[:, None], n, n2)
-    nn = np.linalg.norm(n, axis=1)
-    good = nn > 0.0
-    n = n / np.where(good, nn, 1.0)[:, None]
-    h = np.einsum("kj,kj->k", n, polys[:, 0])
-    n = np.where((h < 0.0)[:, None], -n, n)                   # the normal points away from the eye
-    h = np.abs(h)
+    n, h, good = facing_planes(polys)
     guard = tol.box_grow_rel * np.abs(polys).max(axis=(1, 2))
     good &= (h > radius) & (h > near_eff)                     # the whole ball on the near side
     normals = np.zeros((k, 5, 3))
