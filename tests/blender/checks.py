@@ -54,6 +54,8 @@ CHECKS = {
         "click_restarts_fresh", "click_restarts_same_answer", "click_restarts_truth", "bulk_map_is_its_dict",
         "engine_context_outlives_undo",
         "large_mesh_triangles_in_place",
+        "floor_found_and_crate_hidden", "floor_truth", "floor_lowered_view_leaves_the_envelope",
+        "floor_lowered_view_truth",
     ],
     "visibility": ["user_hide_kept_by_restore", "user_hide_kept_by_pass", "records_read_once_a_pass"],
     "localview": [

@@ -643,3 +643,35 @@ def edit_while_another_layer_shown():
           (r1, hid, r2, hidden_by_addon("target")))
     promise("edit_while_another_layer_shown_truth")
     bpy.ops.occ.restore()
+
+
+def floor_under_the_camera():
+    """Live mode's click over a large ground (its rest envelope, 0.6 % of the scene, reaches
+    under the ground from 1.7 above it): the pass keeps the eyes off the ground, so a
+    facade standing on the ground hides a crate behind it; the truth sees nothing hidden;
+    a camera lowered under the envelope's floor leaves it, and the next click's answer
+    holds for the new view."""
+    scene = new_scene()
+    bpy.data.objects.remove(bpy.data.objects["wall"])
+    box("ground", (-250, -250, -0.2), (250, 250, 0.0))
+    box("facade", (0, -6, 0), (0.3, 6, 3.2))
+    box("crate", (3, -1, 0), (4, 1, 0.7))
+    scene.camera.location = (-10.0, 0.0, 1.7)
+    scene.occ.live = True
+    update()
+    session = addon("session").SESSION
+    r, err = cull()
+    envelope = session.shown.envelope if session.shown is not None else None
+    floor = getattr(envelope, "floor", None)
+    check("floor_found_and_crate_hidden", r == {"FINISHED"} and floor is not None
+          and abs(floor[2] - 1.0) < 1e-6 and bpy.data.objects["crate"].occ_culled, (r, envelope, err[-300:]))
+    promise("floor_truth")
+    centre = session.shown.camera
+    scene.camera.location.z = 0.3
+    update()
+    low, _ = addon("cameras").scene_camera(bpy.context)
+    check("floor_lowered_view_leaves_the_envelope", floor is not None and not envelope.holds(centre, low),
+          (envelope, low.eye))
+    r, err = cull()
+    promise("floor_lowered_view_truth")
+    scene.occ.live = False
