@@ -22,12 +22,18 @@ render draws everything the bake culled against (:func:`.bake.render_reason`: no
 hidden from the render, out of camera rays, or in a collection the render leaves out):
 after any edit, undo, redo or file load the add-on checks the bake and the digest again (a timer right
 after the edit in a window; at once headless and on load) and removes every key of a
-bake that no longer holds; the panel says why.  A new bake, Clear Bake and Remove from
+bake that no longer holds; the panel says why.  What changes without an edit Blender
+reports (the add-on's own settings, which carry no update callbacks; the scene's view
+layers and their render switches; the window's view layer; markers that switch cameras)
+is polled in a window (:func:`poll`, every :data:`POLL_S`) and checked again before every
+render in background mode and before every save, so neither a render nor a saved file
+takes keys that no longer hold.  A new bake, Clear Bake and Remove from
 Render remove them too.  What the add-on cannot see, an edit made where it is not
 enabled, it cannot guard: open and save the file with the add-on before it goes to a
 farm (a load checks it).
 """
 
+import contextlib
 import hashlib
 from dataclasses import dataclass
 
@@ -39,8 +45,10 @@ from ..core import OccError
 from . import bake, identity
 from .keyed_camera import CHANNELS, _fcurves
 from .kinds import RENDER_KEYS, action_curves, is_dynamic, render_keys_only
+from .props import settings_key
 
 CURVE = "hide_render"
+POLL_S = 0.25           # a window's poll of what changes the keys' hold without an update
 
 
 @dataclass
@@ -353,21 +361,71 @@ def on_depsgraph_update(scene, depsgraph):
         _later(full)
 
 
+def _unreported(context) -> tuple:
+    """What may change whether the keys hold without a depsgraph update: the add-on's
+    settings (:func:`.props.settings_key`), the view layers the render takes, the window's
+    view layer, the scenes using this one as a background set, markers that switch cameras."""
+    scene = context.scene
+    return (settings_key(scene.occ), scene.render.use_single_layer,
+            tuple((v.name, v.use) for v in scene.view_layers), context.view_layer.name,
+            tuple(s.name_full for s in bpy.data.scenes if s.background_set == scene),
+            tuple(m.camera.name_full for m in scene.timeline_markers if m.camera is not None))
+
+
+_seen = {}          # scene identity -> :func:`_unreported` when last checked
+
+
+def poll() -> None:
+    """Where the context's scene has keys and what :func:`_unreported` reads changed since
+    the last poll (or was never polled): the keys are checked again (the cheap part).  Not
+    while a render runs (its thread reads the keys): the first poll after it."""
+    context = bpy.context
+    scene = context.scene
+    if scene is None or context.view_layer is None or not scene.occ_bake.render_keys \
+            or bake.STATE.baking or bake.STATE.rendering or bake._rendering():
+        return
+    key, uid = _unreported(context), identity.ident(scene)
+    if _seen.get(uid) != key:
+        _seen[uid] = key
+        recheck(context, full=False)
+
+
+def _poll_timer():
+    try:
+        poll()
+    except Exception:  # noqa: BLE001 -- cannot tell: the keys go, as recheck's failures do
+        with contextlib.suppress(Exception):
+            remove("removed: the check failed; apply again after baking")
+    return POLL_S
+
+
+@persistent
+def on_render_init(*_args):
+    """A render in background mode (a script's, ``blender -b -a``: on the main thread) checks
+    the keys first, in full (a window's render runs beside the interface: its keys were
+    polled)."""
+    if bpy.app.background and not bake.STATE.rendering:
+        on_reset()
+
+
 @persistent
 def on_reset(*_args):
-    """A file load, an undo or a redo: checked at once (a farm's render follows the load)."""
+    """A file load, an undo, a redo or a save: checked at once (a farm's render follows
+    the load; a saved file carries no keys that no longer hold)."""
     context = bpy.context
     if context.scene is not None and context.view_layer is not None:
         recheck(context)
 
 
 HANDLERS = (("depsgraph_update_post", on_depsgraph_update), ("load_post", on_reset), ("undo_post", on_reset),
-            ("redo_post", on_reset))
+            ("redo_post", on_reset), ("save_pre", on_reset), ("render_init", on_render_init))
 
 
 def register():
     for name, f in HANDLERS:
         getattr(bpy.app.handlers, name).append(f)
+    if not bpy.app.background:
+        bpy.app.timers.register(_poll_timer, first_interval=POLL_S, persistent=True)
 
 
 def unregister():
@@ -375,4 +433,7 @@ def unregister():
         h = getattr(bpy.app.handlers, name)
         if f in h:
             h.remove(f)
+    if bpy.app.timers.is_registered(_poll_timer):
+        bpy.app.timers.unregister(_poll_timer)
     _pending.clear()
+    _seen.clear()

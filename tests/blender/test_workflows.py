@@ -103,6 +103,33 @@ def view_workflows(tmp_path_factory):
                 "--hide-in", "VIEW"], work, env)
 
 
+# Over a ground wide enough (250 each way) that live mode's rest envelope (0.6 % of the
+# scene) reaches under it from the lower cameras: its passes keep their eyes above a floor
+# (core.envelope.floor_cut) through the same undo, rename, reload and view-layer steps.
+GROUND_SEEDS = (3, 9)
+GROUND_HALF = 250
+
+
+@pytest.fixture(scope="module")
+def ground_workflows(tmp_path_factory):
+    work = tmp_path_factory.mktemp("workflows_ground")
+    zip_path = build_zip(work)
+    env = {**os.environ, "BLENDER_USER_RESOURCES": str(work / "user"), "PYTHONHASHSEED": "0"}
+    return run(["--zip", str(zip_path), "--seeds", ",".join(map(str, GROUND_SEEDS)), "--steps", str(STEPS),
+                "--ground", str(GROUND_HALF)], work, env)
+
+
+@pytest.mark.parametrize("seed", GROUND_SEEDS)
+def test_seed_over_a_ground(ground_workflows, seed):
+    """Every invariant holds with a floor in force: the sets checked against the truth
+    include some made by passes whose envelope kept its eyes above the ground."""
+    results, _ = ground_workflows
+    got = results["seeds"][str(seed)]
+    assert got["failure"] is None, explain(seed, got["failure"]) + f" --ground {GROUND_HALF}"
+    assert got["steps"] == STEPS
+    assert got["stats"]["floor_checks"] >= 10, got["stats"]
+
+
 # Seeds that found a false hide, replayed to just past the step where they failed:
 # 7380 hid a cube behind its own older, larger faces (its step 130, on bpy 5.0.1 and 5.2:
 # the envelope pass's per-mesh polygons were memoized by array ids that Python reused).

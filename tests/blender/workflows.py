@@ -72,6 +72,10 @@ ADDON_MODULE = f"bl_ext.user_default.{EXT_ID}"
 RESOLUTION = (160, 90)
 FRAMES = (1, 60)
 HISTORY_TAIL = 25
+# --ground HALF: a ground slab HALF wide each way under the scene (its top at -0.5, where
+# the walls stand): live mode's rest envelope (0.6 % of the scene's size) then reaches
+# under it from low cameras, and its passes keep their eyes above a floor
+GROUND = {"half": 0.0}
 
 # Step kinds and their weights: what users do, in rough proportion.
 KINDS = {
@@ -149,6 +153,9 @@ NOT_EXERCISED = {
     "live_operator": "occ.live refuses in background mode and timers never run headless: live mode is "
                      "started and stopped through its module (start / stop, as the operator does) and "
                      "its timer function is called by hand after every step, debounce off",
+    "render_keys_poll": "timers never run headless: the render keys' poll of what changes without a "
+                        "depsgraph update (the add-on's settings, view layers, markers) is called by hand "
+                        "after every step, as the window's timer calls it",
     "message_bus": "the message bus is served by the window's event loop: the add-on's callback for a "
                    "window's view-layer switch (localview.on_window_change) is called by hand after one",
 }
@@ -192,6 +199,8 @@ def parse_args(argv=None):
     p.add_argument("--verbose", action="store_true", help="print each step")
     p.add_argument("--hide-in", default="AUTO", choices=("AUTO", "VIEW", "EVERYWHERE"),
                    help="the add-on's Hide In setting (VIEW: the window's 3D view's local-view bits)")
+    p.add_argument("--ground", type=float, default=0.0,
+                   help="a ground slab this wide each way under the scene (live mode's envelope finds a floor)")
     p.add_argument("--tail", type=int, default=HISTORY_TAIL, help="history steps shown with a failure")
     p.add_argument("--drop", default="", help="comma-separated step numbers done as nothing (the same "
                    "kinds after them: to narrow down what a crash needs)")
@@ -280,7 +289,7 @@ class World:
         self.history = []
         self.counts = {}
         self.stats = {"truth_checks": 0, "hidden_at_checks": 0, "visible_at_checks": 0, "bake_checks": 0,
-                      "render_checks": 0}
+                      "render_checks": 0, "floor_checks": 0}
         self.pending = []           # problems a step found itself (analyze)
         self.saved = None           # (path, model) of the file saved last
         self.note = ""              # what a step did before its own action (a first analysis)
@@ -383,6 +392,9 @@ def build_scene(w):
         length, height = rng.uniform(5, 11), rng.uniform(2, 4.5)
         add_box(w, f"Wall.{i:03d}" if i else "Wall", (rng.uniform(-5, 5), rng.uniform(-5, 5), height / 2 - 0.5),
                 (0.3, length, height), colls["Walls"], rng.uniform(0, math.pi))
+    if GROUND["half"] > 0.0:                             # a ground wide enough for live mode's floor
+        half = GROUND["half"]
+        add_box(w, "Ground", (0.0, 0.0, -0.75), (2.0 * half, 2.0 * half, 0.5), colls["Walls"])
     for i in range(28):                                  # props: what gets culled
         s = rng.uniform(0.25, 1.0)
         add_box(w, f"Prop.{i:03d}", (rng.uniform(-9, 9), rng.uniform(-9, 9), rng.uniform(0, 1.5)),
@@ -909,6 +921,7 @@ def check_cull(w):
         w.stats["truth_checks"] += 1
         w.stats["hidden_at_checks"] += sum(1 for o in scene.objects if hidden_by_addon(o))
         w.stats["visible_at_checks"] += len(seen)
+        w.stats["floor_checks"] += int(hidden_over_a_floor())
         wrong = sorted(o.name for o in scene.objects if o.name in seen and hidden_by_addon(o))
         if wrong:
             problems.append(f"a: hidden by the add-on but visible from the camera: {wrong}")
@@ -924,6 +937,17 @@ def check_cull(w):
     if broken:
         problems.append(f"e: objects with a NaN are hidden (they must stay visible): {broken}")
     return problems
+
+
+def hidden_over_a_floor():
+    """Whether the set the add-on shows holds for an envelope that keeps its eyes above a
+    floor (:func:`core.envelope.floor_cut`) and hides something."""
+    import bpy
+    mod = sys.modules.get(ADDON_MODULE + ".occ_addon.session")
+    shown = getattr(getattr(mod, "SESSION", None), "shown", None) if addon_enabled() else None
+    envelope = getattr(shown, "envelope", None)
+    return getattr(envelope, "floor", None) is not None and getattr(shown, "camera", None) is not None \
+        and any(hidden_by_addon(o) for o in bpy.context.scene.objects)
 
 
 def check_truth_camera(w):
@@ -2167,6 +2191,7 @@ def run_seed(w, steps, verbose=False, progress=None):
                     problems += check_homes(before, "a live pass")
                 if addon_enabled():
                     problems += check_live_state()
+                    sys.modules[f"{ADDON_MODULE}.occ_addon.render_keys"].poll()   # the window's timer
                     problems += check_render_keys()
                 problems += check_state(w, after_restore=kind == "restore" or not addon_enabled())
                 baked = bake_on()
@@ -2201,6 +2226,7 @@ def main():
     seeds = list(args.seed or []) + [int(s) for s in (args.seeds or "").split(",") if s]
     seeds = seeds or [1]
     HIDE_IN["mode"] = args.hide_in
+    GROUND["half"] = args.ground
     work = args.work or tempfile.mkdtemp(prefix="occ_workflows_")
     skip = {s for s in args.skip.split(",") if s}
     if bpy.app.version < (5, 0, 0):

@@ -118,6 +118,7 @@ def run_one(seed, args, zip_path, work, plain=False, steps=None):
            "--hide-in", args.hide_in, "--progress", progress, "--tail", "12"]
     cmd += ["--plain"] if plain else ["--zip", zip_path]
     cmd += ["--skip", args.skip] if args.skip else []
+    cmd += ["--ground", str(args.ground)] if args.ground else []
     env = {**os.environ, "BLENDER_USER_RESOURCES": os.path.join(home, "user"), "PYTHONHASHSEED": "0"}
     t = time.perf_counter()
     try:
@@ -131,7 +132,8 @@ def run_one(seed, args, zip_path, work, plain=False, steps=None):
     step, kind = last_progress(progress)
     replay = (f"{os.path.relpath(args.python, ROOT)} tests/blender/workflows.py --seed {seed} "
               f"--steps {step or steps} --hide-in {args.hide_in}{' --plain' if plain else ''}"
-              f"{' --skip ' + args.skip if args.skip else ''} --verbose")
+              f"{' --skip ' + args.skip if args.skip else ''}{f' --ground {args.ground}' if args.ground else ''}"
+              " --verbose")
     res = {"seed": seed, "rc": rc, "seconds": seconds, "step": step, "kind": kind, "replay": replay}
     line = next((ln for ln in out.splitlines() if ln.startswith(MARK)), None)
     if line is not None:
@@ -190,6 +192,8 @@ def main(argv=None):
     p.add_argument("--hide-in", default="AUTO", choices=("AUTO", "VIEW", "EVERYWHERE"))
     p.add_argument("--skip", default="", help="step kinds left out (workflows.py --skip): e.g. the kinds of "
                    "Blender's own crashes, to hunt the add-on's failures further into each seed")
+    p.add_argument("--ground", type=float, default=0.0,
+                   help="a ground slab this wide each way under every seed's scene (workflows.py --ground)")
     p.add_argument("--python", default=sys.executable, help="the interpreter with bpy (default: this one)")
     p.add_argument("--timeout", type=int, default=900, help="seconds per seed")
     p.add_argument("--minutes", type=float, default=None, help="start no seed after this many minutes")
@@ -242,6 +246,12 @@ def main(argv=None):
         counts[r["outcome"]] = counts.get(r["outcome"], 0) + 1
     elapsed = round(time.monotonic() - start)
     print(f"\n{len(results)} seeds in {elapsed} s: " + ", ".join(f"{k} {v}" for k, v in sorted(counts.items())))
+    totals = {}
+    for r in results:
+        for k, v in r.get("stats", {}).items():
+            totals[k] = totals.get(k, 0) + v
+    if totals:
+        print("checks: " + ", ".join(f"{k} {v}" for k, v in totals.items()))
     for r in sorted(results, key=lambda r: r["seed"]):
         if r["outcome"] != "pass":
             print(describe(r))

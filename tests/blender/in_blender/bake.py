@@ -428,6 +428,41 @@ def _glass(obj):
     obj.data.materials.append(mat)
 
 
+def _unreported_edits_remove_keys(path):
+    """Edits Blender reports to no handler (the add-on's settings: no update callbacks)
+    leave the keys standing until the window's poll, a render in background mode or a
+    save checks them: each removes them (the edit alone did not: else this checks
+    nothing)."""
+    def exclude():
+        scene = bpy.context.scene
+        scene.occ.exclude_collection = scene.collection.children[0] if len(scene.collection.children) \
+            else bpy.data.collections.new("kept")
+
+    out_path = os.path.join(WORK, "render_keys_saved.blend")
+    ways = {"poll": lambda: addon("render_keys").poll(),
+            "render": lambda: bpy.ops.render.render(),
+            "save": lambda: bpy.ops.wm.save_as_mainfile(filepath=out_path, copy=True)}
+    edits = {"cull_raytraced": lambda: setattr(bpy.context.scene.occ, "cull_raytraced", True),
+             "exclude_collection": exclude,
+             "exclude_children": lambda: setattr(bpy.context.scene.occ, "exclude_children",
+                                                 not bpy.context.scene.occ.exclude_children)}
+    got = {}
+    for name, edit in edits.items():
+        for way, run in ways.items():
+            bpy.ops.wm.open_mainfile(filepath=path)
+            scene = bpy.context.scene
+            scene.frame_set(4)
+            edit()
+            update()
+            stood = bool(scene.occ_bake.render_keys and _render_keyed())
+            run()
+            got[f"{name}_{way}"] = (stood, bool(scene.occ_bake.render_keys), _render_keyed(),
+                                    sorted(_render_hidden()), scene.occ_bake.render_note[:60])
+    check("render_keys_removed_after_unreported_edits",
+          all(stood and not keys and not left and hidden == ["b3"] for stood, keys, left, hidden, _ in got.values()),
+          got)
+
+
 def render_keys_workflow():
     """Apply to Render: keys of hide_render that hold the baked sets at every frame and
     sub-frame (and nothing outside the range); Render Animation (what blender -a runs)
@@ -512,6 +547,8 @@ def render_keys_workflow():
     curves = addon("kinds").action_curves(ad.action, getattr(ad, "action_slot", None)) if ad and ad.action else []
     check("render_keys_keep_users_keys", sorted({c.data_path for c in curves}) == ["location"],
           [c.data_path for c in curves])
+
+    _unreported_edits_remove_keys(path)
 
     refusals = {}
     for name, setup in (("constraint", lambda: bpy.context.scene.camera.constraints.new("TRACK_TO")),
