@@ -15,6 +15,11 @@ mode, since the rule must hold in every one and a mode switch re-reads nothing:
   input.  Anything else (transparent, glass, refraction, a ray portal, a node group, an
   unlinked shader socket, an alpha driven by a texture) is taken as see-through.
 
+Workbench's Texture color draws each material's image with the image's own alpha, whatever
+its node tree does with it (measured: 4.2, 5.0): :func:`images_with_alpha` tells whether any
+material may show such an image, and the view's rule (:mod:`.shading`) hides nothing
+occluded then.
+
 Materials are asked once each and remembered until a material, a node tree or an image
 changes (:func:`forget`, from the extractor's depsgraph marks) or the session resets.
 """
@@ -31,11 +36,52 @@ HELD_INPUTS = {"BSDF_PRINCIPLED": (("Alpha", 1.0), ("Transmission Weight", 0.0),
 MAX_DEPTH = 64
 UPDATES = {"Material", "ShaderNodeTree", "Image", "NodeTree"}   # what forgets the answers
 
+# image depths (ImBuf planes) without an alpha channel: grey, RGB at 8, 16 and 32 bits
+NO_ALPHA_DEPTHS = {8, 24, 48, 96}
+
 _memo: dict = {}
+_alpha_memo: dict = {}
 
 
 def forget() -> None:
     _memo.clear()
+    _alpha_memo.clear()
+
+
+def image_may_have_alpha(image) -> bool:
+    """Whether ``image`` may carry an alpha below 1: not when its alpha is ignored
+    (``alpha_mode`` NONE), a JPEG, or loaded without an alpha channel (read only when
+    loaded: loading a file here would cost a pass its time)."""
+    if image is None or image.alpha_mode == "NONE" or image.file_format == "JPEG":
+        return False
+    return not (image.has_data and image.depth in NO_ALPHA_DEPTHS)
+
+
+def _tree_images_alpha(tree, depth: int = 0) -> bool:
+    for node in tree.nodes:
+        if node.type == "TEX_IMAGE" and image_may_have_alpha(node.image):
+            return True
+        sub = getattr(node, "node_tree", None) if node.type == "GROUP" else None
+        if sub is not None and depth < MAX_DEPTH and _tree_images_alpha(sub, depth + 1):
+            return True
+    return False
+
+
+def material_image_alpha(mat) -> bool:
+    """Whether Workbench's Texture color may draw ``mat`` with an image's alpha below 1
+    (any image texture of its tree, in groups too: Workbench draws the active one)."""
+    if mat is None or not getattr(mat, "use_nodes", True) or mat.node_tree is None:
+        return False
+    key = ident(mat)
+    hit = _alpha_memo.get(key)
+    if hit is None:
+        hit = _alpha_memo[key] = _tree_images_alpha(mat.node_tree)
+    return hit
+
+
+def images_with_alpha(materials) -> bool:
+    """Whether any of ``materials`` (used ones) may show an image's alpha in Texture color."""
+    return any(m.users and material_image_alpha(m) for m in materials)
 
 
 def _follow(socket, seen: int) -> bool:

@@ -2,9 +2,11 @@
 
 - Solid (Workbench), Wireframe, Material Preview without scene lights: only what
   is drawn shows; the depth rule alone.
-- X-ray (Solid or Wireframe, or Workbench's own for the camera), or Workbench's
-  backface culling: what is behind shows through, so nothing occluded is hidden (what
-  is outside the view still is).  A see-through material (glass, alpha, a material's
+- X-ray (Solid or Wireframe, or Workbench's own for the camera), Workbench's
+  backface culling, or its Texture color where a material may show an image with alpha
+  (:func:`.materials.images_with_alpha`): what is behind shows through, so nothing
+  occluded is hidden (what is outside the view still is; with shadows on, their casters
+  are kept as under lights).  A see-through material (glass, alpha, a material's
   own backface culling) makes its object no occluder in every mode (:mod:`.materials`).
 - Scene lights (Material Preview or Rendered with scene lights, EEVEE for the
   camera; Solid with shadows, whose light is ``scene.display.light_direction`` in
@@ -28,6 +30,7 @@ from ..core.lights import Light
 from ..core.tolerance import tol
 from . import identity
 from .cameras import find_viewport
+from .materials import images_with_alpha
 
 EEVEE = ("BLENDER_EEVEE", "BLENDER_EEVEE_NEXT")
 WORKBENCH = "BLENDER_WORKBENCH"
@@ -86,12 +89,18 @@ def _workbench_rule(scene, shading, label):
         return ViewRule("xray", f"{label} with X-ray shows what is behind")
     if getattr(shading, "show_backface_culling", False):
         return ViewRule("xray", f"{label} with backface culling shows what is behind a wall seen from behind")
+    lights = []
     if shading.show_shadows:
         # Workbench's light turns with the view (measured: its direction is in view
         # space); which way it points is not read here: both ways
         d = np.array(scene.display.light_direction, dtype=np.float64)
         lights = [Light("sun", direction=d, angle=SUN_WIDEN, in_view=True),
                   Light("sun", direction=-d, angle=SUN_WIDEN, in_view=True)]
+    if shading.color_type == "TEXTURE" and images_with_alpha(bpy.data.materials):
+        # the image's alpha shows what is behind, whatever the material's nodes do; its
+        # shadows (the lights) still count for what is outside the view
+        return ViewRule("xray", f"{label} in Texture color shows what is behind an image's alpha", lights)
+    if lights:
         return ViewRule("lit", f"{label} with shadows: shadow casters kept", lights)
     return ViewRule("depth", label)
 

@@ -34,7 +34,7 @@ CASES = (policy.user_hidden_objects, policy.dynamic_objects, cameras.camera_as_r
          policy.wire_collection_instance,
          analysis.never_visible_adds_no_path, analysis.never_visible_keeps_users_objects,
          policy.view_rules, policy.scene_lights, policy.see_through_materials, policy.lit_renders,
-         policy.lit_renders_over_a_floor,
+         policy.lit_renders_over_a_floor, policy.texture_alpha_workbench,
          live.camera_moves_between_ticks, live.live_cut_is_the_engines_camera_cut, live.passes_land_only_unchanged,
          live.live_keeps_no_set_made_for_another_view, live.shown_again_after_an_unseen_edit,
          localview.hides_in_one_view, localview.new_objects_drawn, localview.users_local_view,

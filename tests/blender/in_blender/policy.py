@@ -442,6 +442,56 @@ def view_rules():
           (hidden_by_addon("target"), hidden_by_addon("outside"), rule()))
 
 
+def _image_material(name, alpha, alpha_mode="STRAIGHT"):
+    """A material whose image texture (alpha ``alpha`` everywhere) feeds only the base
+    color: its nodes are opaque, Workbench's Texture color still draws the image's alpha."""
+    img = bpy.data.images.new(name, 4, 4, alpha=True)
+    img.pixels[:] = [0.9, 0.2, 0.1, alpha] * 16
+    img.alpha_mode = alpha_mode
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    tex = mat.node_tree.nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    bsdf = mat.node_tree.nodes.get("Principled BSDF")
+    mat.node_tree.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
+    return mat
+
+
+def texture_alpha_workbench():
+    """Workbench's Texture color draws an image's alpha whatever the material's nodes do:
+    a wall whose image is clear shows the box behind it in the render, so the add-on hides
+    nothing occluded there (what is outside the view still goes), and the render with what
+    it hid left out changes no pixel; the same wall in Material color, or with its image's
+    alpha ignored, hides the box (the rule is that narrow)."""
+    for name, color, alpha_mode, hides in (("texture", "TEXTURE", "STRAIGHT", False),
+                                           ("material", "MATERIAL", "STRAIGHT", True),
+                                           ("alpha_ignored", "TEXTURE", "NONE", True)):
+        scene = new_scene()
+        scene.render.resolution_x, scene.render.resolution_y = 64, 36
+        wall = bpy.data.objects["wall"].data
+        wall.uv_layers.new(name="UVMap")                  # Workbench draws an image only through UVs
+        wall.materials.append(_image_material(f"clear_{name}", 0.0, alpha_mode))
+        box("target", (3, -1, 0), (4, 1, 1))
+        box("outside", (3, 30, 0), (4, 31, 1))
+        scene.render.engine = "BLENDER_WORKBENCH"
+        scene.display.shading.color_type = color
+        update()
+        a = _render(os.path.join(WORK, f"texalpha_{name}_a.png"))
+        r, err = cull()
+        ok = r == {"FINISHED"} and hidden_by_addon("target") == hides and hidden_by_addon("outside")
+        for o in bpy.data.objects:
+            o.hide_render = bool(o.occ_culled)
+        b = _render(os.path.join(WORK, f"texalpha_{name}_b.png"))
+        changed = int((np.abs(b - a) > 1.0 / 255.0).any(axis=2).sum())
+        if name == "texture":                             # the box shows through: hiding it shows
+            for o in bpy.data.objects:
+                o.hide_render = o.name == "target"
+            c = _render(os.path.join(WORK, f"texalpha_{name}_c.png"))
+            ok &= int((np.abs(c - a) > 1.0 / 255.0).any(axis=2).sum()) > 0
+        check(f"texture_alpha_{name}", ok and changed == 0,
+              (r, err[-300:], hidden_by_addon("target"), hidden_by_addon("outside"), changed, rule()))
+
+
 def scene_lights():
     """The scene's shadow-casting lights (shading.scene_lights_of): none without light data
     that casts shadows, those of this scene's view layer only, not one hidden there."""
