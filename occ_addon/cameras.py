@@ -57,20 +57,28 @@ def hide_view(context):
 
 
 def view_state(space) -> tuple | None:
-    """What of a 3D view, beside its camera, decides which objects it draws: local view,
-    local collections and every object-type filter; None without a view.  A pass's hidden
-    set holds only while this stays as it was (a wall filtered out occludes nothing)."""
+    """What of a 3D view, beside its camera, decides which objects it draws and what shows
+    beyond depth: local view, local collections, every object-type filter and the shading
+    that sets the pass's rule; None without a view.  A pass's hidden set holds only while
+    this stays as it was (a wall filtered out occludes nothing; X-ray shows what is behind)."""
     if space is None:
         return None
     if not _FILTERS:                          # read once: the redraw guard asks on every redraw
         _FILTERS.extend(p.identifier for p in space.bl_rna.properties
                         if p.identifier.startswith("show_object_viewport_"))
     filters = tuple(getattr(space, name) for name in _FILTERS)
+    shading = space.shading
+    # what of the view's shading sets the pass's rule (:func:`.shading.rule`): X-ray, a
+    # Texture color that shows an image's alpha, scene lights hide less than depth alone
+    look = tuple(getattr(shading, name, None) for name in SHADING_RULE)
     # the add-on's own local view (its hiding) draws what the view drew: not the user's
-    return (localview.user_local(space), bool(getattr(space, "use_local_collections", False)), filters)
+    return (localview.user_local(space), bool(getattr(space, "use_local_collections", False)), filters, look)
 
 
 _FILTERS: list[str] = []                      # SpaceView3D's object-type filters (they vary by version)
+SHADING_RULE = ("type", "show_xray", "xray_alpha", "show_xray_wireframe", "xray_alpha_wireframe",
+                "show_backface_culling", "show_shadows", "color_type", "use_scene_lights", "use_scene_world",
+                "use_scene_lights_render", "use_scene_world_render")
 
 
 def region_camera(rv3d) -> Camera:

@@ -15,6 +15,8 @@ timer, whose context has no 3D view), and records whether the box was hidden.
 - ``filter_toggled_after_pass``: the curve filter turned off after a pass that hid
   the box behind the curve wall: the box must come back (a Cull click's redraw
   guard, live mode's tick);
+- ``xray_after_pass``: X-ray turned on after a pass that hid the box behind the wall:
+  the box must come back (the shading is part of what the guard watches);
 - ``hidden_out_of_local_view``: a cube the add-on hid (behind the wall) is out of
   the local view that holds a second box, which it covers from the next view;
 - ``two_views``: two 3D views side by side; a cull from one leaves the other drawing
@@ -226,6 +228,28 @@ def run():
             c.stop_live()
         c.restore()
         curves_on()
+        yield
+
+    # X-ray turned on after a pass that hid the box: what is behind now shows, the hidden
+    # set no longer holds (the redraw guard), and live mode's next pass hides nothing occluded
+    out = results["xray_after_pass"] = {}
+    for how in ("operator", "live"):
+        c.view(eye, target)
+        yield
+        if how == "operator":
+            c.cull()
+        else:
+            yield from c.start_live()
+        out[f"{how}_hid_first"] = hidden(box)
+        c.space.shading.show_xray = True
+        c.area.tag_redraw()
+        for _ in range(10):                           # redraws and live ticks
+            yield
+        out[how] = hidden(box)
+        if how == "live":
+            c.stop_live()
+        c.restore()
+        c.space.shading.show_xray = False
         yield
 
     # a cube the add-on hid behind a small wall, out of the local view of a second box
