@@ -5,6 +5,8 @@ Events (each listener is called with the event's arguments, in subscription orde
 
 - ``"changed"`` (): something changed that may change what is visible (an edit, a new
   frame, a setting, another view layer); not the view, which live mode polls.
+- ``"setting"`` (): an add-on property with an update callback changed (an object's
+  "never cull"): Blender reports it to no depsgraph handler.
 - ``"camera"`` (scene): a frame change or an edit may have moved the scene camera.
 - ``"window"`` (): a window shows another scene or view layer (after the add-on's own
   local view followed it).
@@ -17,7 +19,7 @@ when it unregisters.
 
 from collections.abc import Callable
 
-EVENTS = ("changed", "camera", "window", "loaded", "undone")
+EVENTS = ("changed", "setting", "camera", "window", "loaded", "undone")
 
 _listeners: dict[str, list[Callable[..., None]]] = {e: [] for e in EVENTS}
 

@@ -20,8 +20,9 @@ STRATEGY_ITEMS = [(info.name, info.label + (" (default)" if info.name == ADDON_D
 
 def _changed(_self, _context):
     """A setting that changes what may be hidden: announced on the change bus (live
-    mode re-culls)."""
+    mode re-culls; the render keys are checked again: no depsgraph update reports it)."""
     bus.notify()
+    bus.emit("setting")
 
 
 class OccSettings(bpy.types.PropertyGroup):

@@ -20,13 +20,14 @@ sub-frame is the baked path.  The scene must render one view layer, the one bake
 **When it is removed.**  The keys hold only as long as the bake does, and as long as the
 render draws everything the bake culled against (:func:`.bake.render_reason`: no occluder
 hidden from the render, out of camera rays, or in a collection the render leaves out):
-after any edit, undo, redo or file load the add-on checks the bake and the digest again (a timer right
-after the edit in a window; at once headless and on load) and removes every key of a
-bake that no longer holds; the panel says why.  What changes without an edit Blender
-reports (the add-on's own settings, which carry no update callbacks; the scene's view
-layers and their render switches; the window's view layer; markers that switch cameras)
-is polled in a window (:func:`poll`, every :data:`POLL_S`) and checked again before every
-render in background mode and before every save, so neither a render nor a saved file
+after any edit, undo, redo or file load the add-on checks the bake and the digest again (a
+timer right after the edit in a window; at once headless and on load) and removes every
+key of a bake that no longer holds; the panel says why.  What changes without an edit
+Blender reports (the add-on's scene settings, which carry no update callbacks; the
+scene's view layers and their render switches; the window's view layer; markers that
+switch cameras) is polled in a window (:func:`poll`, every :data:`POLL_S`) and checked
+again before every render in background mode and before every save; an object's "never
+cull" (a callback) is checked at once.  So neither a render nor a saved file
 takes keys that no longer hold.  A new bake, Clear Bake and Remove from
 Render remove them too.  What the add-on cannot see, an edit made where it is not
 enabled, it cannot guard: open and save the file with the add-on before it goes to a
@@ -42,7 +43,7 @@ import numpy as np
 from bpy.app.handlers import persistent
 
 from ..core import OccError
-from . import bake, identity
+from . import bake, bus, identity
 from .keyed_camera import CHANNELS, _fcurves
 from .kinds import RENDER_KEYS, action_curves, is_dynamic, render_keys_only
 from .props import settings_key
@@ -399,6 +400,18 @@ def _poll_timer():
     return POLL_S
 
 
+def setting_changed():
+    """An add-on property with an update callback changed (:mod:`.bus`'s ``"setting"``: an
+    object's "never cull"): checked as an update of the scene is (the cheap part)."""
+    scene = bpy.context.scene
+    if scene is None or not scene.occ_bake.render_keys or bake.STATE.baking or bake.STATE.rendering:
+        return
+    if bpy.app.background:
+        recheck(bpy.context, full=False)
+    else:
+        _later(False)
+
+
 @persistent
 def on_render_init(*_args):
     """A render in background mode (a script's, ``blender -b -a``: on the main thread) checks
@@ -424,11 +437,13 @@ HANDLERS = (("depsgraph_update_post", on_depsgraph_update), ("load_post", on_res
 def register():
     for name, f in HANDLERS:
         getattr(bpy.app.handlers, name).append(f)
+    bus.subscribe("setting", setting_changed)
     if not bpy.app.background:
         bpy.app.timers.register(_poll_timer, first_interval=POLL_S, persistent=True)
 
 
 def unregister():
+    bus.unsubscribe("setting", setting_changed)
     for name, f in reversed(HANDLERS):
         h = getattr(bpy.app.handlers, name)
         if f in h:

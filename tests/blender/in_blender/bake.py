@@ -520,6 +520,7 @@ def render_keys_workflow():
              ("wall_render_hidden", lambda: setattr(bpy.data.objects["wall"], "hide_render", True)),
              ("wall_no_camera_rays", lambda: setattr(bpy.data.objects["wall"], "visible_camera", False)),
              ("wall_made_glass", lambda: _glass(bpy.data.objects["wall"])),
+             ("never_cull", lambda: setattr(bpy.data.objects[keyed[0]], "occ_never_cull", True)),
              ("linked_into_another_scene", lambda: bpy.data.scenes.new("other").collection.objects.link(
                  bpy.data.objects[keyed[0]])),
              ("clear", lambda: bpy.ops.occ.bake_clear()),
