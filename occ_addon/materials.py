@@ -20,8 +20,10 @@ its node tree does with it (measured: 4.2, 5.0): :func:`images_with_alpha` tells
 material may show such an image, and the view's rule (:mod:`.shading`) hides nothing
 occluded then.
 
-Materials are asked once each and remembered until a material, a node tree or an image
-changes (:func:`forget`, from the extractor's depsgraph marks) or the session resets.
+Materials are asked once each and remembered until a material or a node tree changes
+(:func:`forget`, from the extractor's depsgraph marks; an image's update forgets nothing:
+no answer kept here reads one, and a movie texture updates its image every frame) or the
+session resets.
 """
 
 from .identity import ident
@@ -34,18 +36,18 @@ MIXERS = {"MIX_SHADER", "ADD_SHADER"}
 HELD_INPUTS = {"BSDF_PRINCIPLED": (("Alpha", 1.0), ("Transmission Weight", 0.0), ("Transmission", 0.0)),
                "EEVEE_SPECULAR": (("Transparency", 0.0),)}
 MAX_DEPTH = 64
-UPDATES = {"Material", "ShaderNodeTree", "Image", "NodeTree"}   # what forgets the answers
+# what forgets the answers (not an image: no answer kept here reads one; a movie texture
+# updates its image every frame)
+UPDATES = {"Material", "ShaderNodeTree", "NodeTree"}
 
 # image depths (ImBuf planes) without an alpha channel: grey, RGB at 8, 16 and 32 bits
 NO_ALPHA_DEPTHS = {8, 24, 48, 96}
 
 _memo: dict = {}
-_alpha_memo: dict = {}
 
 
 def forget() -> None:
     _memo.clear()
-    _alpha_memo.clear()
 
 
 def image_may_have_alpha(image) -> bool:
@@ -69,18 +71,17 @@ def _tree_images_alpha(tree, depth: int = 0) -> bool:
 
 def material_image_alpha(mat) -> bool:
     """Whether Workbench's Texture color may draw ``mat`` with an image's alpha below 1
-    (any image texture of its tree, in groups too: Workbench draws the active one)."""
+    (any image texture of its tree, in groups too: Workbench draws the active one).  Read
+    each time: an image's alpha mode, file or pixels change without a depsgraph update
+    (measured, bpy 5.0: none reported), so no answer is kept."""
     if mat is None or not getattr(mat, "use_nodes", True) or mat.node_tree is None:
         return False
-    key = ident(mat)
-    hit = _alpha_memo.get(key)
-    if hit is None:
-        hit = _alpha_memo[key] = _tree_images_alpha(mat.node_tree)
-    return hit
+    return _tree_images_alpha(mat.node_tree)
 
 
 def images_with_alpha(materials) -> bool:
-    """Whether any of ``materials`` (used ones) may show an image's alpha in Texture color."""
+    """Whether any of ``materials`` (used ones) may show an image's alpha in Texture color
+    (asked only for a view in Texture color)."""
     return any(m.users and material_image_alpha(m) for m in materials)
 
 
