@@ -66,12 +66,19 @@ def explain_crash(p, progress, args, work, env, plain_check):
     return msg + "\n" + stack
 
 
-@pytest.fixture(scope="module")
-def workflows(tmp_path_factory):
-    work = tmp_path_factory.mktemp("workflows")
+def run_seeds(tmp_path_factory, name, seeds, *extra):
+    """``seeds`` of ``STEPS`` steps in one Blender, against a zip built and installed in a
+    user folder of their own: (results, process)."""
+    work = tmp_path_factory.mktemp(name)
     zip_path = build_zip(work)
     env = {**os.environ, "BLENDER_USER_RESOURCES": str(work / "user"), "PYTHONHASHSEED": "0"}
-    return run(["--zip", str(zip_path), "--seeds", ",".join(map(str, SEEDS)), "--steps", str(STEPS)], work, env)
+    return run(["--zip", str(zip_path), "--seeds", ",".join(map(str, seeds)), "--steps", str(STEPS), *extra],
+               work, env)
+
+
+@pytest.fixture(scope="module")
+def workflows(tmp_path_factory):
+    return run_seeds(tmp_path_factory, "workflows", SEEDS)
 
 
 def _bpy_version():
@@ -96,11 +103,7 @@ if _bpy_version() < (5, 0):
 @pytest.fixture(scope="module")
 def view_workflows(tmp_path_factory):
     """The same sequences hiding in the window's 3D view (its local-view bits)."""
-    work = tmp_path_factory.mktemp("workflows_view")
-    zip_path = build_zip(work)
-    env = {**os.environ, "BLENDER_USER_RESOURCES": str(work / "user"), "PYTHONHASHSEED": "0"}
-    return run(["--zip", str(zip_path), "--seeds", ",".join(map(str, VIEW_SEEDS)), "--steps", str(STEPS),
-                "--hide-in", "VIEW"], work, env)
+    return run_seeds(tmp_path_factory, "workflows_view", VIEW_SEEDS, "--hide-in", "VIEW")
 
 
 # Over a ground wide enough (250 each way) that live mode's rest envelope (0.6 % of the
@@ -112,11 +115,7 @@ GROUND_HALF = 250
 
 @pytest.fixture(scope="module")
 def ground_workflows(tmp_path_factory):
-    work = tmp_path_factory.mktemp("workflows_ground")
-    zip_path = build_zip(work)
-    env = {**os.environ, "BLENDER_USER_RESOURCES": str(work / "user"), "PYTHONHASHSEED": "0"}
-    return run(["--zip", str(zip_path), "--seeds", ",".join(map(str, GROUND_SEEDS)), "--steps", str(STEPS),
-                "--ground", str(GROUND_HALF)], work, env)
+    return run_seeds(tmp_path_factory, "workflows_ground", GROUND_SEEDS, "--ground", str(GROUND_HALF))
 
 
 @pytest.mark.parametrize("seed", GROUND_SEEDS)

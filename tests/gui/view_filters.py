@@ -207,50 +207,39 @@ def run():
     yield from case("type_filter_sanity", nothing, nothing)      # the curve wall occludes the box
     yield from case("type_filter", curves_off, curves_on)
 
-    # the filter turned off after a pass that hid the box: the hidden set no longer
-    # holds (the redraw guard after a Cull click, live mode's tick), the box comes back
-    out = results["filter_toggled_after_pass"] = {}
-    for how in ("operator", "live"):
-        curves_on()
-        c.view(eye, target)
-        yield
-        if how == "operator":
-            c.cull()
-        else:
-            yield from c.start_live()
-        out[f"{how}_hid_first"] = hidden(box)
-        curves_off()
-        c.area.tag_redraw()
-        for _ in range(10):                           # redraws and live ticks
+    def changed_after_pass(name, change, undo):
+        """A pass (a Cull click, then live mode) hides the box; ``change`` then makes the
+        hidden set stop holding: the box must come back (the redraw guard, live's tick)."""
+        out = results[name] = {}
+        for how in ("operator", "live"):
+            undo()
+            c.view(eye, target)
             yield
-        out[how] = hidden(box)
-        if how == "live":
-            c.stop_live()
-        c.restore()
-        curves_on()
-        yield
+            if how == "operator":
+                c.cull()
+            else:
+                yield from c.start_live()
+            out[f"{how}_hid_first"] = hidden(box)
+            change()
+            c.area.tag_redraw()
+            for _ in range(10):                       # redraws and live ticks
+                yield
+            out[how] = hidden(box)
+            if how == "live":
+                c.stop_live()
+            c.restore()
+            undo()
+            yield
 
-    # X-ray turned on after a pass that hid the box: what is behind now shows, the hidden
-    # set no longer holds (the redraw guard), and live mode's next pass hides nothing occluded
-    out = results["xray_after_pass"] = {}
-    for how in ("operator", "live"):
-        c.view(eye, target)
-        yield
-        if how == "operator":
-            c.cull()
-        else:
-            yield from c.start_live()
-        out[f"{how}_hid_first"] = hidden(box)
-        c.space.shading.show_xray = True
-        c.area.tag_redraw()
-        for _ in range(10):                           # redraws and live ticks
-            yield
-        out[how] = hidden(box)
-        if how == "live":
-            c.stop_live()
-        c.restore()
-        c.space.shading.show_xray = False
-        yield
+    # the curve filter turned off after a pass that hid the box behind the curve wall
+    yield from changed_after_pass("filter_toggled_after_pass", curves_off, curves_on)
+
+    # X-ray turned on after a pass that hid the box: what is behind now shows, and live
+    # mode's next pass hides nothing occluded
+    def xray(on):
+        c.space.shading.show_xray = on
+
+    yield from changed_after_pass("xray_after_pass", lambda: xray(True), lambda: xray(False))
 
     # a cube the add-on hid behind a small wall, out of the local view of a second box
     # it covers from the next view
