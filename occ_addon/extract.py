@@ -192,8 +192,8 @@ class Candidates:
                 continue
             keep[j], codes[j] = True, CODES[k]
         index, codes = sel[keep].tolist(), codes[keep]
-        kinds = [KINDS[c] for c in codes.tolist()]
-        objects = [items[i] for i in index]
+        kinds = identity.pick(KINDS, codes.tolist())
+        objects = identity.pick(items, index)
         index = np.array(index, dtype=np.int64)
         self.culled = culled_all[index]
         self.stale = stale_all[index]
@@ -209,8 +209,9 @@ class Candidates:
         finite = np.all(np.isfinite(m), axis=(1, 2))
         self.bad = [objects[k].name for k in np.flatnonzero(~finite)]
         keep = np.flatnonzero(finite)
-        self.objects = [objects[k] for k in keep]
-        self.kinds = [kinds[k] for k in keep]
+        if len(keep) < len(objects):                  # else every one (the usual case)
+            objects, kinds = identity.pick(objects, keep.tolist()), identity.pick(kinds, keep.tolist())
+        self.objects, self.kinds = objects, kinds
         self.codes = codes[keep]                      # the kinds as BulkMap codes (KINDS)
         self.layer_index, self.culled, self.matrices = index[keep], self.culled[keep], m[keep]
         self.stale = self.stale[keep]

@@ -11,6 +11,7 @@ of the add-on: every other module may use it.
 """
 
 import contextlib
+from operator import attrgetter, itemgetter
 
 import bpy
 import numpy as np
@@ -143,9 +144,20 @@ def uids(collection=None):
     return out
 
 
+_SESSION_UID = attrgetter("session_uid")
+
+
 def idents(items) -> np.ndarray:
     """``(n,) int64`` identities (:func:`ident`) of a sequence of datablocks (a list
     such as ``context.visible_objects``): one attribute read each, no call."""
     if HAS_SESSION_UID:
-        return np.array([o.session_uid for o in items], dtype=np.int64)
+        return np.fromiter(map(_SESSION_UID, items), dtype=np.int64, count=len(items))
     return np.array([o.as_pointer() for o in items], dtype=np.int64)
+
+
+def pick(items, index: list) -> list:
+    """``[items[i] for i in index]`` (``index``: a list of ints) in one C call: a list of
+    50,000 objects is taken in a fraction of the comprehension's time."""
+    if len(index) > 1:
+        return list(itemgetter(*index)(items))
+    return [items[i] for i in index]

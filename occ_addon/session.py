@@ -264,7 +264,7 @@ class Session:
                 self.worker.run(self.culler.set_matrices, moved, m[moved])
         held = self.held
         assert held is not None                       # built above, or the one it was
-        return self.culler, [cand.objects[i] for i in held.index]
+        return self.culler, identity.pick(cand.objects, held.index.tolist())
 
     def _sizes(self, context, display: Size):
         """``(options, query resolution, display resolution or None)`` of a pass."""

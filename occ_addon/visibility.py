@@ -138,8 +138,10 @@ COUNT = {"changed": 0}
 
 
 def _set_bits(space, mask, state):
-    items = bpy.data.objects.values()              # one list; ListBase indexing is O(i) per call
     idx = np.flatnonzero(mask)
+    if not len(idx):
+        return
+    items = bpy.data.objects.values()              # one list; ListBase indexing is O(i) per call
     for i in idx:                                  # O(changed): Blender tags once per update
         items[i].local_view_set(space, state)
     COUNT["changed"] += len(idx)
