@@ -29,6 +29,9 @@ CHECKS = {
         "lights_none_without_shadow", "lights_found_in_scene", "lights_other_scene_kept_apart",
         "lit_eevee_no_pixel_changed", "lit_eevee_slab_shadow_shows",
         "lit_workbench_no_pixel_changed", "lit_workbench_slab_shadow_shows",
+        "lit_floor_eevee_no_pixel_changed", "lit_floor_eevee_slab_shadow_shows",
+        "lit_floor_envelope_has_a_floor_and_hides_behind_the_wall",
+        *[f"texture_alpha_{c}" for c in ("texture", "material", "alpha_ignored", "image_read_each_pass")],
     ],
     "cameras": [
         *[f"camera_scale_{t}_{c}" for t in ("small", "mirrored", "large", "nonuniform") for c in ("ignored", "truth")],
@@ -106,9 +109,9 @@ CHECKS = {
         "render_keys_written", "render_keys_are_the_frames_sets", "render_keys_objects_static",
         "render_keys_animation_pixel_identical", "render_keys_survive_reload", "render_keys_reloaded_sets",
         *[f"render_keys_removed_after_{e}" for e in ("move", "camera", "users_key", "engine", "wall_render_hidden",
-                                                      "wall_no_camera_rays", "wall_made_glass",
+                                                      "wall_no_camera_rays", "wall_made_glass", "never_cull",
                                                       "linked_into_another_scene", "clear",
-                                                      "rebake")],
+                                                      "rebake", "unreported_edits")],
         "render_keys_keep_users_keys", "render_keys_refused",
     ],
 }
