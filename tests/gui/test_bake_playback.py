@@ -3,7 +3,8 @@ legacy add-on): Bake Shot run as a click runs it (modal, the window drawing betw
 steps), then the animation played as fast as Blender draws, Use Baked Shot off and on
 (``tools/bench/gui_playback.py city-small --seconds 3 --modal``).  Every sampled draw with
 the bake on hides exactly the frame's baked set, in the view through the camera, and
-turning the bake off shows everything.  Timings are recorded, never asserted."""
+turning the bake off shows everything; Apply to Render's keys go when a setting Blender
+reports to no handler changes.  Timings are recorded, never asserted."""
 
 import os
 
@@ -41,3 +42,11 @@ def test_playback_hides_exactly_each_frames_baked_set(played):
     assert on["hidden_max"] > 0 and on["view_perspective"] == ["CAMERA"] and on["local_view"], on
     assert on["stale"] is None and on["known"], on
     assert r["after_off"]["hidden"] == 0, r["after_off"]
+
+
+def test_render_keys_go_in_the_window_when_a_setting_changes(played):
+    """Apply to Render, then Include Child Collections toggled (no depsgraph update reports
+    it): the window's poll removes the keys within a second."""
+    k = played[0]["render_keys_poll"]
+    assert k["applied"] == ["FINISHED"] and k["keyed"] and k["stood"], k
+    assert k["removed"], k

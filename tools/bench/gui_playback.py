@@ -269,6 +269,22 @@ def inside(out_path, scene_name, seconds, fps, modal=False):
         yield
         results["after_off"] = {"hidden": int(flags("occ_view_culled").sum()),
                                 "local_view": space.local_view is not None, "view_perspective": rv3d.view_perspective}
+        # Apply to Render, then a setting Blender reports to no handler (the add-on's settings
+        # have no update callbacks): the window's poll removes the keys
+        with bpy.context.temp_override(**ctx):
+            applied = sorted(bpy.ops.occ.bake_render())
+        keyed = bool(sc.occ_bake.render_keys)
+        for _ in range(10):
+            yield
+        stood = bool(sc.occ_bake.render_keys)
+        sc.occ.exclude_children = not sc.occ.exclude_children
+        waited = 0
+        while sc.occ_bake.render_keys and waited < 40:
+            yield
+            waited += 1
+        results["render_keys_poll"] = {"applied": applied, "keyed": keyed, "stood": stood,
+                                       "removed": not sc.occ_bake.render_keys, "turns": waited,
+                                       "note": sc.occ_bake.render_note}
 
     drive_in_window(run, results, out_path, 0.05)
 
