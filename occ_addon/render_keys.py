@@ -344,11 +344,18 @@ def _timer():
     return None
 
 
+def _to_check(scene) -> bool:
+    """Whether ``scene`` has keys to check now (not while the add-on bakes or renders a
+    baked shot: its own writes)."""
+    return scene is not None and bool(scene.occ_bake.render_keys) \
+        and not (bake.STATE.baking or bake.STATE.rendering)
+
+
 @persistent
 def on_depsgraph_update(scene, depsgraph):
     """An edit: the keys are checked again, right after it in a window (a timer: a drag
     asks once per step), at once headless (no timer runs there before a render)."""
-    if not scene.occ_bake.render_keys or bake.STATE.baking or bake.STATE.rendering:
+    if not _to_check(scene):
         return
     theirs = [u for u in depsgraph.updates if not _own(u)]
     if not theirs:
@@ -382,8 +389,7 @@ def poll() -> None:
     while a render runs (its thread reads the keys): the first poll after it."""
     context = bpy.context
     scene = context.scene
-    if scene is None or context.view_layer is None or not scene.occ_bake.render_keys \
-            or bake.STATE.baking or bake.STATE.rendering or bake._rendering():
+    if not _to_check(scene) or context.view_layer is None or bake._rendering():
         return
     key, uid = _unreported(context), identity.ident(scene)
     if _seen.get(uid) != key:
@@ -404,7 +410,7 @@ def setting_changed():
     """An add-on property with an update callback changed (:mod:`.bus`'s ``"setting"``: an
     object's "never cull"): checked as an update of the scene is (the cheap part)."""
     scene = bpy.context.scene
-    if scene is None or not scene.occ_bake.render_keys or bake.STATE.baking or bake.STATE.rendering:
+    if not _to_check(scene):
         return
     if bpy.app.background:
         recheck(bpy.context, full=False)
