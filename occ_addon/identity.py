@@ -6,8 +6,11 @@ add-on's per-object records (``Object.occ_culled``, ``Object.occ_view_culled``),
 identities of ``bpy.data.objects`` and its length are read once a pass
 (:func:`one_pass`): inside an operator's call no user action, undo or file load runs,
 every write of a record is :func:`store`'s, which keeps the memo current, and the
-length is read again after each update (:func:`evaluate`).  This module imports nothing
-of the add-on: every other module may use it.
+length is read again after each update (:func:`evaluate`).  The records are also kept
+from pass to pass (:func:`flags`), over the same identities in the same order: only the
+add-on writes them, and what replaces them (undo, redo, a file load) makes the session
+forget them (:func:`forget`).  This module imports nothing of the add-on: every other
+module may use it.
 """
 
 import contextlib
@@ -25,6 +28,14 @@ RECORDS = ("occ_culled", VIEW_RECORD)
 # action, undo or file load runs, and every write of a record is this module's
 # (:func:`store`), which keeps the memo current.
 _memo: dict | None = None
+# Across passes, each record as :func:`store` last wrote it or :func:`flags` last read it,
+# with the identities it was over (Blender 3.5+: session ids are never reused, so the
+# same array of them is the same objects in the same order).  No script or Blender
+# operation writes an add-on's record but the add-on (duplicates and appended objects
+# are new identities); undo, redo and file loads replace every object's data: the
+# session forgets the kept records then (:meth:`.session.Session.reset`).  Saves two
+# bulk reads of 24 ms each on every pass at 50,000 objects.
+_kept: dict[str, tuple[np.ndarray, np.ndarray]] = {}
 
 
 @contextlib.contextmanager
@@ -68,19 +79,46 @@ def after_update() -> None:
         _memo.pop("n", None)
 
 
+def forget() -> None:
+    """Undo, redo or a file load replaced Blender's data (or the add-on goes away): the
+    records kept across passes are read again."""
+    _kept.clear()
+
+
+def _recall(prop):
+    """The kept record ``prop``, if it was over the objects there are now (one bulk read
+    of their identities, within a pass shared with every other use)."""
+    kept = _kept.get(prop)
+    if kept is None:
+        return None
+    ids = uids()
+    return kept[1] if len(ids) == len(kept[0]) and np.array_equal(ids, kept[0]) else None
+
+
+def _keep(prop, values) -> None:
+    if HAS_SESSION_UID:
+        _kept[prop] = (uids(), values.copy())
+
+
 def flags(prop, collection=None):
     """``(n,) bool`` of a boolean property over ``collection`` (default ``bpy.data.objects``)."""
     objs = bpy.data.objects if collection is None else collection
-    memo = _memo if collection is None and prop in RECORDS else None
+    record = collection is None and prop in RECORDS
     n = count() if collection is None else len(objs)
-    if memo is not None:
-        hit = memo.get(prop)
-        if hit is not None and len(hit) == n:
+    if record:
+        hit = _memo.get(prop) if _memo is not None else None
+        if hit is None or len(hit) != n:
+            hit = _recall(prop)
+            if hit is not None and _memo is not None:
+                _memo[prop] = hit.copy()
+        if hit is not None:
             return hit.copy()
     out = np.zeros(n, dtype=bool)
     objs.foreach_get(prop, out)
-    if memo is not None:
-        memo[prop] = out.copy()
+    if record:
+        if _memo is not None:
+            _memo[prop] = out.copy()
+        _keep(prop, out)
     return out
 
 
@@ -111,6 +149,7 @@ def store(prop, values, at=None):
             setattr(items[i], prop, bool(values[i]))
     if _memo is not None:
         _memo[prop] = values.copy()
+    _keep(prop, values)
 
 
 # Blender 3.5+ gives every datablock a session id (kept by renames, never reused in a

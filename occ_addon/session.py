@@ -113,6 +113,7 @@ class Session:
     def reset(self) -> None:
         """Forget everything (a file was loaded, an undo or redo, or the add-on goes away):
         Blender may hand back the same session ids with other contents."""
+        identity.forget()
         self.discard()
         self.release()
         self.extractor = Extractor()

@@ -101,11 +101,26 @@ def records_read_once_a_pass():
     for extra in added:
         bpy.data.objects.remove(extra)
     ob = bpy.data.objects["b5"]
-    before = bool(ids.flags("occ_culled")[list(bpy.data.objects).index(ob)])
-    ob.occ_culled = not before                        # a script's write, outside any pass
-    seen = bool(ids.flags("occ_culled")[list(bpy.data.objects).index(ob)])
-    if seen == before:
-        bad.append("script write not seen outside a pass")
+
+    def record_of(o):
+        return bool(ids.flags("occ_culled")[list(bpy.data.objects).index(o)])
+
+    # kept across passes over the same objects (only the add-on writes a record); read
+    # again once the session forgets (undo, redo, a file load) or the objects differ
+    before = record_of(ob)
+    ob.occ_culled = not before                        # written behind the add-on's back
+    if record_of(ob) != before:
+        bad.append("a kept record was read again over the same objects")
+    ids.forget()
+    if record_of(ob) == before:
+        bad.append("a record not read again after forget (undo, load)")
+    ob.occ_culled = before
+    extra = box("kept_extra", (0, 9, 0), (1, 10, 1))
+    if record_of(ob) != before or not np.array_equal(ids.flags("occ_culled"), fresh("occ_culled")):
+        bad.append("a record kept over other objects")
+    bpy.data.objects.remove(extra)
+    if not np.array_equal(ids.flags("occ_culled"), fresh("occ_culled")):
+        bad.append("a record kept after an object was removed")
     ids.store("occ_culled", np.zeros(len(bpy.data.objects), dtype=bool))
     ids.store(ids.VIEW_RECORD, np.zeros(len(bpy.data.objects), dtype=bool))
     check("records_read_once_a_pass", not bad, bad[:5])
