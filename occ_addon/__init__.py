@@ -15,7 +15,7 @@ import sys
 
 import bpy
 
-from . import bake, handlers, live, localview, operators, panel, props, render_keys, visibility, worker
+from . import bake, handlers, identity, live, localview, operators, panel, props, render_keys, visibility, worker
 from .session import SESSION
 
 CLASSES = operators.CLASSES + panel.CLASSES
@@ -33,6 +33,7 @@ def register():
     render_keys.register()                           # after the bake's: its state is reset first
     live.register()                                  # live mode listens on the change bus
     if isinstance(bpy.data, bpy.types.BlendData):    # enabled on an open file: show what a record hides
+        identity.forget()                            # (records written while it was off: undo, redo)
         visibility.restore()
         # and render keys go: an edit made while the add-on was off was seen by nothing
         render_keys.remove("removed: the add-on was enabled on an open file (edits made while it was off "

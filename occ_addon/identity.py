@@ -65,6 +65,18 @@ def count() -> int:
     return n
 
 
+def objects() -> list:
+    """``bpy.data.objects.values()``: one list (indexing the collection walks it, O(i) a
+    call), made once within :func:`one_pass` and again after each update in it (see
+    :func:`count`)."""
+    if _memo is None:
+        return bpy.data.objects.values()
+    items = _memo.get("items")
+    if items is None or len(items) != count():
+        items = _memo["items"] = bpy.data.objects.values()
+    return items
+
+
 def evaluate(view_layer) -> None:
     """``view_layer.update()`` within a pass: every handler runs inside it (another
     add-on's may add or delete objects), so :func:`count` walks the list again after it."""
@@ -77,6 +89,7 @@ def after_update() -> None:
     walks the list again at its next call."""
     if _memo is not None:
         _memo.pop("n", None)
+        _memo.pop("items", None)
 
 
 def forget() -> None:
@@ -144,7 +157,7 @@ def store(prop, values, at=None):
     if at is None:
         bpy.data.objects.foreach_set(prop, values)
     else:
-        items = bpy.data.objects.values()          # one list; ListBase indexing is O(i) per call
+        items = objects()
         for i in at:
             setattr(items[i], prop, bool(values[i]))
     if _memo is not None:

@@ -40,7 +40,7 @@ import bpy
 import numpy as np
 
 from . import localview
-from .identity import VIEW_RECORD, flags, one_pass, store, uids
+from .identity import VIEW_RECORD, flags, objects, one_pass, store, uids
 
 # Shown again: re-evaluate transform, geometry and animation at the current frame.
 SHOW_TAG = {"OBJECT", "DATA", "TIME"}
@@ -141,7 +141,7 @@ def _set_bits(space, mask, state):
     idx = np.flatnonzero(mask)
     if not len(idx):
         return
-    items = bpy.data.objects.values()              # one list; ListBase indexing is O(i) per call
+    items = objects()
     for i in idx:                                  # O(changed): Blender tags once per update
         items[i].local_view_set(space, state)
     COUNT["changed"] += len(idx)
@@ -191,7 +191,7 @@ def apply(hide, view=None):
     if not localview.is_own(space):
         # in the user's local view: only its members are drawn there, only they are hidden
         # (``visible_get``: ``local_view_get`` can read a base Blender no longer draws)
-        items, layer = bpy.data.objects.values(), win.view_layer
+        items, layer = objects(), win.view_layer
         for i in np.flatnonzero(change & hide):
             if not items[i].visible_get(view_layer=layer, viewport=space):
                 hide[i] = change[i] = False
