@@ -5,6 +5,10 @@ Events (each listener is called with the event's arguments, in subscription orde
 
 - ``"changed"`` (): something changed that may change what is visible (an edit, a new
   frame, a setting, another view layer); not the view, which live mode polls.
+- ``"edited"`` (scene, data): an edit not the add-on's own, or a new frame; ``data``:
+  it touched a datablock beside the scene and its cameras (an object, its data, a
+  material, a light, a world, a collection), or Blender did not say what (a change of
+  the scene alone is a selection, a setting; a camera's moves the view through it).
 - ``"setting"`` (): an add-on property with an update callback changed (an object's
   "never cull"): Blender reports it to no depsgraph handler.
 - ``"camera"`` (scene): a frame change or an edit may have moved the scene camera.
@@ -19,7 +23,7 @@ when it unregisters.
 
 from collections.abc import Callable
 
-EVENTS = ("changed", "setting", "camera", "window", "loaded", "undone")
+EVENTS = ("changed", "edited", "setting", "camera", "window", "loaded", "undone")
 
 _listeners: dict[str, list[Callable[..., None]]] = {e: [] for e in EVENTS}
 

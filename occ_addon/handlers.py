@@ -40,6 +40,8 @@ def on_depsgraph_update(scene, depsgraph):
             or localview.layer_switched():
         localview.adopt()           # what joined the view layer is drawn in the add-on's local view
     _mark(depsgraph)
+    updates = depsgraph.updates
+    bus.emit("edited", scene, not len(updates) or _beside_scene(updates))
     bus.emit("camera", scene)       # the scene camera moved by an edit: as for a new frame
     bus.notify()
 
@@ -52,8 +54,21 @@ def on_frame_change(scene, depsgraph):
     SESSION.extractor.visibility_changed()
     if depsgraph is not None:
         _mark(depsgraph, edits=False)
+    # what the frame moved (nothing reported: nothing animated, the scene's frame only)
+    bus.emit("edited", scene, depsgraph is None or _beside_scene(depsgraph.updates))
     bus.emit("camera", scene)
     bus.notify()
+
+
+def _beside_scene(updates) -> bool:
+    """Whether the depsgraph's updates name a datablock beside the scene and its cameras
+    (a camera draws nothing: where one moves, the view through it moves, which the
+    listeners check as a view)."""
+    return any(not isinstance(u.id, VIEW_ONLY) and not (isinstance(u.id, bpy.types.Object) and u.id.type == "CAMERA")
+               for u in updates)
+
+
+VIEW_ONLY = (bpy.types.Scene, bpy.types.Camera)
 
 
 def _mark(depsgraph, edits=True):

@@ -38,7 +38,7 @@ import numpy as np
 from ..core import OccError
 from ..core.camera import camera_cut
 from ..core.motion import AT_REST, LiveLoop, MotionTracker, occluded_share
-from . import bus, overlay, visibility
+from . import bus, overlay, shading, visibility
 from .cameras import camera_for, find_viewport, region_camera, scene_camera, view_state
 from .passes import shown_by
 from .props import settings_key
@@ -78,7 +78,8 @@ class Watch:
     settings: tuple | None = None         # props.settings_key at the last tick (polled: no callbacks)
     changes: int = 0                      # changes the bus announced (a pass in flight lands only if none came)
     moving: bool = False                  # the view moved at the last tick
-    leaving: bool = False                 # a leave timer is registered
+    leaving: bool = False                 # a leave timer is registered ...
+    leave_for: int = -1                   # ... for the set of this SESSION.version
     region: int | None = None             # the watched 3D view's region data (:func:`track`) ...
     view_state: object = None             # ... and what it drew then (:func:`.cameras.view_state`)
     flight: Flight | None = None          # what the pass in flight was begun under, if live began it
@@ -136,13 +137,25 @@ def guard():
     camera = region_camera(rv3d)
     observe(camera)
     if _unsafe(camera) or _view_changed(context.space_data):
-        WATCH.leaving = True
+        _leave_soon()
+
+
+def _leave_soon():
+    """Show the hidden set on screen from a timer at once (data cannot change while
+    drawing, nor inside a handler's update); headless Blender runs no timers, and a
+    script that drives it calls :func:`_leave_timer` itself."""
+    WATCH.leaving = True
+    WATCH.leave_for = SESSION.version
+    if not bpy.app.background:
         bpy.app.timers.register(_leave_timer, first_interval=0.0)
 
 
 def _leave_timer():
+    if _busy():
+        return FLIGHT_POLL_S                       # after the add-on's own long work, or a render
     try:
-        leave()
+        if SESSION.version == WATCH.leave_for:    # else a newer set, made after it, holds
+            leave()
     except Exception:  # a timer must not raise: show everything instead
         traceback.print_exc()
         SESSION.shown = None
@@ -158,6 +171,44 @@ def leave(*_args):
     in flight may still land, and no motion pass waits for rest).  Live, the next tick
     starts a pass from the view where it is."""
     SESSION.show_all(bpy.context)
+
+
+def edited(scene, data):
+    """An edit not the add-on's own, or a new frame (a listener of the change bus;
+    ``data``: it touched a datablock beside the scene): a moved, deleted, reshaped,
+    re-lit or re-shaded object can uncover what a hidden set hides, so the set on screen
+    is shown before the next redraw, after a Cull click as in live mode (which culls
+    again once the scene rests).  A change of the scene alone (a selection, the active
+    object) or of a camera leaves it, unless the rule the pass was made under or the
+    scene camera it was made from changed with it (a view's own camera: the redraw
+    guard)."""
+    if SESSION.shown is None or WATCH.leaving or _busy():
+        return                                     # (an analysis, a bake, a render: their own frames)
+    if data or not _scene_holds(scene):
+        _leave_soon()
+
+
+def _busy():
+    """The add-on's own long work runs (its frames and updates are its own), or a render
+    job (no data may change under it)."""
+    running = getattr(bpy.app, "is_job_running", None)
+    return SESSION.busy is not None or bool(running and running("RENDER"))
+
+
+def _scene_holds(scene):
+    last, shown = SESSION.last, SESSION.shown
+    if last is None or shown.camera is None:
+        return False
+    context = bpy.context
+    if shading.rule(context).why != last.rule:
+        return False
+    if scene.occ.source != "CAMERA":
+        return True                     # the view: the redraw guard checks it
+    try:
+        camera, _ = scene_camera(context, scene)
+    except OccError:
+        return False
+    return np.array_equal(camera.projection, shown.camera.projection) and shown.envelope.holds(shown.camera, camera)
 
 
 def changed():
@@ -378,7 +429,8 @@ def uninstall():
 
 def _listens():
     """What live mode listens to on the change bus (:mod:`.bus`)."""
-    return (("changed", changed), ("camera", guard_camera), ("loaded", after_load), ("undone", resync))
+    return (("changed", changed), ("edited", edited), ("camera", guard_camera), ("loaded", after_load),
+            ("undone", resync))
 
 
 def register():

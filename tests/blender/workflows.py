@@ -156,6 +156,9 @@ NOT_EXERCISED = {
     "render_keys_poll": "timers never run headless: the render keys' poll of what changes without a "
                         "depsgraph update (the add-on's settings, view layers, markers) is called by hand "
                         "after every step, as the window's timer calls it",
+    "leave_timer": "timers never run headless: the timer by which an edit, a new frame or an undo shows the "
+                   "hidden set on screen (live.edited, the redraw guard) is called by hand after every "
+                   "step, as the window runs it before the next redraw",
     "message_bus": "the message bus is served by the window's event loop: the add-on's callback for a "
                    "window's view-layer switch (localview.on_window_change) is called by hand after one",
 }
@@ -2178,6 +2181,8 @@ def run_seed(w, steps, verbose=False, progress=None):
                 if kind not in NO_PUSH:
                     push_undo(w, kind)
                 bpy.context.view_layer.update()
+                if addon_enabled() and live_module().WATCH.leaving:
+                    live_module()._leave_timer()                 # the window's timer, before a redraw
                 problems += w.pending
                 w.pending = []
                 live = live_on()
@@ -2196,7 +2201,9 @@ def run_seed(w, steps, verbose=False, progress=None):
                 problems += check_state(w, after_restore=kind == "restore" or not addon_enabled())
                 baked = bake_on()
                 w.stats["bake_checks"] += baked
-                if (kind == "cull" and what.startswith("cull -> ['FINISHED']")) or (live and live_on()) or baked:
+                if (kind == "cull" and what.startswith("cull -> ['FINISHED']")) or (live and live_on()) or baked \
+                        or (addon_enabled() and any(hidden_by_addon(o) for o in bpy.context.scene.objects)):
+                    # every set on screen, after whatever step: a click's too, after an edit
                     problems += check_cull(w)
                 elif w.validate and kind.startswith("camera"):
                     problems += check_truth_camera(w)

@@ -65,6 +65,14 @@ def test_xray_turned_on_after_a_pass_gives_back_what_it_hid(results):
     assert (r["operator"], r["live"]) == (False, False), r
 
 
+def test_a_wall_moved_after_a_pass_gives_back_what_it_hid(results):
+    """A Cull click (and live mode) hid the box behind the wall; the wall is then moved
+    away (an edit, the view unchanged): the box is drawn again before the next redraws."""
+    r = results["occluder_moved_after_pass"]
+    assert r["operator_hid_first"] and r["live_hid_first"], r
+    assert (r["operator"], r["live"]) == (False, False), r
+
+
 def test_a_cull_from_one_view_leaves_the_other_drawing_everything(results):
     """Two views side by side: the box hidden behind the wall in one stays on the
     other's screen: its red pixels, as many as before the cull within a few edge pixels

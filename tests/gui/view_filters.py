@@ -17,6 +17,8 @@ timer, whose context has no 3D view), and records whether the box was hidden.
   guard, live mode's tick);
 - ``xray_after_pass``: X-ray turned on after a pass that hid the box behind the wall:
   the box must come back (the shading is part of what the guard watches);
+- ``occluder_moved_after_pass``: the wall moved away after a pass that hid the box
+  behind it: the box must come back (an edit shows the set on screen);
 - ``hidden_out_of_local_view``: a cube the add-on hid (behind the wall) is out of
   the local view that holds a second box, which it covers from the next view;
 - ``two_views``: two 3D views side by side; a cull from one leaves the other drawing
@@ -196,7 +198,7 @@ def run():
 
     # the wall as a curve, the view's curve filter off
     bpy.data.objects.remove(wall)
-    curve = curve_wall("wall_curve", (0.0, 0.0, 0.0), 3.0)
+    curve_wall("wall_curve", (0.0, 0.0, 0.0), 3.0)
 
     def curves_off():
         c.space.show_object_viewport_curve = False
@@ -241,6 +243,13 @@ def run():
 
     yield from changed_after_pass("xray_after_pass", lambda: xray(True), lambda: xray(False))
 
+    # the wall moved out of the way after a pass that hid the box behind it: an edit
+    # (the depsgraph handler, a timer before the next redraw), not a view change
+    def lift(z):
+        bpy.data.objects["wall_curve"].location.z = z
+
+    yield from changed_after_pass("occluder_moved_after_pass", lambda: lift(50.0), lambda: lift(0.0))
+
     # a cube the add-on hid behind a small wall, out of the local view of a second box
     # it covers from the next view
     clear_scene()
@@ -264,7 +273,6 @@ def run():
         c.restore()
         c.leave_local_view()
         yield
-    del curve
     yield from two_views(c)
 
 

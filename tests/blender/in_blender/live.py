@@ -309,3 +309,54 @@ def shown_again_after_an_unseen_edit():
     bpy.ops.occ.restore()
     check("live_shown_again_after_an_unseen_edit", r == {"FINISHED"} and hid and passes and drawn_now and not seen,
           (r, hid, passes, drawn_now, seen, dict(live.COUNTS)))
+
+
+def edits_show_the_set_on_screen():
+    """A Cull click's hidden set (live mode off) stops holding at an edit that can uncover
+    what it hides: the set is shown by the timer the edit's handler registers (called by
+    hand here, as the window runs it before the next redraw).  A selection keeps it; so
+    does a frame change that moves nothing.  Each step fails on a set left standing."""
+    live = addon("live")
+    scene = new_scene()
+    box("target", (3, -1, 0), (4, 1, 1))
+    cam2 = bpy.data.objects.new("cam2", bpy.data.cameras.new("cam2"))
+    scene.collection.objects.link(cam2)
+    cam2.location, cam2.rotation_euler = (-10.0, 0.0, 1.0), (math.pi / 2, 0.0, -math.pi / 2)
+    update()
+    wall = bpy.data.objects["wall"]
+    out = {}
+
+    def after(label, change, hidden_after):
+        """Cull, make ``change``, run the timer: the target hidden as ``hidden_after``,
+        and nothing hidden that the truth sees."""
+        if not hidden_by_addon("target"):
+            cull()
+        first = hidden_by_addon("target")
+        change()
+        update()
+        if live.WATCH.leaving:
+            live._leave_timer()
+        out[label] = (first, hidden_by_addon("target"), hidden_but_seen())
+        return first and hidden_by_addon("target") == hidden_after and not out[label][2]
+
+    def move_wall(dz):
+        wall.location.z += dz
+
+    def engine(name):
+        scene.render.engine = name
+
+    eevee = scene.render.engine
+    ok = [after("selection", lambda: bpy.data.objects["target"].select_set(True), True),
+          after("frame, nothing animated", lambda: scene.frame_set(scene.frame_current + 1), True),
+          after("wall moved away", lambda: move_wall(50.0), False)]
+    move_wall(-50.0)
+    ok += [after("wall deleted and undone by a new one", lambda: bpy.data.objects.remove(wall), False)]
+    wall = box("wall", (0, -6, -2), (0.5, 6, 6))
+    ok += [after("render engine", lambda: engine("CYCLES"), False)]
+    engine(eevee)
+    cam = scene.camera
+    ok += [after("scene camera moved", lambda: setattr(cam, "location", (-10.0, 0.05, 1.0)), False),
+           after("scene camera switched", lambda: setattr(scene, "camera", cam2), False),
+           after("render size", lambda: setattr(scene.render, "resolution_x", 200), False)]
+    bpy.ops.occ.restore()
+    check("edits_show_the_set_on_screen", all(ok), out)
