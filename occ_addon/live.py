@@ -142,10 +142,13 @@ def guard():
 
 def _leave_soon():
     """Show the hidden set on screen from a timer at once (data cannot change while
-    drawing, nor inside a handler's update); headless Blender runs no timers, and a
-    script that drives it calls :func:`_leave_timer` itself."""
+    drawing, nor inside a handler's update), unless a pass lands before it runs (a set
+    made after the change); headless Blender runs no timers, and a script that drives
+    it calls :func:`_leave_timer` itself."""
+    WATCH.leave_for = SESSION.version             # (a timer registered already: aimed at the set now)
+    if WATCH.leaving:
+        return
     WATCH.leaving = True
-    WATCH.leave_for = SESSION.version
     if not bpy.app.background:
         bpy.app.timers.register(_leave_timer, first_interval=0.0)
 
@@ -182,9 +185,14 @@ def edited(scene, data):
     object) or of a camera leaves it, unless the rule the pass was made under or the
     scene camera it was made from changed with it (a view's own camera: the redraw
     guard)."""
-    if SESSION.shown is None or WATCH.leaving or _busy():
+    if SESSION.shown is None or _busy():
         return                                     # (an analysis, a bake, a render: their own frames)
-    if data or not _scene_holds(scene):
+    try:
+        holds = not data and _scene_holds(scene)
+    except Exception:  # a handler must not raise: the set no longer holds
+        traceback.print_exc()
+        holds = False
+    if not holds:
         _leave_soon()
 
 
@@ -478,7 +486,11 @@ def after_load():
 
 def resync():
     """After undo or redo: the timer runs exactly when the restored flag says live,
-    and the restored scene is culled again."""
+    and the restored scene is culled again; what the restored data hides, hidden for a
+    view nobody recorded (:data:`.passes.UNKNOWN`), is shown before the next redraw
+    (from the scene camera too, which no redraw guard watches)."""
+    if SESSION.shown is not None and SESSION.shown.camera is None:
+        _leave_soon()
     scene = bpy.context.scene
     if scene is not None and scene.occ.live:
         _ensure_timer()

@@ -358,5 +358,26 @@ def edits_show_the_set_on_screen():
     ok += [after("scene camera moved", lambda: setattr(cam, "location", (-10.0, 0.05, 1.0)), False),
            after("scene camera switched", lambda: setattr(scene, "camera", cam2), False),
            after("render size", lambda: setattr(scene.render, "resolution_x", 200), False)]
+    scene.camera = cam
+    scene.render.resolution_x = 320
+
+    def undo_to_a_click():
+        """Undo to data saved while a click's set was hidden (a set nobody recorded now)."""
+        bpy.ops.ed.undo_push(message="culled")
+        bpy.ops.occ.restore()
+        bpy.ops.ed.undo_push(message="restored")
+        bpy.ops.ed.undo()
+
+    def edit_then_undo():
+        """An edit whose timer has not run yet, then an undo (one step: the emitter's
+        delete and its undo): the timer shows what the restored data hides."""
+        bpy.ops.ed.undo_push(message="culled")
+        bpy.data.objects["target"].location.x += 0.0
+        update()
+        bpy.ops.ed.undo_push(message="edited")
+        bpy.ops.ed.undo()
+
+    ok += [after("undo to a click's hiding", undo_to_a_click, False),
+           after("an edit, then an undo before the timer", edit_then_undo, False)]
     bpy.ops.occ.restore()
     check("edits_show_the_set_on_screen", all(ok), out)
