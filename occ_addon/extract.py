@@ -86,14 +86,18 @@ class Geometry:
     faces: np.ndarray
 
 
-def bulk_matrices(collection, prop: str) -> np.ndarray:
-    """``(n, 4, 4) float64`` of a matrix property over a whole collection, one ``foreach_get``.
+def bulk_matrices(collection, prop: str, index=None) -> np.ndarray:
+    """``(n, 4, 4) float64`` of a matrix property over a whole collection, one ``foreach_get``
+    (``index``: only those items' rows, taken before the conversion).
 
     Blender stores matrices column-major and in float32, so the float32 read is exact.
     """
     flat = np.empty(len(collection) * 16, dtype=np.float32)
     collection.foreach_get(prop, flat)
-    return flat.reshape(-1, 4, 4).transpose(0, 2, 1).astype(np.float64)
+    m = flat.reshape(-1, 4, 4)
+    if index is not None:
+        m = m[index]
+    return m.transpose(0, 2, 1).astype(np.float64)
 
 
 def world_matrix(obj) -> np.ndarray:
@@ -197,10 +201,10 @@ class Candidates:
         index = np.array(index, dtype=np.int64)
         self.culled = culled_all[index]
         self.stale = stale_all[index]
-        m = bulk_matrices(layer, "matrix_world")[index] if len(index) else np.zeros((0, 4, 4))
+        m = bulk_matrices(layer, "matrix_world", index) if len(index) else np.zeros((0, 4, 4))
         hidden = np.flatnonzero(stale_all[index])
         if len(hidden):                               # stale matrix_world: rebuilt from matrix_basis
-            m[hidden] = bulk_matrices(layer, "matrix_basis")[index[hidden]]
+            m[hidden] = bulk_matrices(layer, "matrix_basis", index[hidden])
             for k in hidden:
                 if info[int(uids_all[index[k]])].parented:   # through the parent chain
                     m[k] = world_matrix(objects[k])

@@ -356,6 +356,7 @@ def on_depsgraph_update(scene, depsgraph):
     """An edit: the keys are checked again, right after it in a window (a timer: a drag
     asks once per step), at once headless (no timer runs there before a render)."""
     if not _to_check(scene):
+        _edited_elsewhere(scene, depsgraph)
         return
     theirs = [u for u in depsgraph.updates if not _own(u)]
     if not theirs:
@@ -367,6 +368,21 @@ def on_depsgraph_update(scene, depsgraph):
         recheck(bpy.context, full)
     else:
         _later(full)
+
+
+# scenes with keys whose objects may have been edited from another scene's evaluation (an
+# object linked into both): each is checked in full at its next poll or render
+_edited_from_others: set = set()
+
+
+def _edited_elsewhere(scene, depsgraph) -> None:
+    """An edit evaluated for ``scene`` (no keys of its own) that names an object or data:
+    every other scene with keys may share it, and its own handler call never comes."""
+    if bake.STATE.baking or bake.STATE.rendering:
+        return
+    others = [s for s in bpy.data.scenes if s != scene and s.occ_bake.render_keys]
+    if others and any(not isinstance(u.id, bpy.types.Scene) and not _own(u) for u in depsgraph.updates):
+        _edited_from_others.update(identity.ident(s) for s in others)
 
 
 def _unreported(context) -> tuple:
@@ -392,9 +408,11 @@ def poll() -> None:
     if not _to_check(scene) or context.view_layer is None or bake._rendering():
         return
     key, uid = _unreported(context), identity.ident(scene)
-    if _seen.get(uid) != key:
+    if _seen.get(uid) != key or uid in _edited_from_others:
         _seen[uid] = key
-        recheck(context, full=False)
+        full = uid in _edited_from_others
+        _edited_from_others.discard(uid)
+        recheck(context, full=full)
 
 
 def _poll_timer():

@@ -429,10 +429,10 @@ def _glass(obj):
 
 
 def _unreported_edits_remove_keys(path):
-    """Edits Blender reports to no handler (the add-on's settings: no update callbacks)
-    leave the keys standing until the window's poll, a render in background mode or a
-    save checks them: each removes them (the edit alone did not: else this checks
-    nothing)."""
+    """Edits Blender reports to no handler of the keyed scene (the add-on's settings: no
+    update callbacks; an object moved while another scene that holds it is shown) leave
+    the keys standing until the window's poll, a render in background mode or a save
+    checks them: each removes them (the edit alone did not: else this checks nothing)."""
     def exclude():
         scene = bpy.context.scene
         scene.occ.exclude_collection = scene.collection.children[0] if len(scene.collection.children) \
@@ -442,7 +442,21 @@ def _unreported_edits_remove_keys(path):
     ways = {"poll": lambda: addon("render_keys").poll(),
             "render": lambda: bpy.ops.render.render(),
             "save": lambda: bpy.ops.wm.save_as_mainfile(filepath=out_path, copy=True)}
+    def moved_from_another_scene():
+        """The wall, linked into a second scene too, moved while the window shows that
+        scene: the edit's handler call is the second scene's."""
+        first, win = bpy.context.scene, bpy.context.window
+        other = bpy.data.scenes.new("other")
+        other.collection.objects.link(first.objects["wall"])
+        win.scene = other
+        update()
+        other.objects["wall"].location.z += 0.5
+        update()
+        win.scene = first
+        update()
+
     edits = {"cull_raytraced": lambda: setattr(bpy.context.scene.occ, "cull_raytraced", True),
+             "moved_from_another_scene": moved_from_another_scene,
              "exclude_collection": exclude,
              "exclude_children": lambda: setattr(bpy.context.scene.occ, "exclude_children",
                                                  not bpy.context.scene.occ.exclude_children)}
