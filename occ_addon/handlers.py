@@ -60,15 +60,15 @@ def on_frame_change(scene, depsgraph):
     bus.notify()
 
 
+VIEW_ONLY = (bpy.types.Scene, bpy.types.Camera)
+
+
 def _beside_scene(updates) -> bool:
     """Whether the depsgraph's updates name a datablock beside the scene and its cameras
     (a camera draws nothing: where one moves, the view through it moves, which the
     listeners check as a view)."""
     return any(not isinstance(u.id, VIEW_ONLY) and not (isinstance(u.id, bpy.types.Object) and u.id.type == "CAMERA")
                for u in updates)
-
-
-VIEW_ONLY = (bpy.types.Scene, bpy.types.Camera)
 
 
 def _mark(depsgraph, edits=True):

@@ -350,8 +350,8 @@ def edits_show_the_set_on_screen():
           after("frame, nothing animated", lambda: scene.frame_set(scene.frame_current + 1), True),
           after("wall moved away", lambda: move_wall(50.0), False)]
     move_wall(-50.0)
-    ok += [after("wall deleted and undone by a new one", lambda: bpy.data.objects.remove(wall), False)]
-    wall = box("wall", (0, -6, -2), (0.5, 6, 6))
+    ok += [after("wall deleted", lambda: bpy.data.objects.remove(wall), False)]
+    wall = box("wall", (0, -6, -2), (0.5, 6, 6))            # a new wall for the next steps
     ok += [after("render engine", lambda: engine("CYCLES"), False)]
     engine(eevee)
     cam = scene.camera
