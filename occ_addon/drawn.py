@@ -87,6 +87,22 @@ class NoView(Enum):
     BASE = "base"
 
 
+def base_shown(view_layer) -> list | None:
+    """What ``view_layer`` draws with no view (its eye, collection and monitor flags), as
+    one list (``context.visible_objects`` outside any 3D view); None where the context
+    cannot tell it (another view layer, or no override without a view)."""
+    context = bpy.context
+    if context.view_layer != view_layer:
+        return None
+    if context.area is None:
+        return context.visible_objects
+    try:
+        with context.temp_override(area=None, region=None):
+            return bpy.context.visible_objects
+    except (TypeError, RuntimeError):
+        return None
+
+
 def drawn(view_layer, uids_all: np.ndarray, space=None) -> np.ndarray:
     """``(n,) bool`` over ``view_layer.objects``: what Blender draws in 3D view ``space``
     (None: the context's 3D view, if any; :attr:`NoView.BASE`: no view, the view layer's eye,
@@ -96,16 +112,7 @@ def drawn(view_layer, uids_all: np.ndarray, space=None) -> np.ndarray:
     context = bpy.context
     found = None
     if space is NoView.BASE:                         # no view: the view layer's own visibility
-        shown = None
-        if context.view_layer == view_layer:
-            if context.area is None:
-                shown = context.visible_objects
-            else:
-                try:
-                    with context.temp_override(area=None, region=None):
-                        shown = bpy.context.visible_objects
-                except (TypeError, RuntimeError):    # no override without a view: one by one
-                    shown = None
+        shown = base_shown(view_layer)
         if shown is None:                            # one by one: the eye, collections, monitor
             ids = shown_by_collections(view_layer)
             return np.fromiter((user_shown(o, view_layer, ids) and not o.hide_viewport

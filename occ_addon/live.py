@@ -38,8 +38,9 @@ import numpy as np
 from ..core import OccError
 from ..core.camera import camera_cut
 from ..core.motion import AT_REST, LiveLoop, MotionTracker, occluded_share
-from . import bus, overlay, shading, visibility
+from . import bus, identity, overlay, shading, visibility
 from .cameras import camera_for, find_viewport, region_camera, scene_camera, view_state
+from .drawn import NoView, base_shown, drawn
 from .passes import shown_by
 from .props import settings_key
 from .session import POLICY, SESSION
@@ -182,9 +183,9 @@ def edited(scene, data):
     re-lit or re-shaded object can uncover what a hidden set hides, so the set on screen
     is shown before the next redraw, after a Cull click as in live mode (which culls
     again once the scene rests).  A change of the scene alone (a selection, the active
-    object) or of a camera leaves it, unless the rule the pass was made under or the
-    scene camera it was made from changed with it (a view's own camera: the redraw
-    guard)."""
+    object, an eye clicked) or of a camera leaves it, unless it changed the rule or the
+    lights the pass was made under, hid an object the pass left drawn, or moved the scene
+    camera it was made from (a view's own camera: the redraw guard)."""
     if SESSION.shown is None or _busy():
         return                                     # (an analysis, a bake, a render: their own frames)
     try:
@@ -204,11 +205,15 @@ def _busy():
 
 
 def _scene_holds(scene):
+    """Whether a change of the scene alone leaves the set on screen as it was made: the
+    same rule and lights, every object the pass left drawn still drawn (an eye clicked,
+    an object's or a collection's, is a change of the scene alone), and for the scene
+    camera, the same camera."""
     last, shown = SESSION.last, SESSION.shown
     if last is None or shown.camera is None:
         return False
     context = bpy.context
-    if shading.rule(context).why != last.rule:
+    if shading.key(shading.rule(context)) != last.rule_key or not _still_drawn(context.view_layer, last.drawn):
         return False
     if scene.occ.source != "CAMERA":
         return True                     # the view: the redraw guard checks it
@@ -217,6 +222,20 @@ def _scene_holds(scene):
     except OccError:
         return False
     return np.array_equal(camera.projection, shown.camera.projection) and shown.envelope.holds(shown.camera, camera)
+
+
+def _still_drawn(view_layer, uids) -> bool:
+    """Whether every object of ``uids`` (session ids) is drawn by ``view_layer`` (its
+    eye, collection and monitor flags; one list of what it draws)."""
+    if not len(uids):
+        return True
+    shown = base_shown(view_layer)
+    if shown is not None:
+        now = identity.idents(shown)
+    else:
+        layer_uids = identity.uids(view_layer.objects)
+        now = layer_uids[drawn(view_layer, layer_uids, NoView.BASE)]
+    return bool(np.isin(uids, now).all())
 
 
 def changed():

@@ -2,7 +2,7 @@
 pass's latency estimate) and the view its hidden set holds for (live mode checks
 every redraw against it)."""
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 from typing import NamedTuple
 
@@ -42,8 +42,10 @@ class LastPass:
     (:attr:`..core.CullResult.stats`); ms: the whole pass, Blender's update included;
     blender_ms: of it, Blender's own updates (the edits pending before the pass, and
     the hiding's); changed: how many objects' hiding the pass changed; triangles_hidden:
-    of the objects it hid; rule: what the view draws and the rule it set
-    (:class:`.policy.ShadingRule`).
+    of the objects it hid; rule: what the view draws and the rule it set, in words
+    (:class:`.shading.ViewRule`), and rule_key: all of that rule (:func:`.shading.key`);
+    drawn: ``(d,) int64`` the session ids of the objects it left drawn (the only
+    ones that can hide anything: while the set stands they must stay drawn).
 
     The panel and the overlay show these figures from here, not from ``scene.occ``: a
     pass writes nothing to the scene but its hiding (a property written tags the scene,
@@ -61,6 +63,8 @@ class LastPass:
     changed: int = 0
     triangles_hidden: int = 0
     rule: str = ""
+    rule_key: tuple = ()
+    drawn: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
     @cached_property
     def hidden_bounds(self) -> np.ndarray:

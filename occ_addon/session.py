@@ -505,7 +505,8 @@ class Session:
             self.last = LastPass(state, protected, scene.mesh_bounds[scene.mesh_of[hidden]], scene.matrices[hidden],
                                  result.occupancy, result.stats,
                                  1e3 * (time.perf_counter() - pending.started), 1e3 * blender_s, changed,
-                                 int(self.culler.scene.triangle_counts[hidden].sum()), pending.rule.why)
+                                 int(self.culler.scene.triangle_counts[hidden].sum()), pending.rule.why,
+                                 shading.key(pending.rule), held.uids[~(culled & ~protected)])
             self.shown = shown_by(result, pending.camera)
             self.version += 1
             return result, objects

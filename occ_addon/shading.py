@@ -48,6 +48,15 @@ class ViewRule:
     lights: list = field(default_factory=list)
 
 
+def key(rule: ViewRule) -> tuple:
+    """What of ``rule`` a hidden set holds under: its mode, its words and every light's
+    place, reach and size.  A light shown again by its eye, or Workbench's light turned
+    (``scene.display``), changes the shadows while the words stay as they were."""
+    return (rule.mode, rule.why, tuple((light.kind, tuple(light.position.tolist()), tuple(light.direction.tolist()),
+                                        light.radius, light.angle, light.reach, light.in_view)
+                                       for light in rule.lights))
+
+
 def _view_shading(context):
     found = find_viewport(context)
     return None if found is None else found[0].spaces.active.shading

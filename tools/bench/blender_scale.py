@@ -560,6 +560,19 @@ def child_main(args):
             result[f"turn_{turn:g}"] = {"seconds": med, "blender_s": float(np.median(blender)),
                                         "engine_wait_s": float(np.median(waits)), "addon_own_s": own,
                                         "changed": changed}
+        # a selection while the set stands: Blender's update, and in its handler the
+        # add-on's check that a change of the scene alone leaves the set as it was made
+        live, picked, checks = _addon("occ_addon.live"), bpy.context.scene.objects[:5], []
+        with Phase(rows, "5 selections while the set stands", base, prof):
+            for k, o in enumerate(picked):
+                o.select_set(k % 2 == 0)
+                bpy.context.view_layer.update()
+        for _ in range(5):
+            t = time.perf_counter()
+            live._scene_holds(scene)
+            checks.append(time.perf_counter() - t)
+        rows[-1]["note"] = (f"the set stands: {not live.WATCH.leaving}; the add-on's check alone "
+                            f"{1e3 * float(np.median(checks)):.1f} ms (median of 5)")
         with Phase(rows, "restore (the operator)", base, prof):
             bpy.ops.occ.restore()
         with Phase(rows, "restore: Blender's update after it", base, prof):

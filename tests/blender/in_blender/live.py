@@ -315,7 +315,9 @@ def edits_show_the_set_on_screen():
     """A Cull click's hidden set (live mode off) stops holding at an edit that can uncover
     what it hides: the set is shown by the timer the edit's handler registers (called by
     hand here, as the window runs it before the next redraw).  A selection keeps it; so
-    does a frame change that moves nothing.  Each step fails on a set left standing."""
+    does a frame change that moves nothing.  An eye clicked (the wall's, its collection's,
+    a second light's) is, as a selection, a change of the scene alone.  Each step fails
+    on a set left standing."""
     live = addon("live")
     scene = new_scene()
     box("target", (3, -1, 0), (4, 1, 1))
@@ -350,6 +352,29 @@ def edits_show_the_set_on_screen():
           after("frame, nothing animated", lambda: scene.frame_set(scene.frame_current + 1), True),
           after("wall moved away", lambda: move_wall(50.0), False)]
     move_wall(-50.0)
+    # an eye clicked is a change of the scene alone (a selection's kind of update)
+    ok += [after("wall hidden by its eye", lambda: wall.hide_set(True), False)]
+    wall.hide_set(False)
+    walls = bpy.data.collections.new("walls")
+    scene.collection.children.link(walls)
+    walls.objects.link(wall)
+    scene.collection.objects.unlink(wall)
+    layer_walls = bpy.context.view_layer.layer_collection.children["walls"]
+    ok += [after("the wall's collection hidden by its eye", lambda: setattr(layer_walls, "hide_viewport", True),
+                 False)]
+    layer_walls.hide_viewport = False
+    # under scene lights: a light shown by its eye casts new shadows, the rule's words the same
+    lamps = []
+    for name, at in (("lamp", (-10.0, 0.0, 5.0)), ("lamp2", (-10.0, 2.0, 5.0))):
+        lamp = bpy.data.objects.new(name, bpy.data.lights.new(name, "POINT"))
+        scene.collection.objects.link(lamp)
+        lamp.location = at
+        lamps.append(lamp)
+    update()
+    lamps[1].hide_set(True)
+    ok += [after("a second light shown by its eye", lambda: lamps[1].hide_set(False), False)]
+    for lamp in lamps:
+        bpy.data.objects.remove(lamp)
     ok += [after("wall deleted", lambda: bpy.data.objects.remove(wall), False)]
     wall = box("wall", (0, -6, -2), (0.5, 6, 6))            # a new wall for the next steps
     ok += [after("render engine", lambda: engine("CYCLES"), False)]
