@@ -73,6 +73,14 @@ def test_a_wall_moved_after_a_pass_gives_back_what_it_hid(results):
     assert (r["operator"], r["live"]) == (False, False), r
 
 
+def test_a_wall_hidden_by_its_eye_after_a_pass_gives_back_what_it_hid(results):
+    """The wall hidden with its eye after a pass that hid the box behind it: Blender
+    reports the eye as it reports a selection; the box is drawn again."""
+    r = results["occluder_eye_after_pass"]
+    assert r["operator_hid_first"] and r["live_hid_first"], r
+    assert (r["operator"], r["live"]) == (False, False), r
+
+
 def test_a_cull_from_one_view_leaves_the_other_drawing_everything(results):
     """Two views side by side: the box hidden behind the wall in one stays on the
     other's screen: its red pixels, as many as before the cull within a few edge pixels

@@ -19,6 +19,8 @@ timer, whose context has no 3D view), and records whether the box was hidden.
   the box must come back (the shading is part of what the guard watches);
 - ``occluder_moved_after_pass``: the wall moved away after a pass that hid the box
   behind it: the box must come back (an edit shows the set on screen);
+- ``occluder_eye_after_pass``: the wall hidden by its eye after a pass that hid the box
+  behind it: the box must come back (an eye clicked is a change of the scene alone);
 - ``hidden_out_of_local_view``: a cube the add-on hid (behind the wall) is out of
   the local view that holds a second box, which it covers from the next view;
 - ``two_views``: two 3D views side by side; a cull from one leaves the other drawing
@@ -249,6 +251,13 @@ def run():
         bpy.data.objects["wall_curve"].location.z = z
 
     yield from changed_after_pass("occluder_moved_after_pass", lambda: lift(50.0), lambda: lift(0.0))
+
+    # the wall hidden by its eye (the H key) after a pass: Blender reports it as it reports
+    # a selection, a change of the scene alone
+    def wall_eye(hide):
+        bpy.data.objects["wall_curve"].hide_set(hide)
+
+    yield from changed_after_pass("occluder_eye_after_pass", lambda: wall_eye(True), lambda: wall_eye(False))
 
     # a cube the add-on hid behind a small wall, out of the local view of a second box
     # it covers from the next view
