@@ -213,7 +213,8 @@ def _scene_holds(scene):
     if last is None or shown.camera is None:
         return False
     context = bpy.context
-    if shading.key(shading.rule(context)) != last.rule_key or not _still_drawn(context.view_layer, last.drawn):
+    space = _watched_space(context) if scene.occ.source == "VIEWPORT" else None
+    if shading.key(shading.rule(context)) != last.rule_key or not _still_drawn(context.view_layer, last.drawn, space):
         return False
     if scene.occ.source != "CAMERA":
         return True                     # the view: the redraw guard checks it
@@ -224,18 +225,31 @@ def _scene_holds(scene):
     return np.array_equal(camera.projection, shown.camera.projection) and shown.envelope.holds(shown.camera, camera)
 
 
-def _still_drawn(view_layer, uids) -> bool:
+def _still_drawn(view_layer, uids, space=None) -> bool:
     """Whether every object of ``uids`` (session ids) is drawn by ``view_layer`` (its
-    eye, collection and monitor flags; one list of what it draws)."""
+    eye, collection and monitor flags; one list of what it draws), and by 3D view
+    ``space`` if given (its own collections' eyes too, where it has local collections)."""
     if not len(uids):
         return True
-    shown = base_shown(view_layer)
+    shown = base_shown(view_layer) if space is None else None
     if shown is not None:
         now = identity.idents(shown)
     else:
         layer_uids = identity.uids(view_layer.objects)
-        now = layer_uids[drawn(view_layer, layer_uids, NoView.BASE)]
+        now = layer_uids[drawn(view_layer, layer_uids, NoView.BASE if space is None else space)]
     return bool(np.isin(uids, now).all())
+
+
+def _watched_space(context):
+    """The 3D view the redraw guard watches (the last pass's, :func:`track`), if open."""
+    wm = context.window_manager
+    if WATCH.region is None or wm is None:
+        return None
+    for area in (a for w in wm.windows for a in w.screen.areas if a.type == "VIEW_3D"):
+        rv3d = area.spaces.active.region_3d
+        if rv3d is not None and rv3d.as_pointer() == WATCH.region:
+            return area.spaces.active
+    return None
 
 
 def changed():

@@ -81,6 +81,15 @@ def test_a_wall_hidden_by_its_eye_after_a_pass_gives_back_what_it_hid(results):
     assert (r["operator"], r["live"]) == (False, False), r
 
 
+def test_a_wall_hidden_in_the_view_only_after_a_pass_gives_back_what_it_hid(results):
+    """With the view's own (local) collections, the wall's collection hidden in that view
+    only, after a pass that hid the box behind it: the box is drawn again."""
+    r = results["local_collection_eye_after_pass"]
+    assert [False, True] in r["hid_in_view_only"], r       # hidden in the view, drawn by the layer
+    assert r["operator_hid_first"] and r["live_hid_first"], r
+    assert (r["operator"], r["live"]) == (False, False), r
+
+
 def test_a_cull_from_one_view_leaves_the_other_drawing_everything(results):
     """Two views side by side: the box hidden behind the wall in one stays on the
     other's screen: its red pixels, as many as before the cull within a few edge pixels

@@ -21,6 +21,8 @@ timer, whose context has no 3D view), and records whether the box was hidden.
   behind it: the box must come back (an edit shows the set on screen);
 - ``occluder_eye_after_pass``: the wall hidden by its eye after a pass that hid the box
   behind it: the box must come back (an eye clicked is a change of the scene alone);
+- ``local_collection_eye_after_pass``: with the view's own (local) collections, the
+  wall's collection hidden in that view only after a pass: the box must come back;
 - ``hidden_out_of_local_view``: a cube the add-on hid (behind the wall) is out of
   the local view that holds a second box, which it covers from the next view;
 - ``two_views``: two 3D views side by side; a cull from one leaves the other drawing
@@ -214,7 +216,7 @@ def run():
     def changed_after_pass(name, change, undo):
         """A pass (a Cull click, then live mode) hides the box; ``change`` then makes the
         hidden set stop holding: the box must come back (the redraw guard, live's tick)."""
-        out = results[name] = {}
+        out = results.setdefault(name, {})
         for how in ("operator", "live"):
             undo()
             c.view(eye, target)
@@ -258,6 +260,40 @@ def run():
         bpy.data.objects["wall_curve"].hide_set(hide)
 
     yield from changed_after_pass("occluder_eye_after_pass", lambda: wall_eye(True), lambda: wall_eye(False))
+
+    # the view's own collections (local collections): the wall's collection hidden in this
+    # view only after a pass, with the view's own eye (a change of the scene alone)
+    walls = bpy.data.collections.new("walls")
+    bpy.context.scene.collection.children.link(walls)
+    wall_curve = bpy.data.objects["wall_curve"]
+    walls.objects.link(wall_curve)
+    bpy.context.scene.collection.objects.unlink(wall_curve)
+    c.space.use_local_collections = True
+
+    def layer_index(name):
+        """The view layer's collections counted depth first, its scene collection 0 (as
+        the operator counts them)."""
+        order = []
+
+        def walk(lc):
+            order.append(lc.name)
+            for child in lc.children:
+                walk(child)
+
+        walk(bpy.context.view_layer.layer_collection)
+        return order.index(name)
+
+    def walls_in_view(show):
+        if wall_curve.visible_get(viewport=c.space) != show:
+            with bpy.context.temp_override(**c.ctx):
+                bpy.ops.object.hide_collection(collection_index=layer_index("walls"), toggle=True)
+        results["local_collection_eye_after_pass"].setdefault("hid_in_view_only", []).append(
+            (wall_curve.visible_get(viewport=c.space), wall_curve.visible_get()))
+
+    results["local_collection_eye_after_pass"] = {}
+    yield from changed_after_pass("local_collection_eye_after_pass", lambda: walls_in_view(False),
+                                  lambda: walls_in_view(True))
+    c.space.use_local_collections = False
 
     # a cube the add-on hid behind a small wall, out of the local view of a second box
     # it covers from the next view
