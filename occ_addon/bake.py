@@ -62,7 +62,7 @@ from .identity import ident
 from .kinds import is_dynamic
 from .materials import see_through
 from .props import settings_key
-from .session import SESSION
+from .session import SESSION, rendering
 from .shading import rule as rule_of
 from .worker import Progress
 
@@ -779,15 +779,10 @@ def clear(scene) -> None:
 
 # --- handlers --------------------------------------------------------------------------
 
-def _rendering() -> bool:
-    running = getattr(bpy.app, "is_job_running", None)
-    return bool(running and running("RENDER"))
-
-
 @persistent
 def on_frame_change(scene, _depsgraph=None):
     """Apply the new frame's set before it draws."""
-    if STATE.baking or STATE.rendering or _rendering() or SESSION.busy:
+    if STATE.baking or STATE.rendering or rendering() or SESSION.busy:
         return
     context = bpy.context
     if context.scene is not scene or not scene.occ_bake.use:

@@ -14,7 +14,7 @@ from bpy.app.handlers import persistent
 from . import bus, localview, visibility
 from .identity import ident
 from .passes import UNKNOWN
-from .session import SESSION
+from .session import SESSION, rendering
 
 
 def on_window_change() -> None:
@@ -41,7 +41,8 @@ def on_depsgraph_update(scene, depsgraph):
         localview.adopt()           # what joined the view layer is drawn in the add-on's local view
     _mark(depsgraph)
     updates = depsgraph.updates
-    bus.emit("edited", scene, not len(updates) or _beside_scene(updates))
+    if len(updates) or not rendering():        # (a render job's start reports an update naming nothing)
+        bus.emit("edited", scene, not len(updates) or _beside_scene(updates))
     bus.emit("camera", scene)       # the scene camera moved by an edit: as for a new frame
     bus.notify()
 

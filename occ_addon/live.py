@@ -28,6 +28,7 @@ Headless Blender runs no timers: a script drives :func:`_tick` and lands the pas
 flight with :func:`settle`.
 """
 
+import threading
 import time
 import traceback
 from dataclasses import dataclass
@@ -43,7 +44,7 @@ from .cameras import camera_for, find_viewport, region_camera, scene_camera, vie
 from .drawn import NoView, base_shown, drawn
 from .passes import shown_by
 from .props import settings_key
-from .session import POLICY, SESSION
+from .session import POLICY, SESSION, rendering
 
 POLL_S = 0.1          # timer period at rest
 FLIGHT_POLL_S = 0.02  # ... while the view moves or a pass is in flight (its landing is polled)
@@ -185,9 +186,13 @@ def edited(scene, data):
     again once the scene rests).  A change of the scene alone (a selection, the active
     object, an eye clicked) or of a camera leaves it, unless it changed the rule or the
     lights the pass was made under, hid an object the pass left drawn, or moved the scene
-    camera it was made from (a view's own camera: the redraw guard)."""
-    if SESSION.shown is None or _busy():
-        return                                     # (an analysis, a bake, a render: their own frames)
+    camera it was made from (a view's own camera: the redraw guard).  During a render job
+    the render's own frames come from its thread and are no edit; an edit the user makes
+    meanwhile (on the main thread) shows the set once the render ends (the timer waits)."""
+    if SESSION.shown is None or SESSION.busy is not None:
+        return                                     # (an analysis, a bake: their own frames)
+    if rendering() and threading.current_thread() is not threading.main_thread():
+        return                                     # (a render's own frames, from its thread)
     try:
         holds = not data and _scene_holds(scene)
     except Exception:  # a handler must not raise: the set no longer holds
@@ -200,8 +205,7 @@ def edited(scene, data):
 def _busy():
     """The add-on's own long work runs (its frames and updates are its own), or a render
     job (no data may change under it)."""
-    running = getattr(bpy.app, "is_job_running", None)
-    return SESSION.busy is not None or bool(running and running("RENDER"))
+    return SESSION.busy is not None or rendering()
 
 
 def _scene_holds(scene):

@@ -550,6 +550,13 @@ def _close_built(job):
 SESSION = Session()
 
 
+def rendering() -> bool:
+    """Whether a render job runs (Blender calls its frame handlers from the render's own
+    thread, and its start reports an update of the window's depsgraph naming nothing)."""
+    running = getattr(bpy.app, "is_job_running", None)
+    return bool(running and running("RENDER"))
+
+
 def fit(display: Size, longest: int) -> Size:
     """Scale ``display`` (W, H) down so its longest side is at most ``longest``."""
     w, h = display

@@ -90,6 +90,16 @@ def test_a_wall_hidden_in_the_view_only_after_a_pass_gives_back_what_it_hid(resu
     assert (r["operator"], r["live"]) == (False, False), r
 
 
+def test_an_edit_during_a_render_shows_the_set_once_it_ends(results):
+    """A Cull click hid the box; a render job alone leaves it hidden (the render's frames
+    and its start are no edit); the wall hidden by its eye while the render runs shows
+    it once the render ends."""
+    r = results["edit_during_render"]
+    alone, edited = r["render alone"], r["wall's eye during the render"]
+    assert alone["hid_first"] and alone["rendered"] and alone["hidden_after"], r
+    assert edited["hid_first"] and edited["edited_while_rendering"] and not edited["hidden_after"], r
+
+
 def test_a_cull_from_one_view_leaves_the_other_drawing_everything(results):
     """Two views side by side: the box hidden behind the wall in one stays on the
     other's screen: its red pixels, as many as before the cull within a few edge pixels

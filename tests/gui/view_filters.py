@@ -23,6 +23,9 @@ timer, whose context has no 3D view), and records whether the box was hidden.
   behind it: the box must come back (an eye clicked is a change of the scene alone);
 - ``local_collection_eye_after_pass``: with the view's own (local) collections, the
   wall's collection hidden in that view only after a pass: the box must come back;
+- ``edit_during_render``: a Cull click's set, then a render job (Cycles): the set stands
+  after a render alone, and is shown once the render ends where the wall was hidden by its
+  eye during it;
 - ``hidden_out_of_local_view``: a cube the add-on hid (behind the wall) is out of
   the local view that holds a second box, which it covers from the next view;
 - ``two_views``: two 3D views side by side; a cull from one leaves the other drawing
@@ -294,6 +297,47 @@ def run():
     yield from changed_after_pass("local_collection_eye_after_pass", lambda: walls_in_view(False),
                                   lambda: walls_in_view(True))
     c.space.use_local_collections = False
+
+    # a render job (Cycles, the interface free): an edit the user makes during it (the wall's
+    # eye) shows the Cull click's set once the render ends; a render alone (its start reports
+    # an update naming nothing, its frames come from its own thread) keeps it
+    out = results["edit_during_render"] = {}
+    cam = bpy.data.objects.new("render_cam", bpy.data.cameras.new("render_cam"))
+    bpy.context.scene.collection.objects.link(cam)
+    cam.location, cam.rotation_euler = eye, (np.pi / 2, 0.0, 0.0)
+    bpy.context.scene.camera = cam
+    bpy.context.preferences.view.render_display_type = "NONE"
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    scene.render.resolution_x, scene.render.resolution_y = 160, 90
+    scene.cycles.samples = 1_000_000
+    scene.cycles.time_limit = 2.0
+    scene.cycles.use_denoising = False                    # (Debian's Blender has no OpenImageDenoise)
+    for label, edit in (("render alone", False), ("wall's eye during the render", True)):
+        c.view(eye, target)
+        yield
+        c.cull()
+        hid_first = hidden(box)
+        with bpy.context.temp_override(**c.ctx):
+            bpy.ops.render.render("INVOKE_DEFAULT")
+        edited = rendered = False
+        for _ in range(200):                              # until the render job ends (ticks of 0.2 s)
+            yield
+            running = bpy.app.is_job_running("RENDER")
+            rendered |= running
+            if running and edit and not edited:
+                wall_curve.hide_set(True)
+                edited = True
+            if not running and (edited or not edit):
+                break
+        for _ in range(5):                                # the leave timer, then redraws
+            yield
+        out[label] = {"hid_first": hid_first, "rendered": rendered, "edited_while_rendering": edited,
+                      "hidden_after": hidden(box)}
+        c.restore()
+        wall_curve.hide_set(False)
+        yield
+    scene.render.engine = "BLENDER_WORKBENCH"
 
     # a cube the add-on hid behind a small wall, out of the local view of a second box
     # it covers from the next view
