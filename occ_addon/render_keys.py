@@ -47,6 +47,7 @@ from . import bake, bus, identity
 from .keyed_camera import CHANNELS, _fcurves
 from .kinds import RENDER_KEYS, action_curves, is_dynamic, render_keys_only
 from .props import settings_key
+from .session import rendering
 
 CURVE = "hide_render"
 POLL_S = 0.25           # a window's poll of what changes the keys' hold without an update
@@ -405,7 +406,7 @@ def poll() -> None:
     while a render runs (its thread reads the keys): the first poll after it."""
     context = bpy.context
     scene = context.scene
-    if not _to_check(scene) or context.view_layer is None or bake._rendering():
+    if not _to_check(scene) or context.view_layer is None or rendering():
         return
     key, uid = _unreported(context), identity.ident(scene)
     if _seen.get(uid) != key or uid in _edited_from_others:
