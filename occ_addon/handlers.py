@@ -8,6 +8,8 @@ Undo, redo and file loads drop the session's caches; no file is saved with the
 add-on's hiding in it.
 """
 
+import threading
+
 import bpy
 from bpy.app.handlers import persistent
 
@@ -32,8 +34,8 @@ def on_depsgraph_update(scene, depsgraph):
     collections holding them); transforms are read in bulk every pass anyway.
     An object the user showed leaves the add-on's record here (every show is
     evaluated, so reported), before the user can hide it again."""
-    if SESSION.applying:
-        return
+    if SESSION.applying or threading.current_thread() is not threading.main_thread():
+        return                        # (our own hiding; a render's own evaluation, from its thread)
     SESSION.edited_elsewhere(scene, depsgraph)
     visibility.reconcile()
     if depsgraph.id_type_updated("SCENE") or depsgraph.id_type_updated("COLLECTION") \
@@ -51,7 +53,11 @@ def on_depsgraph_update(scene, depsgraph):
 def on_frame_change(scene, depsgraph):
     """Animation moved things: the same marks as an edit (the frame's depsgraph reports them).
     Animation changes values, not what objects are; but it can change hide flags
-    (keyframed collection visibility): the user-shown answers are asked again."""
+    (keyframed collection visibility): the user-shown answers are asked again.  A render
+    job's frames, which Blender announces from the render's own thread, are the render's:
+    nothing is read or written there."""
+    if threading.current_thread() is not threading.main_thread():
+        return
     SESSION.extractor.visibility_changed()
     if depsgraph is not None:
         _mark(depsgraph, edits=False)

@@ -191,7 +191,7 @@ def edited(scene, data):
     meanwhile (on the main thread) shows the set once the render ends (the timer waits)."""
     if SESSION.shown is None or SESSION.busy is not None:
         return                                     # (an analysis, a bake: their own frames)
-    if rendering() and threading.current_thread() is not threading.main_thread():
+    if threading.current_thread() is not threading.main_thread():
         return                                     # (a render's own frames, from its thread)
     try:
         holds = not data and _scene_holds(scene)
