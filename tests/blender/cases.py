@@ -37,7 +37,7 @@ CASES = (policy.user_hidden_objects, policy.dynamic_objects, cameras.camera_as_r
          policy.lit_renders_over_a_floor, policy.texture_alpha_workbench,
          live.camera_moves_between_ticks, live.live_cut_is_the_engines_camera_cut, live.passes_land_only_unchanged,
          live.live_keeps_no_set_made_for_another_view, live.shown_again_after_an_unseen_edit,
-         live.edits_show_the_set_on_screen,
+         live.edits_show_the_set_on_screen, live.render_thread_announcements_ignored,
          localview.hides_in_one_view, localview.new_objects_drawn, localview.users_local_view,
          localview.undo_and_files, analysis.keyed_camera_composes, analysis.keyed_camera_refused,
          analysis.keyed_camera_analysis, session.bulk_map_is_its_dict,

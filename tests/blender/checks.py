@@ -82,7 +82,7 @@ CHECKS = {
         "camera_moves_guarded_no_visible_hidden", "camera_moves_unguarded_would_hide_visible",
         "live_cut_is_the_engines_camera_cut", "live_passes_land_only_unchanged",
         "live_keeps_no_set_made_for_another_view", "live_shown_again_after_an_unseen_edit",
-        "edits_show_the_set_on_screen",
+        "edits_show_the_set_on_screen", "render_thread_announcements_ignored",
     ],
     "analysis": [
         "analyze_counts_hidden", "never_visible_exact", "analyze_unsaved_path_in_cwd",

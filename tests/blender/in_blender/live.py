@@ -4,6 +4,7 @@ guards the scene camera's motion between passes."""
 import io
 import math
 import os
+import threading
 from contextlib import redirect_stderr
 
 import bpy
@@ -406,3 +407,33 @@ def edits_show_the_set_on_screen():
            after("an edit, then an undo before the timer", edit_then_undo, False)]
     bpy.ops.occ.restore()
     check("edits_show_the_set_on_screen", all(ok), out)
+
+
+def render_thread_announcements_ignored():
+    """Blender announces a render job's frames from the render's own thread: the handlers
+    read and write nothing there (a show is a write of Blender data beside the render).
+    The same frame change from another thread leaves a Cull click's set and schedules
+    nothing; from the main thread it is an edit that names nothing, and shows the set (the
+    check can fail both ways)."""
+    live, handlers = addon("live"), addon("handlers")
+    scene = new_scene()
+    box("target", (3, -1, 0), (4, 1, 1))
+    update()
+    cull()
+    first = hidden_by_addon("target")
+
+    def announce():
+        handlers.on_frame_change(scene, None)
+        handlers.on_depsgraph_update(scene, bpy.context.evaluated_depsgraph_get())
+
+    worker = threading.Thread(target=announce)
+    worker.start()
+    worker.join()
+    from_thread = (live.WATCH.leaving, hidden_by_addon("target"))
+    announce()                                          # the main thread: a frame that names nothing
+    if live.WATCH.leaving:
+        live._leave_timer()
+    from_main = hidden_by_addon("target")
+    bpy.ops.occ.restore()
+    check("render_thread_announcements_ignored", first and from_thread == (False, True) and not from_main,
+          (first, from_thread, from_main))
