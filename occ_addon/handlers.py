@@ -8,15 +8,13 @@ Undo, redo and file loads drop the session's caches; no file is saved with the
 add-on's hiding in it.
 """
 
-import threading
-
 import bpy
 from bpy.app.handlers import persistent
 
 from . import bus, localview, visibility
 from .identity import ident
 from .passes import UNKNOWN
-from .session import SESSION, rendering
+from .session import SESSION, render_thread, rendering
 
 
 def on_window_change() -> None:
@@ -34,7 +32,7 @@ def on_depsgraph_update(scene, depsgraph):
     collections holding them); transforms are read in bulk every pass anyway.
     An object the user showed leaves the add-on's record here (every show is
     evaluated, so reported), before the user can hide it again."""
-    if SESSION.applying or threading.current_thread() is not threading.main_thread():
+    if SESSION.applying or render_thread():
         return                        # (our own hiding; a render's own evaluation, from its thread)
     SESSION.edited_elsewhere(scene, depsgraph)
     visibility.reconcile()
@@ -56,7 +54,7 @@ def on_frame_change(scene, depsgraph):
     (keyframed collection visibility): the user-shown answers are asked again.  A render
     job's frames, which Blender announces from the render's own thread, are the render's:
     nothing is read or written there."""
-    if threading.current_thread() is not threading.main_thread():
+    if render_thread():
         return
     SESSION.extractor.visibility_changed()
     if depsgraph is not None:

@@ -28,7 +28,6 @@ Headless Blender runs no timers: a script drives :func:`_tick` and lands the pas
 flight with :func:`settle`.
 """
 
-import threading
 import time
 import traceback
 from dataclasses import dataclass
@@ -44,7 +43,7 @@ from .cameras import camera_for, find_viewport, region_camera, scene_camera, vie
 from .drawn import NoView, base_shown, drawn
 from .passes import shown_by
 from .props import settings_key
-from .session import POLICY, SESSION, rendering
+from .session import POLICY, SESSION, render_thread, rendering
 
 POLL_S = 0.1          # timer period at rest
 FLIGHT_POLL_S = 0.02  # ... while the view moves or a pass is in flight (its landing is polled)
@@ -191,7 +190,7 @@ def edited(scene, data):
     meanwhile (on the main thread) shows the set once the render ends (the timer waits)."""
     if SESSION.shown is None or SESSION.busy is not None:
         return                                     # (an analysis, a bake: their own frames)
-    if threading.current_thread() is not threading.main_thread():
+    if render_thread():
         return                                     # (a render's own frames, from its thread)
     try:
         holds = not data and _scene_holds(scene)

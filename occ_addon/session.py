@@ -9,6 +9,7 @@ flags; the engine is rebuilt only when the set of objects, some geometry, the
 query resolution or the strategy changed.
 """
 
+import threading
 import time
 from collections.abc import Callable, Generator
 from dataclasses import dataclass
@@ -555,6 +556,13 @@ def rendering() -> bool:
     thread, and its start reports an update of the window's depsgraph naming nothing)."""
     running = getattr(bpy.app, "is_job_running", None)
     return bool(running and running("RENDER"))
+
+
+def render_thread() -> bool:
+    """Whether this call comes from a render job's own thread (a handler Blender calls
+    there): nothing may be read or written beside the render.  A script that drives
+    ``bpy`` from a thread of its own, with no render job, is not one."""
+    return threading.current_thread() is not threading.main_thread() and rendering()
 
 
 def fit(display: Size, longest: int) -> Size:

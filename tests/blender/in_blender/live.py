@@ -412,28 +412,41 @@ def edits_show_the_set_on_screen():
 def render_thread_announcements_ignored():
     """Blender announces a render job's frames from the render's own thread: the handlers
     read and write nothing there (a show is a write of Blender data beside the render).
-    The same frame change from another thread leaves a Cull click's set and schedules
-    nothing; from the main thread it is an edit that names nothing, and shows the set (the
-    check can fail both ways)."""
-    live, handlers = addon("live"), addon("handlers")
+    The render job is stood in for (``session.rendering``: none runs headless; a real one
+    is ``tests/gui``'s).  With one running, a frame change from another thread leaves a
+    Cull click's set and schedules nothing; with none (a script that drives bpy from a
+    thread of its own), the same call is an edit naming nothing and shows the set, as it
+    does from the main thread (the check can fail each way)."""
+    live, handlers, session = addon("live"), addon("handlers"), addon("session")
     scene = new_scene()
     box("target", (3, -1, 0), (4, 1, 1))
     update()
-    cull()
-    first = hidden_by_addon("target")
 
     def announce():
         handlers.on_frame_change(scene, None)
         handlers.on_depsgraph_update(scene, bpy.context.evaluated_depsgraph_get())
 
-    worker = threading.Thread(target=announce)
-    worker.start()
-    worker.join()
-    from_thread = (live.WATCH.leaving, hidden_by_addon("target"))
-    announce()                                          # the main thread: a frame that names nothing
-    if live.WATCH.leaving:
-        live._leave_timer()
-    from_main = hidden_by_addon("target")
+    def from_thread():
+        worker = threading.Thread(target=announce)
+        worker.start()
+        worker.join()
+
+    out = {}
+    for label, call, job in (("a render's thread", from_thread, True), ("a script's thread", from_thread, False),
+                             ("the main thread", announce, False)):
+        cull()
+        first = hidden_by_addon("target")
+        real = session.rendering
+        session.rendering = (lambda: True) if job else real
+        try:
+            call()
+        finally:
+            session.rendering = real
+        scheduled = live.WATCH.leaving
+        if scheduled:
+            live._leave_timer()
+        out[label] = (first, scheduled, hidden_by_addon("target"))
     bpy.ops.occ.restore()
-    check("render_thread_announcements_ignored", first and from_thread == (False, True) and not from_main,
-          (first, from_thread, from_main))
+    check("render_thread_announcements_ignored",
+          out == {"a render's thread": (True, False, True), "a script's thread": (True, True, False),
+                  "the main thread": (True, True, False)}, out)
