@@ -7,14 +7,18 @@
   (:func:`.materials.images_with_alpha`): what is behind shows through, so nothing
   occluded is hidden (what is outside the view still is; with shadows on, their casters
   are kept as under lights).  A see-through material (glass, alpha, a material's
-  own backface culling) makes its object no occluder in every mode (:mod:`.materials`).
+  own backface culling) makes its object no occluder in every mode (:mod:`.materials`);
+  a see-through material override of the view layer, drawn on every object by EEVEE and
+  Cycles (not by Workbench: measured), is X-ray there.
 - Scene lights (Material Preview or Rendered with scene lights, EEVEE for the
   camera; Solid with shadows, whose light is ``scene.display.light_direction`` in
   view space):
   an object also shows through its shadow, so every object whose shadow volume
   may hold a point that is seen is kept (:mod:`..core.lights`).  A world that
   extracts a sun from an image (``world.use_sun_shadow`` with an image or sky
-  texture) shadows from a direction nobody can read here: nothing is hidden.
+  texture; the scene's world or the view layer's override) shadows from a direction
+  nobody can read here: nothing is hidden.  The lights are those the view layer drawn
+  shows (the context's: the window's, the one rendered).
 - Ray tracing (Cycles, any engine this add-on does not know, EEVEE with ray
   tracing on): reflections and light from hidden objects reach the screen, so
   nothing is hidden unless the user opts in (``scene.occ.cull_raytraced``).
@@ -30,7 +34,7 @@ from ..core.lights import Light
 from ..core.tolerance import tol
 from . import identity
 from .cameras import find_viewport
-from .materials import images_with_alpha
+from .materials import images_with_alpha, material_see_through
 
 EEVEE = ("BLENDER_EEVEE", "BLENDER_EEVEE_NEXT")
 WORKBENCH = "BLENDER_WORKBENCH"
@@ -63,15 +67,16 @@ def _view_shading(context):
 
 
 def rule(context, source=None):
-    """The rule for what ``source`` ("VIEWPORT" or "CAMERA", default the setting) draws."""
-    scene = context.scene
+    """The rule for what ``source`` ("VIEWPORT" or "CAMERA", default the setting) draws,
+    in the context's view layer (the window's: its lights, its overrides)."""
+    scene, layer = context.scene, context.view_layer
     source = source or scene.occ.source
     engine = scene.render.engine
     if source == "CAMERA":
-        return _render_rule(scene, engine, True, True)
+        return _render_rule(scene, layer, engine, True, True)
     shading = _view_shading(context)
     if shading is None:                        # headless: what the camera renders
-        return _render_rule(scene, engine, True, True)
+        return _render_rule(scene, layer, engine, True, True)
     kind = shading.type
     if kind == "WIREFRAME":
         if shading.show_xray_wireframe and shading.xray_alpha_wireframe > 0.0:
@@ -80,17 +85,32 @@ def rule(context, source=None):
     if kind == "SOLID":
         return _workbench_rule(scene, shading, "Solid")
     if kind == "MATERIAL":
-        return _eevee_rule(scene, shading.use_scene_lights, shading.use_scene_world, "Material Preview")
-    return _render_rule(scene, engine, shading.use_scene_lights_render, shading.use_scene_world_render)
+        return _overridden(scene, layer, _eevee_rule(scene, layer, shading.use_scene_lights,
+                                                     shading.use_scene_world, "Material Preview"))
+    return _render_rule(scene, layer, engine, shading.use_scene_lights_render, shading.use_scene_world_render)
 
 
-def _render_rule(scene, engine, scene_lights, scene_world):
-    if engine in EEVEE:
-        return _eevee_rule(scene, scene_lights, scene_world, "EEVEE")
-    if engine == WORKBENCH:
+def _render_rule(scene, layer, engine, scene_lights, scene_world):
+    if engine == WORKBENCH:                    # Workbench draws no material override (measured: 5.0, 4.2)
         return _workbench_rule(scene, scene.display.shading, "Workbench")
+    if engine in EEVEE:
+        return _overridden(scene, layer, _eevee_rule(scene, layer, scene_lights, scene_world, "EEVEE"))
     name = "Cycles" if engine == "CYCLES" else engine
-    return ViewRule("raytraced", f"{name} traces rays: reflections and light from hidden objects show")
+    return _overridden(scene, layer, ViewRule("raytraced",
+                                              f"{name} traces rays: reflections and light from hidden objects show"))
+
+
+def _overridden(scene, layer, base):
+    """``base``, or X-ray where the view layer draws every object with one material
+    (``ViewLayer.material_override``, drawn by EEVEE and Cycles) that may show what is
+    behind it (:func:`.materials.material_see_through`).  Under ray tracing nothing is
+    hidden anyway, unless the user opted in to culling there."""
+    over = getattr(layer, "material_override", None)
+    if over is None or not material_see_through(over):
+        return base
+    if base.mode == "raytraced" and not scene.occ.cull_raytraced:
+        return base
+    return ViewRule("xray", "The view layer's material override may show what is behind", base.lights)
 
 
 def _workbench_rule(scene, shading, label):
@@ -114,14 +134,15 @@ def _workbench_rule(scene, shading, label):
     return ViewRule("depth", label)
 
 
-def _eevee_rule(scene, scene_lights, scene_world, label):
+def _eevee_rule(scene, layer, scene_lights, scene_world, label):
     if getattr(scene.eevee, "use_raytracing", False) or getattr(scene.eevee, "use_ssr", False):
         return ViewRule("raytraced", f"{label} with ray tracing: reflections of hidden objects show")
     lights = []
-    if scene_world and _world_sun(scene.world):
+    # the view layer's world (``world_override``, 4.2+) in place of the scene's: either
+    if scene_world and (_world_sun(scene.world) or _world_sun(getattr(layer, "world_override", None))):
         return ViewRule("lit", f"{label}: the world casts sun shadows from its image", [Light("everywhere")])
     if scene_lights:
-        lights = scene_lights_of(scene)
+        lights = scene_lights_of(scene, layer)
     if lights:
         return ViewRule("lit", f"{label} with scene lights: shadow casters kept", lights)
     return ViewRule("depth", label)
@@ -139,13 +160,13 @@ LIGHT_TYPE = bpy.types.Object.bl_rna.properties["type"].enum_items["LIGHT"].valu
 BULK_ENUMS = bpy.app.version >= (4, 2, 0)
 
 
-def scene_lights_of(scene):
-    """Every light object drawn in the scene's view layer that casts shadows, as
+def scene_lights_of(scene, layer):
+    """Every light object drawn in ``layer`` (a view layer of ``scene``: the window's, whose
+    lights the view draws, or the one rendered) that casts shadows, as
     :class:`..core.lights.Light` (world space)."""
     out = []
     if not any(light.use_shadow for light in bpy.data.lights):    # no light data that casts shadows
         return out
-    layer = scene.view_layers[0] if scene.view_layers else None
     found = scene.objects
     if BULK_ENUMS and layer is not None:
         # the lights' positions in bpy.data.objects, from one bulk read of every object's

@@ -317,7 +317,8 @@ def edits_show_the_set_on_screen():
     what it hides: the set is shown by the timer the edit's handler registers (called by
     hand here, as the window runs it before the next redraw).  A selection keeps it; so
     does a frame change that moves nothing.  An eye clicked (the wall's, its collection's,
-    a second light's) is, as a selection, a change of the scene alone.  Each step fails
+    a second light's) is, as a selection, a change of the scene alone; so is a material
+    override set on the view layer.  Each step fails
     on a set left standing."""
     live = addon("live")
     scene = new_scene()
@@ -376,6 +377,12 @@ def edits_show_the_set_on_screen():
     ok += [after("a second light shown by its eye", lambda: lamps[1].hide_set(False), False)]
     for lamp in lamps:
         bpy.data.objects.remove(lamp)
+    # the view layer's material override made see-through (EEVEE draws it on every object)
+    glassy = bpy.data.materials.new("glassy")
+    glassy.diffuse_color = (1.0, 1.0, 1.0, 0.3)
+    layer = bpy.context.view_layer
+    ok += [after("a see-through material override", lambda: setattr(layer, "material_override", glassy), False)]
+    layer.material_override = None
     ok += [after("wall deleted", lambda: bpy.data.objects.remove(wall), False)]
     wall = box("wall", (0, -6, -2), (0.5, 6, 6))            # a new wall for the next steps
     ok += [after("render engine", lambda: engine("CYCLES"), False)]
