@@ -159,6 +159,8 @@ def kind(obj) -> Kind | None:
     if obj.type == "EMPTY" and is_collection_instance(obj):
         if obj.display_type not in SOLID_DISPLAY or obj.show_in_front:
             return None                   # its instances are drawn as it is (wire, bounds, in front)
+        if not getattr(obj, "visible_camera", True):
+            return None                   # camera rays may pass through its instances too
         return Kind.COLLECTION
     return None
 

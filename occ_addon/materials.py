@@ -13,7 +13,8 @@ mode, since the rule must hold in every one and a mode switch re-reads nothing:
   holdout, Principled with alpha 1 and no transmission, EEVEE's Specular without
   transparency, all of those through mix and add nodes), with nothing on its volume
   input.  Anything else (transparent, glass, refraction, a ray portal, a node group, an
-  unlinked shader socket, an alpha driven by a texture) is taken as see-through.
+  unlinked shader socket, an alpha driven by a texture) is taken as see-through.  An
+  object camera rays do not see (``visible_camera`` off) is not drawn there at all.
 
 Workbench's Texture color draws each material's image with the image's own alpha, whatever
 its node tree does with it (measured: 4.2, 5.0): :func:`images_with_alpha` tells whether any
@@ -143,7 +144,10 @@ def material_see_through(mat) -> bool:
 
 
 def see_through(obj) -> bool:
-    """Whether ``obj`` may let what is behind it show (its object color, its materials)."""
-    if obj.color[3] < 1.0:
+    """Whether ``obj`` may let what is behind it show: its object color, its materials, or
+    camera rays that pass through it (``visible_camera`` off: EEVEE from 4.2 and Cycles draw
+    nothing of it, in the render and in the Rendered view; measured in EEVEE's render, bpy
+    4.2 and 5.0)."""
+    if obj.color[3] < 1.0 or not getattr(obj, "visible_camera", True):
         return True
     return any(material_see_through(s.material) for s in obj.material_slots)

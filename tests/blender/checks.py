@@ -26,6 +26,7 @@ CHECKS = {
         "rules_xray_hides_nothing_occluded", "rules_workbench_backface_culling_hides_nothing_occluded",
         "see_through_opaque_walls_occlude", "see_through_walls_occlude_nothing", "see_through_crate_shows_in_render",
         "see_through_after_edit_shown", "see_through_instance_member_occludes_nothing",
+        "see_through_camera_rays_after_edit_shown",
         "lights_none_without_shadow", "lights_found_in_scene", "lights_other_scene_kept_apart",
         "lit_eevee_no_pixel_changed", "lit_eevee_slab_shadow_shows",
         "lit_workbench_no_pixel_changed", "lit_workbench_slab_shadow_shows",

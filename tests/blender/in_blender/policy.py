@@ -554,7 +554,18 @@ def _see_through(name, how):
 
 
 SEE_THROUGH = ("alpha", "transmission", "glass", "mix_transparent", "viewport_alpha", "backface", "volume",
-               "object_alpha")
+               "object_alpha", "camera_rays")
+
+
+def _let_through(obj, how):
+    """Make ``obj`` let what is behind it show, one of :data:`SEE_THROUGH`'s ways (or an
+    opaque material: ``opaque``, ``mix_opaque``)."""
+    if how == "object_alpha":
+        obj.color[3] = 0.5
+    elif how == "camera_rays":                          # EEVEE (4.2+) and Cycles draw nothing of it
+        obj.visible_camera = False
+    else:
+        obj.data.materials.append(_see_through(how, how))
 
 
 def _eevee(scene):
@@ -567,19 +578,16 @@ def _eevee(scene):
 def see_through_materials():
     """A wall whose material may show what is behind it (alpha, transmission, glass, a
     transparent mix, a volume, Workbench's viewport alpha, backface culling, the object's
-    color alpha) occludes nothing, in any engine; opaque walls still do; a wall made
-    transparent after a pass shows what it hid at the next; a collection instance's
-    glass member occludes nothing; and the renders say the crate is seen through those walls."""
+    color alpha, camera rays that pass through it) occludes nothing, in any engine; opaque
+    walls still do; a wall made transparent after a pass shows what it hid at the next; a
+    collection instance's glass member occludes nothing, nor one (or the instance) that
+    camera rays pass through; and the renders say the crate is seen through those walls."""
     hid = {}
     for how in ("opaque", "mix_opaque") + SEE_THROUGH:
         scene = new_scene()
         _eevee(scene)
         box("crate", (2, -1, 0), (3, 1, 1.5))
-        wall = bpy.data.objects["wall"]
-        if how == "object_alpha":
-            wall.color[3] = 0.5
-        else:
-            wall.data.materials.append(_see_through(how, how))
+        _let_through(bpy.data.objects["wall"], how)
         update()
         r, _ = cull()
         hid[how] = (r, hidden_by_addon("crate"))
@@ -587,26 +595,11 @@ def see_through_materials():
           hid)
     check("see_through_walls_occlude_nothing", all(hid[h] == ({"FINISHED"}, False) for h in SEE_THROUGH), hid)
     shows = {}
-    for how, engine in (("alpha", "eevee"), ("mix_transparent", "eevee"), ("viewport_alpha", "workbench")):
-        scene = new_scene()
-        _eevee(scene)
-        scene.render.resolution_x, scene.render.resolution_y = 160, 90
-        if engine == "workbench":
-            scene.render.engine = "BLENDER_WORKBENCH"
-            scene.display.shading.color_type = "MATERIAL"
-        crate = box("crate", (2, -1, 0), (3, 1, 1.5))
-        glow = bpy.data.materials.new("glow")             # (no world, no light: the crate lights itself)
-        glow.use_nodes = True
-        nodes = glow.node_tree.nodes
-        glow.node_tree.links.new(nodes.new("ShaderNodeEmission").outputs[0],
-                                 nodes.get("Material Output").inputs["Surface"])
-        glow.diffuse_color = (1.0, 1.0, 1.0, 1.0)
-        crate.data.materials.append(glow)
-        bpy.data.objects["wall"].data.materials.append(_see_through(how, how))
-        a = _render(os.path.join(WORK, f"see_{how}_a.png"))
-        bpy.data.objects["crate"].hide_render = True
-        b = _render(os.path.join(WORK, f"see_{how}_b.png"))
-        shows[how] = int((np.abs(a - b) > 2.0 / 255.0).any(axis=2).sum())
+    for how, engine in (("alpha", "eevee"), ("mix_transparent", "eevee"), ("viewport_alpha", "workbench"),
+                        ("camera_rays", "eevee")):
+        _crate_scene(engine)
+        _let_through(bpy.data.objects["wall"], how)
+        shows[how] = _changed(*_crate_renders(f"see_{how}"))
     check("see_through_crate_shows_in_render", all(n > 0 for n in shows.values()), shows)
     scene = new_scene()
     box("crate", (2, -1, 0), (3, 1, 1.5))
@@ -636,6 +629,19 @@ def see_through_materials():
     cull()
     check("see_through_instance_member_occludes_nothing", opaque and not hidden_by_addon("crate"),
           (opaque, hidden_by_addon("crate")))
+    # camera rays turned off after a pass: the member's, the instancer's
+    pane.data.materials[0] = _see_through("pane_opaque_again", "opaque")
+    rays = {}
+    for label, obj in (("opaque", None), ("member", pane), ("instancer", inst)):
+        if obj is not None:
+            obj.visible_camera = False
+        update()
+        cull()
+        rays[label] = hidden_by_addon("crate")
+        if obj is not None:
+            obj.visible_camera = True
+    check("see_through_camera_rays_after_edit_shown", rays == {"opaque": True, "member": False, "instancer": False},
+          rays)
 
 
 def _render(path):
