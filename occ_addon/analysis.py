@@ -22,6 +22,7 @@ from ..core import Visibility, repeatable
 from ..core import analysis as report
 from . import keyed_camera, policy
 from .cameras import scene_camera
+from .drawn import left_out_of_render
 from .session import SESSION
 from .shading import rule as rule_of
 from .worker import Progress, quiet
@@ -148,6 +149,11 @@ def analysis_steps(context, frames: list[int], path: str, rule: str = "seen",
             vis = result.state == Visibility.VISIBLE          # one array compare, no per-object enum
             if view_rule is not None:          # shadow casters are the engine's (given the lights)
                 vis |= policy.drawn_beyond_depth(view_rule, result.state, scene.occ.cull_raytraced)
+                # an occluder in view that the render leaves out (its own or its
+                # collection's render hide) shows the render what it covers: every
+                # occluded object counts as seen (one hidden or outside occludes nothing alone)
+                if ((result.state == Visibility.VISIBLE) & left_out_of_render(context.view_layer, held.uids)).any():
+                    vis |= result.state == Visibility.OCCLUDED
             policy.widen_instances(objects, instances + emitting, vis)
             if SESSION.extractor.beyond:        # instances drawn as wire, bounds, ...: seen where drawn
                 vis |= np.isin(held.uids, np.fromiter(SESSION.extractor.beyond, dtype=np.int64))

@@ -57,6 +57,7 @@ from ..core.frustum import classify, planes_from_matrix
 from ..core.playback import PlaybackCost
 from . import analysis, identity, localview, policy, visibility
 from .cameras import scene_camera
+from .drawn import hidden_by_own_keys, rendered_by_collections
 from .fingerprints import _mesh_fingerprint
 from .identity import ident
 from .kinds import is_dynamic
@@ -345,29 +346,13 @@ def check(context, baked: Baked, want: str | None = None) -> str | None:
     return None
 
 
-def _rendered(view_layer) -> np.ndarray:
-    """Sorted identities of the objects the view layer renders to the camera by their
-    collections: in a collection not excluded, not indirect only, not hidden from the
-    render, and its parents neither."""
-    found = []
-    stack = [view_layer.layer_collection]
-    while stack:
-        lc = stack.pop()
-        c = lc.collection
-        if lc.exclude or getattr(lc, "indirect_only", False) or getattr(c, "hide_render", False):
-            continue
-        found.append(identity.uids(c.objects))
-        stack.extend(lc.children)
-    return np.unique(np.concatenate(found)) if found else np.zeros(0, dtype=np.int64)
-
-
 def render_reason(context, baked: Baked) -> str | None:
     """Why the render would not draw what the bake culled against, or None: every object a
     bake held renders to the camera (its own render hide off and not animated, seen by
     camera rays, in a collection the view layer renders).  The bake reads the viewport;
     an occluder the render leaves out would show what it hid.  In bulk but for the
     objects that carry animation."""
-    from .kinds import RENDER_KEYS, action_curves
+    from .kinds import action_curves
     ids = numbers()
     at = np.flatnonzero(usable(ids) & (ids < len(baked.held)))
     at = at[baked.held[ids[at]]]
@@ -377,18 +362,17 @@ def render_reason(context, baked: Baked) -> str | None:
         rays = np.zeros(len(objs), dtype=bool)
         objs.foreach_get("visible_camera", rays)
         off |= ~rays
-    out = ~np.isin(identity.uids()[at], _rendered(context.view_layer))
+    out = ~np.isin(identity.uids()[at], rendered_by_collections(context.view_layer))
     items = objs.values()
     for i in at[off[at] | out].tolist():          # (hidden by the add-on's own keys: not left out)
-        ad = items[i].animation_data
-        if out[np.searchsorted(at, i)] or ad is None or ad.action is None or ad.action.get(RENDER_KEYS) is None:
+        if out[np.searchsorted(at, i)] or not hidden_by_own_keys(items[i]):
             return (f"'{items[i].name}' is culled against in the viewport but left out of the render (its own "
                     "or its collection's render visibility): render it, or hide it in the viewport too, and bake again")
     for i in at.tolist():
         if see_through(items[i]):                  # made see-through since: it hides nothing now
-            return f"'{items[i].name}' is see-through now (its materials)"
+            return f"'{items[i].name}' is see-through now (its materials, or camera rays pass through it)"
         ad = items[i].animation_data
-        if ad is None or (ad.action is not None and ad.action.get(RENDER_KEYS) is not None):
+        if ad is None or hidden_by_own_keys(items[i]):
             continue
         curves = list(ad.drivers)
         if ad.action is not None:

@@ -1,7 +1,8 @@
 """What Blender draws now: what a 3D view draws, in bulk (:func:`drawn`), and what it
 will draw of an object the add-on hid (:func:`view_shows`, :func:`filters_geometry`);
-what the user's own flags show (:func:`shown_by_collections`, :func:`user_shown`); and
-what Blender draws that the engine does not hold (:func:`bystanders`)."""
+what the user's own flags show (:func:`shown_by_collections`, :func:`user_shown`); what
+the render leaves out (:func:`left_out_of_render`); and what Blender draws that the engine
+does not hold (:func:`bystanders`)."""
 
 from enum import Enum
 
@@ -10,7 +11,7 @@ import numpy as np
 
 from . import identity
 from .identity import ident
-from .kinds import GEOMETRY_TYPES, is_collection_instance
+from .kinds import GEOMETRY_TYPES, RENDER_KEYS, is_collection_instance
 
 
 def shown_by_collections(view_layer):
@@ -25,6 +26,40 @@ def shown_by_collections(view_layer):
             ids.append(identity.uids(lc.collection.objects))
         stack.extend((c, ok) for c in lc.children)
     return np.unique(np.concatenate(ids)) if ids else np.zeros(0, dtype=np.int64)
+
+
+def rendered_by_collections(view_layer) -> np.ndarray:
+    """Sorted identities of the objects the view layer renders to the camera by their
+    collections: in a collection not excluded, not indirect only, not hidden from the
+    render, and its parents neither."""
+    found = []
+    stack = [view_layer.layer_collection]
+    while stack:
+        lc = stack.pop()
+        c = lc.collection
+        if lc.exclude or getattr(lc, "indirect_only", False) or getattr(c, "hide_render", False):
+            continue
+        found.append(identity.uids(c.objects))
+        stack.extend(lc.children)
+    return np.unique(np.concatenate(found)) if found else np.zeros(0, dtype=np.int64)
+
+
+def hidden_by_own_keys(obj) -> bool:
+    """Whether ``obj``'s render hide is the add-on's (Apply to Render's keys, :mod:`.render_keys`)."""
+    ad = obj.animation_data
+    return ad is not None and ad.action is not None and ad.action.get(RENDER_KEYS) is not None
+
+
+def left_out_of_render(view_layer, uids: np.ndarray) -> np.ndarray:
+    """``(k,) bool``: which of ``uids`` the render leaves out though a view may draw them:
+    hidden from the render by their own flag (not the add-on's keys) or in no collection
+    the view layer renders.  In bulk but for the objects hidden from the render."""
+    off = identity.flags("hide_render")
+    at = np.flatnonzero(off)
+    if len(at):
+        items = bpy.data.objects.values()
+        off[[i for i in at.tolist() if hidden_by_own_keys(items[i])]] = False
+    return np.isin(uids, identity.uids()[off]) | ~np.isin(uids, rendered_by_collections(view_layer))
 
 
 def user_shown(obj, view_layer, shown):

@@ -89,7 +89,8 @@ CHECKS = {
         "edits_show_the_set_on_screen", "render_thread_announcements_ignored",
     ],
     "analysis": [
-        "analyze_counts_hidden", "never_visible_exact", "analyze_unsaved_path_in_cwd",
+        "analyze_counts_hidden", "never_visible_exact", "analyze_render_left_out_occludes_nothing",
+        "analyze_unsaved_path_in_cwd",
         "analyze_background_progress", "never_visible_no_path", "never_visible_excluded_everywhere",
         "analyze_chunks_merge_to_whole",
         *[f"never_visible_route_{r}_kept" for r in ("move", "add_active", "script_duplicate")],

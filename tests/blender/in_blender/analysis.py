@@ -70,6 +70,38 @@ def never_visible_exact():
     check("never_visible_exact", "target" in first and "target" not in second, (first, second))
 
 
+def render_leaves_out_occluders():
+    """Under the render rule (what "Collect Never Visible" asks by default) an occluder the
+    render leaves out occludes nothing: a wall hidden from the render by its own flag, or
+    by its collection's, lets the target behind it count as seen; the viewport's rule
+    (SEEN) still finds it hidden, and a rendered wall still hides it."""
+    scene = new_scene()
+    box("target", (3, -1, 0), (4, 1, 1))
+    wall = bpy.data.objects["wall"]
+    walls = bpy.data.collections.new("walls")
+    scene.collection.children.link(walls)
+    update()
+    got = {}
+
+    def never(label, rule):
+        report = os.path.join(WORK, f"render_left_out_{label}.json")
+        r = bpy.ops.occ.analyze(filepath=report, frame_start=1, frame_end=1, rule=rule, link_never_visible=True)
+        got[label] = (r, "target" in bpy.data.collections["Never Visible"].objects)
+
+    never("rendered", "RENDER")
+    wall.hide_render = True
+    never("own flag", "RENDER")
+    never("own flag, seen rule", "SEEN")
+    wall.hide_render = False
+    walls.objects.link(wall)
+    scene.collection.objects.unlink(wall)
+    walls.hide_render = True
+    never("collection", "RENDER")
+    check("analyze_render_left_out_occludes_nothing",
+          got == {"rendered": ({"FINISHED"}, True), "own flag": ({"FINISHED"}, False),
+                  "own flag, seen rule": ({"FINISHED"}, True), "collection": ({"FINISHED"}, False)}, got)
+
+
 def never_visible_adds_no_path():
     """Linking into "Never Visible" changes nothing anyone sees: the collection is
     excluded in every view layer, so an object whose own collection the user then
