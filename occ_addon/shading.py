@@ -20,8 +20,9 @@
   nobody can read here: nothing is hidden.  The lights are those the view layer drawn
   shows (the context's: the window's, the one rendered).
 - Ray tracing (Cycles, any engine this add-on does not know, EEVEE with ray
-  tracing on): reflections and light from hidden objects reach the screen, so
-  nothing is hidden unless the user opts in (``scene.occ.cull_raytraced``).
+  tracing on, or with a light probe that captures the scene for reflections):
+  reflections and light from hidden objects reach the screen, so nothing is hidden
+  unless the user opts in (``scene.occ.cull_raytraced``).
 """
 
 import math
@@ -137,6 +138,8 @@ def _workbench_rule(scene, shading, label):
 def _eevee_rule(scene, layer, scene_lights, scene_world, label):
     if getattr(scene.eevee, "use_raytracing", False) or getattr(scene.eevee, "use_ssr", False):
         return ViewRule("raytraced", f"{label} with ray tracing: reflections of hidden objects show")
+    if _reflection_probe(scene):
+        return ViewRule("raytraced", f"{label} with a reflection probe: reflections of hidden objects show")
     lights = []
     # the view layer's world (``world_override``, 4.2+) in place of the scene's: either
     if scene_world and (_world_sun(scene.world) or _world_sun(getattr(layer, "world_override", None))):
@@ -154,10 +157,40 @@ def _world_sun(world):
     return any(n.type in ("TEX_ENVIRONMENT", "TEX_SKY") for n in world.node_tree.nodes)
 
 
-LIGHT_TYPE = bpy.types.Object.bl_rna.properties["type"].enum_items["LIGHT"].value
+# light probes that capture the scene for reflections (4.1+ names, and before): a sphere
+# probe's capture is drawn again with what is shown (measured: an object outside the
+# camera's view changes 3,765 pixels of EEVEE's render through one, bpy 5.0.1); a plane
+# probe is a live mirror.  Volume probes hold baked light: what is hidden later stays in it.
+REFLECTION_PROBES = {"SPHERE", "PLANE", "CUBEMAP", "PLANAR"}
+_TYPES = bpy.types.Object.bl_rna.properties["type"].enum_items
+LIGHT_TYPE = _TYPES["LIGHT"].value
+PROBE_TYPE = _TYPES["LIGHT_PROBE"].value
 # Blender 4.2+ reads an enum in bulk as its items' values (checked in 4.2, 5.0, 5.2);
 # Blender 3.4's foreach_get of an enum fills the array with garbage
 BULK_ENUMS = bpy.app.version >= (4, 2, 0)
+
+
+def _objects_of_type(scene, value: int) -> list:
+    """The objects of one type (``value``: its enum value), from one bulk read of every
+    object's type where Blender reads enums in bulk (no attribute read per object), else
+    the scene's objects (the caller checks each object's type and visibility)."""
+    if not BULK_ENUMS:
+        return list(scene.objects)
+    objects = bpy.data.objects
+    types = np.zeros(identity.count(), dtype=np.int32)
+    objects.foreach_get("type", types)
+    at = np.flatnonzero(types == value).tolist()
+    items = objects.values() if at else []       # one list; indexing the collection is O(i)
+    return [items[i] for i in at]
+
+
+def _reflection_probe(scene) -> bool:
+    """Whether ``scene`` holds a light probe that reflects what it captures (hidden by its
+    eye or not: read conservatively)."""
+    if not any(p.type in REFLECTION_PROBES for p in bpy.data.lightprobes):
+        return False
+    return any(o.type == "LIGHT_PROBE" and o.data.type in REFLECTION_PROBES and scene in o.users_scene
+               for o in _objects_of_type(scene, PROBE_TYPE))
 
 
 def scene_lights_of(scene, layer):
@@ -167,19 +200,8 @@ def scene_lights_of(scene, layer):
     out = []
     if not any(light.use_shadow for light in bpy.data.lights):    # no light data that casts shadows
         return out
-    found = scene.objects
-    if BULK_ENUMS and layer is not None:
-        # the lights' positions in bpy.data.objects, from one bulk read of every object's
-        # type (no attribute read per object; its length is known in a pass, where the
-        # scene's own list is walked through its collections); the view layer's
-        # visibility below keeps the scene's
-        objects = bpy.data.objects
-        types = np.zeros(identity.count(), dtype=np.int32)
-        objects.foreach_get("type", types)
-        at = np.flatnonzero(types == LIGHT_TYPE).tolist()
-        items = objects.values() if at else []       # one list; indexing the collection is O(i)
-        found = [items[i] for i in at]
-    for o in found:
+    # every light object (the view layer's visibility below keeps the scene's)
+    for o in _objects_of_type(scene, LIGHT_TYPE):
         if o.type != "LIGHT" or not o.data.use_shadow:
             continue
         if layer is not None and not o.visible_get(view_layer=layer):

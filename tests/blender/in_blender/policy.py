@@ -812,6 +812,45 @@ def _changed(a, b):
     return int((np.abs(a - b) > 2.0 / 255.0).any(axis=2).sum())
 
 
+def reflection_probe():
+    """A sphere light probe reflects what it captures: a glowing crate above and ahead of the
+    camera, outside its view, shows in a mirror floor through one (EEVEE's render says so),
+    so nothing is hidden; without the probe the crate is hidden (outside the view) and
+    hiding it changes no pixel."""
+    out = {}
+    for probe in (None, "SPHERE"):
+        scene = new_scene()
+        _eevee(scene)
+        scene.eevee.taa_render_samples = 1
+        scene.render.resolution_x, scene.render.resolution_y = 160, 90
+        bpy.data.objects.remove(bpy.data.objects["wall"])
+        cam = scene.camera
+        cam.location, cam.rotation_euler = (0.0, 0.0, 2.0), (math.radians(60.0), 0.0, 0.0)   # down 30 degrees
+        floor = box("floor", (-20, -20, -0.2), (20, 40, 0.0))
+        mirror = _see_through("mirror", "opaque")
+        bsdf = mirror.node_tree.nodes.get("Principled BSDF")
+        bsdf.inputs["Metallic"].default_value, bsdf.inputs["Roughness"].default_value = 1.0, 0.0
+        floor.data.materials.append(mirror)
+        crate = box("crate", (-2, 10, 4), (2, 11, 6))          # 11 degrees above the view's top
+        glow = bpy.data.materials.new("glow")
+        glow.use_nodes = True
+        nodes = glow.node_tree.nodes
+        emit = nodes.new("ShaderNodeEmission")
+        emit.inputs["Strength"].default_value = 20.0
+        glow.node_tree.links.new(emit.outputs[0], nodes.get("Material Output").inputs["Surface"])
+        crate.data.materials.append(glow)
+        if probe is not None:
+            data = bpy.data.lightprobes.new("probe", probe)
+            data.influence_distance = 30.0
+            scene.collection.objects.link(bpy.data.objects.new("probe", data))
+        update()
+        seen = _changed(*_crate_renders(f"probe_{probe}"))
+        r, _ = cull()
+        out[probe or "none"] = (seen, r, hidden_by_addon("crate"), rule())
+    check("probe_reflection_hides_nothing", out["SPHERE"][0] > 0 and out["SPHERE"][1:3] == ({"FINISHED"}, False)
+          and out["none"][:3] == (0, {"FINISHED"}, True), out)
+
+
 def material_override():
     """A view layer's material override draws every object with one material in EEVEE and
     Cycles: a see-through one shows the crate through the wall (EEVEE's render says so from
