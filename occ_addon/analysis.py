@@ -23,6 +23,7 @@ from ..core import analysis as report
 from . import keyed_camera, policy
 from .cameras import scene_camera
 from .drawn import left_out_of_render
+from .kinds import render_geometry
 from .session import SESSION
 from .shading import rule as rule_of
 from .worker import Progress, quiet
@@ -110,7 +111,7 @@ def analysis_steps(context, frames: list[int], path: str, rule: str = "seen",
     previous = scene.frame_current
     out = Analysis(frames, path, [], {}, time.perf_counter(), rule, source(context, rule, step))
     seen = out.seen
-    held = held_names = instances = emitting = extra = keys = None
+    held = held_names = instances = emitting = extra = keys = redrawn = None
     every = max(1, len(frames) // 10)         # background mode: about ten progress lines
     try:
         for k, f in enumerate(frames):
@@ -142,6 +143,9 @@ def analysis_steps(context, frames: list[int], path: str, rule: str = "seen",
                 held_names = [o.name for o in objects]
                 instances = policy.instancers(objects)
                 emitting = policy.emitters(objects)
+                # the render may draw these otherwise than the viewport the pass reads
+                redrawn = np.array([render_geometry(o, scene) is not None for o in objects], dtype=bool) \
+                    if rule == "render" else None
                 for n in held_names:
                     seen.setdefault(n, 0)
             if not still or extra is None:      # what Blender draws beside the engine's objects
@@ -150,10 +154,13 @@ def analysis_steps(context, frames: list[int], path: str, rule: str = "seen",
             if view_rule is not None:          # shadow casters are the engine's (given the lights)
                 vis |= policy.drawn_beyond_depth(view_rule, result.state, scene.occ.cull_raytraced)
                 # an occluder in view that the render leaves out (its own or its
-                # collection's render hide) shows the render what it covers: every
-                # occluded object counts as seen (one hidden or outside occludes nothing alone)
-                if ((result.state == Visibility.VISIBLE) & left_out_of_render(context.view_layer, held.uids)).any():
+                # collection's render hide) or draws otherwise (kinds.render_geometry) may
+                # show the render what it covers: every occluded object counts as seen (one
+                # hidden or outside occludes nothing alone); one drawn otherwise is seen
+                off = left_out_of_render(context.view_layer, held.uids) | redrawn
+                if ((result.state == Visibility.VISIBLE) & off).any():
                     vis |= result.state == Visibility.OCCLUDED
+                vis |= redrawn
             policy.widen_instances(objects, instances + emitting, vis)
             if SESSION.extractor.beyond:        # instances drawn as wire, bounds, ...: seen where drawn
                 vis |= np.isin(held.uids, np.fromiter(SESSION.extractor.beyond, dtype=np.int64))

@@ -60,7 +60,7 @@ from .cameras import scene_camera
 from .drawn import hidden_by_own_keys, rendered_by_collections
 from .fingerprints import _mesh_fingerprint
 from .identity import ident
-from .kinds import is_dynamic
+from .kinds import is_dynamic, render_geometry
 from .materials import see_through
 from .props import settings_key
 from .session import SESSION, rendering
@@ -349,7 +349,8 @@ def check(context, baked: Baked, want: str | None = None) -> str | None:
 def render_reason(context, baked: Baked) -> str | None:
     """Why the render would not draw what the bake culled against, or None: every object a
     bake held renders to the camera (its own render hide off and not animated, seen by
-    camera rays, in a collection the view layer renders).  The bake reads the viewport;
+    camera rays, in a collection the view layer renders) with the geometry the viewport
+    draws (:func:`.kinds.render_geometry`).  The bake reads the viewport;
     an occluder the render leaves out would show what it hid.  In bulk but for the
     objects that carry animation."""
     from .kinds import action_curves
@@ -368,9 +369,15 @@ def render_reason(context, baked: Baked) -> str | None:
         if out[np.searchsorted(at, i)] or not hidden_by_own_keys(items[i]):
             return (f"'{items[i].name}' is culled against in the viewport but left out of the render (its own "
                     "or its collection's render visibility): render it, or hide it in the viewport too, and bake again")
+    scene = context.scene
     for i in at.tolist():
         if see_through(items[i]):                  # made see-through since: it hides nothing now
             return f"'{items[i].name}' is see-through now (its materials, or camera rays pass through it)"
+        # the bake read the viewport's geometry: an occluder the render draws otherwise
+        # (fewer subdivision levels' shrinking silhouette, a modifier off) may uncover what it hid
+        why = render_geometry(items[i], scene)
+        if why is not None:
+            return f"'{items[i].name}' renders other geometry than the viewport draws ({why}; make them the same)"
         ad = items[i].animation_data
         if ad is None or hidden_by_own_keys(items[i]):
             continue

@@ -244,3 +244,65 @@ def is_dynamic(obj, memo: dict | None = None) -> bool:
         obj = obj.parent
         seen += 1
     return False
+
+
+LEVELED = {"SUBSURF", "MULTIRES"}      # modifiers with a viewport and a render level
+IS_VIEWPORT = "GeometryNodeIsViewport"
+
+
+def _reads_is_viewport(tree, depth: int = 0) -> bool:
+    """Whether a geometry-nodes tree (its groups too) asks whether it draws the viewport."""
+    for node in tree.nodes:
+        if node.bl_idname == IS_VIEWPORT:
+            return True
+        sub = getattr(node, "node_tree", None)
+        if sub is not None and depth < 16 and _reads_is_viewport(sub, depth + 1):
+            return True
+    return False
+
+
+def _levels(mod, simplify) -> tuple:
+    """A leveled modifier's (viewport, render) levels, under the scene's Simplify."""
+    view, render = mod.levels, mod.render_levels
+    if simplify is not None:
+        view, render = min(view, simplify.simplify_subdivision), min(render, simplify.simplify_subdivision_render)
+    return view, render
+
+
+def render_geometry(obj, scene) -> str | None:
+    """Why the render may draw other geometry of ``obj`` than the viewport does (what a
+    pass reads), in words, or None: the same settings draw both.  Settings only: a
+    modifier on in one and off in the other, subdivision levels, a geometry-nodes tree
+    that asks whether it draws the viewport, particle amounts and display, curve and
+    metaball resolutions."""
+    simplify = scene.render if scene.render.use_simplify else None
+    for mod in obj.modifiers:
+        if mod.show_viewport != mod.show_render:
+            return f"its modifier '{mod.name}' is on in only one of the viewport and the render"
+        if not mod.show_viewport:
+            continue
+        if mod.type in LEVELED:
+            view, render = _levels(mod, simplify)
+            if view != render:
+                return f"its modifier '{mod.name}' subdivides {render} levels in the render, {view} in the viewport"
+        if mod.type == "NODES" and mod.node_group is not None and _reads_is_viewport(mod.node_group):
+            return f"its modifier '{mod.name}' asks whether it draws the viewport"
+    for ps in getattr(obj, "particle_systems", ()):
+        s = ps.settings
+        if s.display_percentage != 100 or s.display_method != "RENDER":
+            return f"its particles '{ps.name}' are displayed other than rendered (amount or display)"
+        if s.child_type != "NONE" and s.child_percent != s.rendered_child_count:
+            return (f"its particles '{ps.name}' have {s.rendered_child_count} children in the render, "
+                    f"{s.child_percent} in the viewport")
+        if simplify is not None and s.child_type != "NONE" \
+                and simplify.simplify_child_particles != simplify.simplify_child_particles_render:
+            return "the scene's Simplify thins child particles differently in the viewport and the render"
+    data = obj.data
+    if obj.type in {"CURVE", "SURFACE", "FONT"}:
+        for axis in ("u", "v"):
+            render = getattr(data, f"render_resolution_{axis}", 0)
+            if render and render != getattr(data, f"resolution_{axis}", render):
+                return f"its curve resolution ({axis}) is {render} in the render"
+    if obj.type == "META" and data.render_resolution != data.resolution:
+        return "its metaball resolution differs in the render"
+    return None

@@ -49,7 +49,7 @@ CASES = (policy.user_hidden_objects, policy.dynamic_objects, cameras.camera_as_r
          localview.toggle_waits_for_engine,
          localview.failed_pass_keeps_selection, bake.bake_storage_roundtrip, bake.baked_shot_workflow,
          bake.seeded_bake_workflows, bake.baked_frames_render_unchanged,
-         bake.render_baked_shot, bake.render_keys_workflow)
+         bake.render_baked_shot, bake.render_geometry_refused, bake.render_keys_workflow)
 # Cases whose failure was a crash of Blender: each runs only when named (a process of its own).
 ALONE = (analysis.undo_after_collect, session.hair_undo_two_layers, session.foreign_overrides_during_a_job)
 

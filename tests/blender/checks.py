@@ -112,6 +112,7 @@ CHECKS = {
         "bake_render_workbench_flat_no_pixel_changed", "bake_render_cycles_hides_nothing",
         "bake_render_cycles_opt_in_hides",
         "render_baked_frames_pixel_identical", "render_baked_hide_render_as_it_was", "render_baked_stale_refused",
+        "render_geometry_refused",
         "render_keys_written", "render_keys_are_the_frames_sets", "render_keys_objects_static",
         "render_keys_animation_pixel_identical", "render_keys_survive_reload", "render_keys_reloaded_sets",
         *[f"render_keys_removed_after_{e}" for e in ("move", "camera", "users_key", "engine", "wall_render_hidden",

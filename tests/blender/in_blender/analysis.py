@@ -72,9 +72,10 @@ def never_visible_exact():
 
 def render_leaves_out_occluders():
     """Under the render rule (what "Collect Never Visible" asks by default) an occluder the
-    render leaves out occludes nothing: a wall hidden from the render by its own flag, or
-    by its collection's, lets the target behind it count as seen; the viewport's rule
-    (SEEN) still finds it hidden, and a rendered wall still hides it."""
+    render leaves out, or draws otherwise than the viewport, occludes nothing: a wall hidden
+    from the render by its own flag, or by its collection's, or subdivided in the render only,
+    lets the target behind it count as seen; the viewport's rule (SEEN) still finds it
+    hidden, and a rendered wall still hides it."""
     scene = new_scene()
     box("target", (3, -1, 0), (4, 1, 1))
     wall = bpy.data.objects["wall"]
@@ -97,9 +98,14 @@ def render_leaves_out_occluders():
     scene.collection.objects.unlink(wall)
     walls.hide_render = True
     never("collection", "RENDER")
+    walls.hide_render = False
+    sub = wall.modifiers.new("Subdivision", "SUBSURF")
+    sub.levels, sub.render_levels = 0, 3
+    never("subdivided in the render only", "RENDER")
     check("analyze_render_left_out_occludes_nothing",
           got == {"rendered": ({"FINISHED"}, True), "own flag": ({"FINISHED"}, False),
-                  "own flag, seen rule": ({"FINISHED"}, True), "collection": ({"FINISHED"}, False)}, got)
+                  "own flag, seen rule": ({"FINISHED"}, True), "collection": ({"FINISHED"}, False),
+                  "subdivided in the render only": ({"FINISHED"}, False)}, got)
 
 
 def never_visible_adds_no_path():

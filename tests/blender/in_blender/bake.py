@@ -306,6 +306,48 @@ def render_baked_shot():
     check("render_baked_stale_refused", "stale" in refused, refused)
 
 
+def _refusal(op):
+    """The operator's refusal (its ERROR report), or "" where it went ahead."""
+    try:
+        op()
+    except RuntimeError as e:
+        return str(e)
+    return ""
+
+
+def render_geometry_refused():
+    """A bake reads the viewport's geometry: a wall subdivided only in the render (levels 0
+    in the viewport, 3 in the render: a pillow, smaller) uncovers a crate the bake hid
+    behind its corner (Workbench's render says so).  Render Baked Shot and Apply to Render
+    refuse, naming the wall's modifier; with the levels the same both go ahead."""
+    from .policy import _changed, _crate_renders
+    scene = new_scene()
+    scene.render.engine = "BLENDER_WORKBENCH"
+    scene.display.shading.color_type = "OBJECT"
+    scene.render.resolution_x, scene.render.resolution_y = 160, 90
+    scene.render.image_settings.file_format = "PNG"
+    scene.render.filepath = os.path.join(WORK, "pillow", "f_")
+    scene.frame_start = scene.frame_end = 1
+    wall = bpy.data.objects["wall"]
+    wall.location, wall.scale = (0.25, 0.0, 1.0), (0.5, 3.0, 3.0)          # x 0..0.5, y and z 3 wide
+    crate = box("crate", (3.0, 1.2, 2.0), (3.5, 1.7, 2.6))                # behind the wall's corner
+    crate.color = (1.0, 0.0, 0.0, 1.0)
+    sub = wall.modifiers.new("Subdivision", "SUBSURF")
+    sub.levels, sub.render_levels = 0, 3
+    update()
+    seen = _changed(*_crate_renders("pillow"))
+    bpy.ops.occ.bake_shot(frame_start=1, frame_end=1)
+    baked = "crate" in _expected(scene, 1)
+    refused = (_refusal(bpy.ops.occ.render_baked), _refusal(bpy.ops.occ.bake_render))
+    sub.levels = 3
+    update()
+    bpy.ops.occ.bake_shot(frame_start=1, frame_end=1)
+    same = (_refusal(bpy.ops.occ.render_baked), _refusal(bpy.ops.occ.bake_render))
+    bpy.ops.occ.bake_render()                                                # off again
+    check("render_geometry_refused", seen > 0 and baked and all("'wall'" in r and "Subdivision" in r for r in refused)
+          and same == ("", ""), (seen, baked, refused, same))
+
+
 def baked_frames_render_unchanged():
     """A baked frame's set hidden from Blender's own render (``hide_render``, as a final
     render would take it) changes no pixel beyond the renderer's own run-to-run noise,
