@@ -851,6 +851,30 @@ def reflection_probe():
           and out["none"][:3] == (0, {"FINISHED"}, True), out)
 
 
+def jittered_lens():
+    """EEVEE's depth of field with Jitter Camera draws the scene from every point of the
+    lens: a glowing crate hidden from the lens's centre behind a thin pillar near the camera
+    shows (the render says so), so nothing is hidden; without the jitter (a blur of the
+    centre's image) the crate is hidden and hiding it changes no pixel."""
+    out = {}
+    for jitter in (True, False):
+        scene = _crate_scene("eevee")
+        scene.eevee.taa_render_samples = 16
+        bpy.data.objects.remove(bpy.data.objects["wall"])
+        box("pillar", (-8.0, -0.05, -5.0), (-7.8, 0.05, 6.0))
+        crate = bpy.data.objects["crate"]
+        crate.location, crate.scale = (5.25, 0.0, 1.0), (0.5, 0.2, 1.0)
+        dof = scene.camera.data.dof
+        dof.use_dof, dof.focus_distance, dof.aperture_fstop = True, 15.0, 0.2
+        scene.eevee.use_bokeh_jittered = jitter
+        update()
+        seen = _changed(*_crate_renders(f"lens_{jitter}"))
+        r, _ = cull()
+        out[jitter] = (seen, r, hidden_by_addon("crate"), rule())
+    check("lens_jitter_hides_nothing", out[True][0] > 0 and out[True][1:3] == ({"FINISHED"}, False)
+          and out[False][:3] == (0, {"FINISHED"}, True), out)
+
+
 def material_override():
     """A view layer's material override draws every object with one material in EEVEE and
     Cycles: a see-through one shows the crate through the wall (EEVEE's render says so from
