@@ -71,9 +71,13 @@ def rule(context, source=None):
     engine = scene.render.engine
     found = None if source == "CAMERA" else find_viewport(context)
     if found is None:                          # the camera, or headless: what the camera renders
+        if scene.render.use_multiview:
+            return _stereo_rule()
         return _render_rule(scene, layer, engine, True, True, True)
     shading = found[0].spaces.active.shading
     through_camera = found[2].view_perspective == "CAMERA"
+    if through_camera and scene.render.use_multiview:
+        return _stereo_rule()
     kind = shading.type
     if kind == "WIREFRAME":
         if shading.show_xray_wireframe and shading.xray_alpha_wireframe > 0.0:
@@ -96,6 +100,13 @@ def _render_rule(scene, layer, engine, scene_lights, scene_world, through_camera
     name = "Cycles" if engine == "CYCLES" else engine
     return _overridden(scene, layer, ViewRule("raytraced",
                                               f"{name} traces rays: reflections and light from hidden objects show"))
+
+
+def _stereo_rule():
+    """Stereoscopy (``render.use_multiview``): the camera's view is drawn from two eyes
+    beside it (or from other cameras, by suffix), in any engine: seen from one, an object
+    hidden from the camera's centre shows."""
+    return ViewRule("raytraced", "Stereoscopy: the camera's view is drawn from more than one eye")
 
 
 def _jittered_lens(scene) -> bool:

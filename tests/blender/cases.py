@@ -36,7 +36,7 @@ CASES = (policy.user_hidden_objects, policy.dynamic_objects, cameras.camera_as_r
          analysis.never_visible_keeps_users_objects,
          policy.view_rules, policy.scene_lights, policy.see_through_materials, policy.lit_renders,
          policy.lit_renders_over_a_floor, policy.lit_renders_in_the_window_view_layer,
-         policy.material_override, policy.reflection_probe, policy.jittered_lens,
+         policy.material_override, policy.reflection_probe, policy.jittered_lens, policy.stereo_views,
          policy.texture_alpha_workbench,
          live.camera_moves_between_ticks, live.live_cut_is_the_engines_camera_cut, live.passes_land_only_unchanged,
          live.live_keeps_no_set_made_for_another_view, live.shown_again_after_an_unseen_edit,

@@ -35,7 +35,7 @@ CHECKS = {
         "lit_layer_eevee_no_pixel_changed", "lit_layer_eevee_slab_shadow_shows",
         "override_see_through_shows_the_crate", "override_opaque_occludes", "override_workbench_draws_none",
         "override_world_sun_hides_nothing", "probe_reflection_hides_nothing",
-        "lens_jitter_hides_nothing",
+        "lens_jitter_hides_nothing", "stereo_hides_nothing",
         *[f"texture_alpha_{c}" for c in ("texture", "material", "alpha_ignored", "image_read_each_pass")],
     ],
     "cameras": [

@@ -875,6 +875,32 @@ def jittered_lens():
           and out[False][:3] == (0, {"FINISHED"}, True), out)
 
 
+def stereo_views():
+    """Stereoscopy draws the camera's view from two eyes beside it (here 0.5 apart, in
+    Workbench): a crate hidden from the camera's centre behind a pillar near it shows to one
+    eye (the side-by-side render says so), so nothing is hidden; with stereoscopy off the
+    crate is hidden and hiding it changes no pixel."""
+    out = {}
+    for stereo in (True, False):
+        scene = _crate_scene("workbench")
+        scene.display.shading.color_type = "OBJECT"
+        bpy.data.objects.remove(bpy.data.objects["wall"])
+        box("pillar", (-8.0, -0.15, -5.0), (-7.8, 0.15, 6.0))
+        crate = bpy.data.objects["crate"]
+        crate.location, crate.scale, crate.color = (5.25, 0.0, 1.0), (0.5, 1.0, 1.0), (1.0, 0.0, 0.0, 1.0)
+        scene.camera.data.stereo.interocular_distance = 0.5
+        scene.render.use_multiview = stereo
+        scene.render.views_format = "STEREO_3D"
+        scene.render.image_settings.views_format = "STEREO_3D"
+        scene.render.image_settings.stereo_3d_format.display_mode = "SIDEBYSIDE"
+        update()
+        seen = _changed(*_crate_renders(f"stereo_{stereo}"))
+        r, _ = cull()
+        out[stereo] = (seen, r, hidden_by_addon("crate"), rule())
+    check("stereo_hides_nothing", out[True][0] > 0 and out[True][1:3] == ({"FINISHED"}, False)
+          and out[False][:3] == (0, {"FINISHED"}, True), out)
+
+
 def material_override():
     """A view layer's material override draws every object with one material in EEVEE and
     Cycles: a see-through one shows the crate through the wall (EEVEE's render says so from
