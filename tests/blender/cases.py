@@ -4,8 +4,9 @@ add-on installed from its zip; prints one JSON line ``OCC_RESULTS {check: [ok, d
 Every case ends with the add-on's promise checked against an independent truth
 (:func:`in_blender.common.hidden_but_seen`).
 
-Usage: python cases.py EXTENSION.zip WORKDIR REPO_ROOT [CASE,...]
-(the named cases only; those of ``ALONE`` run only so)
+Usage: python cases.py EXTENSION.zip WORKDIR REPO_ROOT [CASE,... | shard:K/N]
+(the named cases only, those of ``ALONE`` run only so; or every N-th case from the K-th,
+so that N processes share the cases)
 """
 
 import json
@@ -57,8 +58,14 @@ ALONE = (analysis.undo_after_collect, session.hair_undo_two_layers, session.fore
 
 def main():
     bpy.ops.extensions.package_install_files(filepath=common.ZIP, repo="user_default", enable_on_install=True)
-    named = sys.argv[4].split(",") if len(sys.argv) > 4 else None
-    cases = CASES if named is None else [c for c in CASES + ALONE if c.__name__ in named]
+    arg = sys.argv[4] if len(sys.argv) > 4 else None
+    if arg is None:
+        cases = CASES
+    elif arg.startswith("shard:"):
+        k, n = (int(x) for x in arg[len("shard:"):].split("/"))
+        cases = CASES[k::n]
+    else:
+        cases = [c for c in CASES + ALONE if c.__name__ in arg.split(",")]
     for case in cases:
         try:
             case()

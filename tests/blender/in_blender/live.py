@@ -441,6 +441,8 @@ def render_thread_announcements_ignored():
     out = {}
     for label, call, job in (("a render's thread", from_thread, True), ("a script's thread", from_thread, False),
                              ("the main thread", announce, False)):
+        if live.WATCH.leaving:              # a show an earlier step (or case) left pending runs first
+            live._leave_timer()
         cull()
         first = hidden_by_addon("target")
         real = session.rendering
