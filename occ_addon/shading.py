@@ -112,8 +112,9 @@ def _stereo_rule():
 def _jittered_lens(scene) -> bool:
     """Whether EEVEE draws the scene camera from every point of its lens: depth of field
     with **Jitter Camera** (measured: an object hidden behind a thin pillar near the camera
-    shows in 121 pixels of EEVEE's render at f/0.2, bpy 5.0.1: ``policy.jittered_lens``; Workbench's depth of field,
-    and EEVEE's without the jitter, blur the image drawn from the lens's centre)."""
+    shows in 121 pixels of EEVEE's render at f/0.2, bpy 5.0.1: ``policy.jittered_lens``;
+    Workbench's depth of field, and EEVEE's without the jitter, blur the image drawn from
+    the lens's centre)."""
     cam = scene.camera
     return (cam is not None and cam.type == "CAMERA" and cam.data.dof.use_dof
             and bool(getattr(scene.eevee, "use_bokeh_jittered", False)))
@@ -180,8 +181,8 @@ def _world_sun(world):
 # light probes that capture the scene for reflections (4.1+ names, and before): a sphere
 # probe's capture is drawn again with what is shown (measured: an object outside the
 # camera's view changes 3,648 pixels of EEVEE's render through one, bpy 5.0.1:
-# ``policy.reflection_probe``); a plane
-# probe is a live mirror.  Volume probes hold baked light: what is hidden later stays in it.
+# ``policy.reflection_probe``); a plane probe is a live mirror.  Volume probes hold baked
+# light: what is hidden later stays in it.
 REFLECTION_PROBES = {"SPHERE", "PLANE", "CUBEMAP", "PLANAR"}
 _TYPES = bpy.types.Object.bl_rna.properties["type"].enum_items
 LIGHT_TYPE = _TYPES["LIGHT"].value
