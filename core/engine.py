@@ -42,6 +42,10 @@ def parse_resolution(text):
 # identity of box union, so its ancestors' boxes are those of their valid
 # children, and outside every frustum plane by ~1e300 (no overflow in a plane test).
 EMPTY_BOX = np.array([[1e300] * 3, [-1e300] * 3])
+# The world matrix the renderer holds for an object that must never be drawn (NaN or
+# infinite values, cut by a clipping region): every vertex at the clip-space origin, so
+# no triangle covers a pixel even where a strategy draws a whole subtree unchecked.
+NEVER_DRAWN = np.zeros((4, 4))
 WARN_NAMES = 5           # names listed in the warning about invalid objects
 
 
@@ -159,7 +163,7 @@ class Culler:
             self.renderer = self._renderer(scene, ctx)
         if scene.invalid.any():
             bad = np.flatnonzero(scene.invalid)
-            self.renderer.set_matrices(bad, np.repeat(np.eye(4)[None], len(bad), axis=0))
+            self.renderer.set_matrices(bad, np.repeat(NEVER_DRAWN[None], len(bad), axis=0))
         self.build_info = {"build_ms": 1e3 * (time.perf_counter() - t), "hierarchy": "refitted" if refit else "built",
                            "meshes_chunked": self.chunk_cache.misses, "chunkings_reused": self.chunk_cache.hits}
 
@@ -255,8 +259,8 @@ class Culler:
         self.scene.invalid[idx] = bad | ~self.scene.mesh_valid[self.scene.mesh_of[idx]]
         if (self.scene.invalid[idx] & ~was).any():
             self._warn_invalid()
-        # never drawn (see unit_bounds); identity keeps NaN out of the GPU's arrays
-        self.renderer.set_matrices(idx, np.where(bad[:, None, None], np.eye(4), m))
+        # never drawn (see unit_bounds, NEVER_DRAWN); no NaN in the GPU's arrays
+        self.renderer.set_matrices(idx, np.where(bad[:, None, None], NEVER_DRAWN, m))
         self.strategy.moved(idx)          # what was visible before the move proves nothing now
         if self.envelope_occluders is not None:
             self.envelope_occluders[idx] = True     # a moved object may stand in front now
@@ -299,7 +303,7 @@ class Culler:
         return out
 
     def cull(self, camera: Camera, truth: NDArray[np.bool_] | None = None, fresh: bool = False,
-             envelope=None, lights=None, probe: bool = True) -> CullResult:
+             envelope=None, lights=None, probe: bool = True, clip: ArrayLike | None = None) -> CullResult:
         """One culling pass from ``camera``; ``truth`` is needed by the oracle only;
         ``fresh``: forget what earlier passes taught the strategy (its answer is
         then that of a new engine's first pass); ``envelope``: ``(D, A)`` or a
@@ -311,7 +315,59 @@ class Culler:
         while its shadow may fall on something seen (an envelope pass, of ``(0, 0)``
         when no envelope is given).  ``probe``: an envelope pass may draw its image only
         to learn whether it helps (:class:`core.envelope.ImageSchedule`; False during
-        motion)."""
+        motion).  ``clip``: ``(k, 4)`` planes ``(a, b, c, d)`` of a clipping region (a
+        3D view's Alt+B box): the view draws only where ``a x + b y + c z + d > 0`` for
+        every plane; an object whose box is not wholly inside is drawn cut or not at
+        all, so it is kept VISIBLE and never drawn as an occluder (see :meth:`clipped`)."""
+        cut = self.clipped(clip)
+        if cut is None or not cut.any():
+            return self._cull(camera, truth, fresh, envelope, lights, probe)
+        invalid = self.scene.invalid
+        was = invalid.copy()
+        self._left_out(was | cut)
+        try:
+            with np.errstate(over="ignore"):          # the empty boxes' projections (never drawn)
+                result = self._cull(camera, truth, fresh, envelope, lights, probe)
+        finally:
+            self._left_out(was)
+        result.stats.invalid_objects = int(was.sum())
+        result.stats.clipped_objects = int((cut & ~was).sum())
+        return result
+
+    def clipped(self, clip: ArrayLike | None) -> NDArray[np.bool_] | None:
+        """``(n,) bool``: the objects whose world box is not wholly inside the clipping
+        region ``clip`` (planes as in :meth:`cull`; a plane with no normal is none), with
+        a margin of a millionth of the scene's size; None without planes."""
+        if clip is None:
+            return None
+        planes = np.asarray(clip, dtype=np.float64).reshape(-1, 4)
+        if not np.isfinite(planes).all():
+            raise OccError("the clipping region's planes hold NaN or infinite values")
+        length = np.linalg.norm(planes[:, :3], axis=1)
+        planes = planes[length > 0.0] / length[length > 0.0, None]
+        if not len(planes):
+            return None
+        b = self.scene.bounds
+        centre, half = 0.5 * (b[:, MIN] + b[:, MAX]), 0.5 * (b[:, MAX] - b[:, MIN])
+        with np.errstate(invalid="ignore", over="ignore"):   # invalid objects: left out anyway
+            nearest = centre @ planes[:, :3].T - half @ np.abs(planes[:, :3]).T + planes[:, 3]
+            inside = (nearest > 1e-6 * self.scene_size).all(axis=1)
+        return ~inside
+
+    def _left_out(self, invalid):
+        """Make ``invalid`` the objects that are kept visible and never drawn (their
+        boxes empty in the hierarchy, the strategy told they moved)."""
+        changed = np.flatnonzero(self.scene.invalid != invalid)
+        if not len(changed):
+            return
+        self.scene.invalid[:] = invalid
+        self.renderer.set_matrices(changed, np.where(invalid[changed, None, None], NEVER_DRAWN,
+                                                     self.scene.matrices[changed]))
+        self.strategy.moved(changed)
+        if self.hierarchy is not None:
+            self.hierarchy.refit(self.unit_bounds())
+
+    def _cull(self, camera, truth, fresh, envelope, lights, probe):
         n = len(self.scene)
         if envelope is not None or lights:
             if fresh:

@@ -45,6 +45,7 @@ class PassStats:
     occlusion_pass: int = 0          # auto: 1 when the pass tested occlusion
     fresh: int = 0                   # 1 when the pass started without memory
     invalid_objects: int = 0         # objects with NaN or infinite values (kept visible)
+    clipped_objects: int = 0         # objects a clipping region cuts (kept visible, no occluders)
     gl_calls: int = 0                # -1: a renderer that does not count them
     blocking_reads: int = 0
     # time, ms
