@@ -58,8 +58,8 @@ def hide_view(context):
 
 def view_state(space) -> tuple | None:
     """What of a 3D view, beside its camera, decides which objects it draws and what shows
-    beyond depth: local view, local collections, every object-type filter and the shading
-    that sets the pass's rule; None without a view.  A pass's hidden set holds only while
+    beyond depth: local view, local collections, every object-type filter, the shading
+    that sets the pass's rule and the clipping region; None without a view.  A pass's hidden set holds only while
     this stays as it was (a wall filtered out occludes nothing; X-ray shows what is behind)."""
     if space is None:
         return None
@@ -71,14 +71,35 @@ def view_state(space) -> tuple | None:
     # what of the view's shading sets the pass's rule (:func:`.shading.rule`): X-ray, a
     # Texture color that shows an image's alpha, scene lights hide less than depth alone
     look = tuple(getattr(shading, name, None) for name in SHADING_RULE)
+    clip = clip_region(space.region_3d)              # a region set after a pass uncovers what it cut
     # the add-on's own local view (its hiding) draws what the view drew: not the user's
-    return (localview.user_local(space), bool(getattr(space, "use_local_collections", False)), filters, look)
+    return (localview.user_local(space), bool(getattr(space, "use_local_collections", False)), filters, look,
+            None if clip is None else clip.tobytes())
 
 
 _FILTERS: list[str] = []                      # SpaceView3D's object-type filters (they vary by version)
 SHADING_RULE = ("type", "show_xray", "xray_alpha", "show_xray_wireframe", "xray_alpha_wireframe",
                 "show_backface_culling", "show_shadows", "color_type", "use_scene_lights", "use_scene_world",
                 "use_scene_lights_render", "use_scene_world_render")
+
+
+def clip_region(rv3d) -> np.ndarray | None:
+    """The planes ``(6, 4)`` of a 3D view's clipping region (Alt+B), inside where
+    ``a x + b y + c z + d > 0`` for each (a quad view's box clip leaves rows of zeros);
+    None when the view has none."""
+    if rv3d is None or not getattr(rv3d, "use_clip_planes", False):
+        return None
+    return np.array([tuple(p) for p in rv3d.clip_planes], dtype=np.float64).reshape(-1, 4)
+
+
+def view_clip(context) -> np.ndarray | None:
+    """The clipping region of the 3D view a pass's hidden set is seen in (the active 3D
+    viewport, whatever the source: the camera's set is hidden there too); None in
+    background mode or without one.  What the region cuts is drawn cut: it hides nothing."""
+    if bpy.app.background:
+        return None
+    found = find_viewport(context)
+    return None if found is None else clip_region(found[2])
 
 
 def region_camera(rv3d) -> Camera:

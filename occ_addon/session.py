@@ -315,9 +315,11 @@ class Session:
 
     def _submit_steps(self, context, camera: Camera, display: Size, fresh: bool, restart: bool,
                       envelope: Envelope | AtRest | None, lights: list | None,
-                      strategy: str | None = None, reuse: bool = False) -> Generator[object, None, tuple[Job, list]]:
+                      strategy: str | None = None, reuse: bool = False,
+                      clip: np.ndarray | None = None) -> Generator[object, None, tuple[Job, list]]:
         """The engine for the pass (:meth:`engine_steps`) and its cull handed to the engine
-        thread: ``(the cull's Job, the engine's objects)``."""
+        thread: ``(the cull's Job, the engine's objects)``.  ``clip``: the view's clipping
+        region (what it cuts is kept and occludes nothing; :meth:`..core.Culler.cull`)."""
         self.discard()                        # one pass at a time on the engine
         options, res, shown = self._sizes(context, display)
         # a fresh pass (a click, analyze, a scene change) also checks what the add-on
@@ -335,7 +337,8 @@ class Session:
             culler.forget(everything=True)
         elif fresh:
             culler.forget()
-        return self.worker.submit(culler.cull, camera, envelope=envelope, lights=lights, probe=probe), objects
+        return self.worker.submit(culler.cull, camera, envelope=envelope, lights=lights, probe=probe,
+                                  clip=clip), objects
 
     def _meanwhile(self) -> None:
         """While the engine thread builds or culls (a pass that will enter the add-on's own
@@ -402,7 +405,7 @@ class Session:
             self.enter_while = view if ahead else None
             try:
                 job, objects = drive(self._submit_steps(context, camera, display, fresh, restart, envelope,
-                                                        view_rule.lights), progress)
+                                                        view_rule.lights, clip=view_rule.clip), progress)
                 self._meanwhile()
             except BaseException:
                 self._unpick()                     # the pass failed: the selection as it was

@@ -35,7 +35,7 @@ import numpy as np
 from ..core.lights import Light
 from ..core.tolerance import tol
 from . import identity
-from .cameras import find_viewport
+from .cameras import find_viewport, view_clip
 from .materials import images_with_alpha, material_see_through
 
 EEVEE = ("BLENDER_EEVEE", "BLENDER_EEVEE_NEXT")
@@ -52,20 +52,30 @@ class ViewRule:
     mode: str
     why: str
     lights: list = field(default_factory=list)
+    clip: np.ndarray | None = None     # the view's clipping region (:func:`.cameras.view_clip`)
 
 
 def key(rule: ViewRule) -> tuple:
-    """What of ``rule`` a hidden set holds under: its mode, its words and every light's
-    place, reach and size.  A light shown again by its eye, or Workbench's light turned
-    (``scene.display``), changes the shadows while the words stay as they were."""
-    return (rule.mode, rule.why, tuple((light.kind, tuple(light.position.tolist()), tuple(light.direction.tolist()),
-                                        light.radius, light.angle, light.reach, light.in_view)
-                                       for light in rule.lights))
+    """What of ``rule`` a hidden set holds under: its mode, its words, the clipping region
+    and every light's place, reach and size.  A light shown again by its eye, or
+    Workbench's light turned (``scene.display``), changes the shadows while the words
+    stay as they were."""
+    clip = None if rule.clip is None else rule.clip.tobytes()
+    return (rule.mode, rule.why, clip, tuple((light.kind, tuple(light.position.tolist()),
+                                              tuple(light.direction.tolist()), light.radius, light.angle,
+                                              light.reach, light.in_view) for light in rule.lights))
 
 
 def rule(context, source=None):
     """The rule for what ``source`` ("VIEWPORT" or "CAMERA", default the setting) draws,
-    in the context's view layer (the window's: its lights, its overrides)."""
+    in the context's view layer (the window's: its lights, its overrides), with the
+    clipping region of the view the hidden set is seen in."""
+    found = _rule(context, source)
+    found.clip = view_clip(context)
+    return found
+
+
+def _rule(context, source):
     scene, layer = context.scene, context.view_layer
     source = source or scene.occ.source
     engine = scene.render.engine

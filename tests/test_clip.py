@@ -14,8 +14,8 @@ CAM = scenes.cam((0.0, -12.0, 0.0), (0.0, 5.0, 0.0), near=0.1, far=100.0, fov_y_
 
 def wall_and_box():
     """A wall at y = 0 and a box behind it, a second box behind the box."""
-    return scenes.boxes_scene([((-6, -0.1, -6), (6, 0.1, 6)), ((-1, 4, -1), (1, 6, 1)), ((-0.5, 8, -0.5), (0.5, 9, 0.5))],
-                              ["wall", "box", "far_box"])
+    return scenes.boxes_scene([((-6, -0.1, -6), (6, 0.1, 6)), ((-1, 4, -1), (1, 6, 1)),
+                               ((-0.5, 8, -0.5), (0.5, 9, 0.5))], ["wall", "box", "far_box"])
 
 
 def region(lo, hi):

@@ -28,6 +28,9 @@ timer, whose context has no 3D view), and records whether the box was hidden.
   eye during it;
 - ``hidden_out_of_local_view``: a cube the add-on hid (behind the wall) is out of
   the local view that holds a second box, which it covers from the next view;
+- ``clip_region``: a clipping region (Alt+B) that leaves the wall out shows the box
+  (its red pixels on screen): the box is never hidden, a small box behind it still is;
+  ``clip_after_pass``: the region set after a pass that hid the box: it comes back;
 - ``two_views``: two 3D views side by side; a cull from one leaves the other drawing
   the box (its pixels on screen).
 
@@ -40,6 +43,7 @@ import sys
 import bpy
 import mathutils
 import numpy as np
+from bpy_extras.view3d_utils import location_3d_to_region_2d
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "tools"))
 from blender_scene import drive_in_window, view3d  # noqa: E402
@@ -217,28 +221,8 @@ def run():
     yield from case("type_filter", curves_off, curves_on)
 
     def changed_after_pass(name, change, undo):
-        """A pass (a Cull click, then live mode) hides the box; ``change`` then makes the
-        hidden set stop holding: the box must come back (the redraw guard, live's tick)."""
-        out = results.setdefault(name, {})
-        for how in ("operator", "live"):
-            undo()
-            c.view(eye, target)
-            yield
-            if how == "operator":
-                c.cull()
-            else:
-                yield from c.start_live()
-            out[f"{how}_hid_first"] = hidden(box)
-            change()
-            c.area.tag_redraw()
-            for _ in range(10):                       # redraws and live ticks
-                yield
-            out[how] = hidden(box)
-            if how == "live":
-                c.stop_live()
-            c.restore()
-            undo()
-            yield
+        c.view(eye, target)
+        yield from changed_after_pass_of(c, box, name, change, undo)
 
     # the curve filter turned off after a pass that hid the box behind the curve wall
     yield from changed_after_pass("filter_toggled_after_pass", curves_off, curves_on)
@@ -362,7 +346,95 @@ def run():
         c.restore()
         c.leave_local_view()
         yield
+    yield from clip_region(c)
     yield from two_views(c)
+
+
+def clip_region(c):
+    """A clipping region (Alt+B) that leaves the wall out: the box behind it shows (its
+    red pixels on screen) and is never hidden, while a small box behind the box, inside
+    the region too, still is; a region set after a pass gives back what the pass hid."""
+    clear_scene()
+    cube("wall", (0.0, 0.0, 0.0), (6.0, 0.2, 6.0)).color = (0.5, 0.5, 0.5, 1.0)
+    box = cube("box", (0.0, 5.0, 0.0), (1.0, 1.0, 1.0))
+    box.color = (1.0, 0.0, 0.0, 1.0)
+    far = cube("far", (0.0, 9.0, 0.0), (0.5, 0.5, 0.5))
+    sp = c.space
+    sp.shading.type, sp.shading.light, sp.shading.color_type = "SOLID", "FLAT", "OBJECT"
+    sp.overlay.show_axis_x = sp.overlay.show_axis_y = False
+    sp.show_gizmo = sp.overlay.show_cursor = False        # their red is no box
+    bpy.context.scene.display.viewport_aa = "OFF"
+
+    # the region as a user makes it: Alt+B's box dragged in a top view over y from 1 to 20
+    # (Blender draws with the box it keeps, not with planes a script writes)
+    c.rv3d.view_perspective = "ORTHO"
+    c.rv3d.view_rotation = mathutils.Quaternion()
+    c.rv3d.view_location, c.rv3d.view_distance = (0.0, 5.0, 0.0), 30.0
+    for _ in range(3):
+        yield
+    a, b = (location_3d_to_region_2d(c.region, c.rv3d, co) for co in ((-20.0, 1.0, 0.0), (20.0, 20.0, 0.0)))
+    with bpy.context.temp_override(**c.ctx):
+        results["clip_border"] = list(bpy.ops.view3d.clip_border(
+            xmin=int(min(a.x, b.x)), xmax=int(max(a.x, b.x)), ymin=int(min(a.y, b.y)), ymax=int(max(a.y, b.y))))
+    results["clip_planes"] = [tuple(p) for p in c.rv3d.clip_planes]
+
+    def region(on):
+        c.rv3d.use_clip_planes = on
+
+    def shot(name):
+        path = os.path.join(OUT, f"clip_{name}.png")
+        with bpy.context.temp_override(**c.ctx):
+            bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
+            bpy.ops.screen.screenshot(filepath=path)
+        return red_pixels(path, c.area)
+
+    out = results["clip_region"] = {}
+    for how in ("operator", "live"):
+        region(True)
+        c.view((0.0, -12.0, 0.0), (0.0, 5.0, 0.0))
+        for _ in range(3):
+            yield
+        out[f"{how}_red_before"] = shot(f"{how}_before")
+        if how == "operator":
+            out["cull_result"] = c.cull()
+        else:
+            yield from c.live_pass()
+        for _ in range(3):
+            yield
+        out[f"{how}_red_after"] = shot(f"{how}_after")
+        out[how] = {"box": hidden(box), "far": hidden(far)}
+        c.restore()
+        region(False)
+        yield
+    c.view((0.0, -12.0, 0.0), (0.0, 5.0, 0.0))
+    yield from changed_after_pass_of(c, box, "clip_after_pass", lambda: region(True), lambda: region(False))
+
+
+def changed_after_pass_of(c, box, name, change, undo):
+    """A pass (a Cull click, then live mode) from the view as it stands hides ``box``;
+    ``change`` then makes the hidden set stop holding: the box must come back (the redraw
+    guard, live's tick)."""
+    out = results.setdefault(name, {})
+    view = c.rv3d.view_matrix.copy()
+    for how in ("operator", "live"):
+        undo()
+        c.rv3d.view_matrix = view
+        yield
+        if how == "operator":
+            c.cull()
+        else:
+            yield from c.start_live()
+        out[f"{how}_hid_first"] = hidden(box)
+        change()
+        c.area.tag_redraw()
+        for _ in range(10):                       # redraws and live ticks
+            yield
+        out[how] = hidden(box)
+        if how == "live":
+            c.stop_live()
+        c.restore()
+        undo()
+        yield
 
 
 def red_pixels(path, area):
