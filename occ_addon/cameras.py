@@ -20,9 +20,14 @@ def find_viewport(context):
     screens += [w.screen for w in context.window_manager.windows] if context.window_manager else []
     areas += [a for s in screens for a in s.areas if a.type == "VIEW_3D"]
     for area in areas:
-        region = next((r for r in area.regions if r.type == "WINDOW"), None)
         rv3d = area.spaces.active.region_3d
-        if region is not None and rv3d is not None:
+        if rv3d is None:
+            continue
+        # the region that draws the view's own region data (a Quad View has four)
+        windows = [r for r in area.regions if r.type == "WINDOW"]
+        region = next((r for r in windows if r.data is not None and r.data.as_pointer() == rv3d.as_pointer()),
+                      windows[0] if windows else None)
+        if region is not None:
             return area, region, rv3d
     return None
 
@@ -59,8 +64,9 @@ def hide_view(context):
 def view_state(space) -> tuple | None:
     """What of a 3D view, beside its camera, decides which objects it draws and what shows
     beyond depth: local view, local collections, every object-type filter, the shading
-    that sets the pass's rule and the clipping region; None without a view.  A pass's hidden set holds only while
-    this stays as it was (a wall filtered out occludes nothing; X-ray shows what is behind)."""
+    that sets the pass's rule, the clipping region and Quad View; None without a view.  A
+    pass's hidden set holds only while this stays as it was (a wall filtered out occludes
+    nothing; X-ray shows what is behind)."""
     if space is None:
         return None
     if not _FILTERS:                          # read once: the redraw guard asks on every redraw
@@ -74,7 +80,7 @@ def view_state(space) -> tuple | None:
     clip = clip_region(space.region_3d)              # a region set after a pass uncovers what it cut
     # the add-on's own local view (its hiding) draws what the view drew: not the user's
     return (localview.user_local(space), bool(getattr(space, "use_local_collections", False)), filters, look,
-            None if clip is None else clip.tobytes())
+            None if clip is None else clip.tobytes(), len(space.region_quadviews))
 
 
 _FILTERS: list[str] = []                      # SpaceView3D's object-type filters (they vary by version)

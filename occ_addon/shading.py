@@ -46,8 +46,8 @@ RADIUS_WIDEN = 0.05             # and a light's emitter this much larger (of its
 
 @dataclass
 class ViewRule:
-    """``mode``: "depth", "xray", "lit" or "raytraced"; ``lights`` for "lit"; ``why``
-    says it in words (the panel, the report)."""
+    """``mode``: "depth", "xray", "lit", "raytraced" or "shown" (nothing hidden, whatever
+    the settings); ``lights`` for "lit"; ``why`` says it in words (the panel, the report)."""
 
     mode: str
     why: str
@@ -67,17 +67,34 @@ def key(rule: ViewRule) -> tuple:
 
 
 def rule(context, source=None):
-    """The rule for what ``source`` ("VIEWPORT" or "CAMERA", default the setting) draws,
-    in the context's view layer (the window's: its lights, its overrides), with the
-    clipping region of the view the hidden set is seen in."""
-    found = _rule(context, source)
+    """The rule for what ``source`` ("VIEWPORT" or "CAMERA") draws, in the context's view
+    layer (the window's: its lights, its overrides).  Without ``source`` (the setting's: a
+    pass that hides in the culled view), also for what that view draws besides: the
+    regions of a Quad View draw the same objects from three more sides, so nothing is
+    hidden there; a clipping region's planes (:func:`.cameras.view_clip`)."""
+    found = _rule(context, source or context.scene.occ.source)
+    if source is not None:
+        return found
+    if QUAD in quad_views(context):
+        return ViewRule("shown", f"{QUAD} draws this view's objects from three more sides", found.lights)
     found.clip = view_clip(context)
     return found
 
 
+QUAD = "Quad View"
+
+
+def quad_views(context) -> tuple:
+    """``("Quad View",)`` where the culled 3D view (the active viewport) is split in four
+    regions that share its hiding (background mode, no view: none)."""
+    if bpy.app.background:
+        return ()
+    found = find_viewport(context)
+    return (QUAD,) if found is not None and len(found[0].spaces.active.region_quadviews) else ()
+
+
 def _rule(context, source):
     scene, layer = context.scene, context.view_layer
-    source = source or scene.occ.source
     engine = scene.render.engine
     found = None if source == "CAMERA" else find_viewport(context)
     if found is None:                          # the camera, or headless: what the camera renders

@@ -12,6 +12,7 @@ so that N processes share the cases)
 import json
 import os
 import sys
+import time
 import traceback
 
 import bpy
@@ -67,10 +68,13 @@ def main():
     else:
         cases = [c for c in CASES + ALONE if c.__name__ in arg.split(",")]
     for case in cases:
+        start = time.perf_counter()
         try:
             case()
         except Exception:  # one case's crash must not hide the others' results
             common.check(f"{case.__name__}_crashed", False, traceback.format_exc())
+        # each case's time, for whoever trims the suite (stderr: the results stay one line)
+        print(f"OCC_CASE_TIME {case.__name__} {time.perf_counter() - start:.1f}", file=sys.stderr)
 
 
 main()

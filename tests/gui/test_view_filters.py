@@ -129,3 +129,18 @@ def test_a_clipping_region_set_after_a_pass_gives_back_what_it_hid(results):
     r = results["clip_after_pass"]
     assert r["operator_hid_first"] and r["live_hid_first"], r
     assert (r["operator"], r["live"]) == (False, False), r
+
+
+def test_quad_view_hides_nothing_its_other_regions_draw(results):
+    """Quad View's top, front and side regions draw the box behind the wall (red pixels);
+    the add-on hides nothing there, and Quad View turned on after a pass gives back what
+    the pass hid."""
+    r = results["quad_view"]
+    assert r["cull_result"] == ["FINISHED"], r
+    for how in ("operator", "live"):
+        assert r[f"{how}_red_before"] > 100, r
+        assert r[f"{how}_red_after"] > 0.9 * r[f"{how}_red_before"], r
+        assert r[how] is False, r
+    r = results["quad_after_pass"]
+    assert r["operator_hid_first"] and r["live_hid_first"], r
+    assert (r["operator"], r["live"]) == (False, False), r

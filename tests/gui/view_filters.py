@@ -31,6 +31,9 @@ timer, whose context has no 3D view), and records whether the box was hidden.
 - ``clip_region``: a clipping region (Alt+B) that leaves the wall out shows the box
   (its red pixels on screen): the box is never hidden, a small box behind it still is;
   ``clip_after_pass``: the region set after a pass that hid the box: it comes back;
+- ``quad_view``: Quad View's other regions draw the box the perspective region does not
+  see: nothing is hidden; ``quad_after_pass``: Quad View turned on after a pass gives back
+  what it hid;
 - ``two_views``: two 3D views side by side; a cull from one leaves the other drawing
   the box (its pixels on screen).
 
@@ -347,7 +350,60 @@ def run():
         c.leave_local_view()
         yield
     yield from clip_region(c)
+    yield from quad_view(c)
     yield from two_views(c)
+
+
+def quad_view(c):
+    """Quad View: three more regions draw the culled view's objects from the top, the
+    front and the side, and hide what it hides: a box behind the wall for the perspective
+    region shows in the others (red pixels), so nothing is hidden; Quad View turned on
+    after a pass gives back what the pass hid."""
+    clear_scene()
+    cube("wall", (0.0, 0.0, 0.0), (6.0, 0.2, 6.0)).color = (0.5, 0.5, 0.5, 1.0)
+    box = cube("box", (0.0, 5.0, 0.0), (1.0, 1.0, 1.0))
+    box.color = (1.0, 0.0, 0.0, 1.0)
+
+    def quad(on):
+        if bool(len(c.space.region_quadviews)) != on:
+            with bpy.context.temp_override(**c.ctx):
+                bpy.ops.screen.region_quadview()
+        c.rv3d = c.space.region_3d
+        c.region = next(r for r in c.area.regions if r.type == "WINDOW" and r.data is not None
+                        and r.data.as_pointer() == c.rv3d.as_pointer())
+        c.ctx["region"] = c.region
+
+    def shot(name):
+        path = os.path.join(OUT, f"quad_{name}.png")
+        with bpy.context.temp_override(**c.ctx):
+            bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
+            bpy.ops.screen.screenshot(filepath=path)
+        return red_pixels(path, c.area)
+
+    out = results["quad_view"] = {}
+    for how in ("operator", "live"):
+        quad(True)
+        c.view((0.0, -12.0, 0.0), (0.0, 5.0, 0.0))
+        for _ in range(3):
+            yield
+        out[f"{how}_red_before"] = shot(f"{how}_before")
+        if how == "operator":
+            out["cull_result"] = c.cull()
+        else:
+            yield from c.live_pass()
+        for _ in range(3):
+            yield
+        out[f"{how}_red_after"] = shot(f"{how}_after")
+        out[how] = hidden(box)
+        c.restore()
+        quad(False)
+        yield
+    c.view((0.0, -12.0, 0.0), (0.0, 5.0, 0.0))
+    for _ in range(3):
+        yield
+    c.cull()                      # from the view at rest (see clip_region), given back
+    c.restore()
+    yield from changed_after_pass_of(c, box, "quad_after_pass", lambda: quad(True), lambda: quad(False))
 
 
 def clip_region(c):
