@@ -84,6 +84,10 @@ def run_sharded(script, work, root, timeout=1200):
             if p.poll() is None:
                 p.kill()
     code = next((p.returncode for p in procs if p.returncode), 0)
+    # each case's time (cases.py prints them), slowest first, for whoever trims the suite
+    times = [ln.split()[1:] for e in errs for ln in e.splitlines() if ln.startswith("OCC_CASE_TIME ")]
+    (work / "case_times.txt").write_text("".join(f"{t:>7} {name}\n" for name, t in
+                                                 sorted(times, key=lambda x: -float(x[1]))))
     return results, subprocess.CompletedProcess([PYTHON, script], code, "".join(outs), "".join(errs))
 
 
