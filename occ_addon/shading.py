@@ -107,7 +107,9 @@ def _rule(context, source):
         return _stereo_rule()
     kind = shading.type
     if kind == "WIREFRAME":
-        if shading.show_xray_wireframe and shading.xray_alpha_wireframe > 0.0:
+        # Blender draws what is behind wherever X-ray is on below full opacity (its own
+        # test, as for Solid): at Wireframe's default alpha of 0 every wire shows through
+        if shading.show_xray_wireframe and shading.xray_alpha_wireframe < 1.0:
             return ViewRule("xray", "Wireframe with X-ray shows what is behind")
         return ViewRule("depth", "Wireframe")
     if kind == "SOLID":

@@ -144,3 +144,15 @@ def test_quad_view_hides_nothing_its_other_regions_draw(results):
     r = results["quad_after_pass"]
     assert r["operator_hid_first"] and r["live_hid_first"], r
     assert (r["operator"], r["live"]) == (False, False), r
+
+
+def test_wireframe_xray_below_full_opacity_hides_nothing_occluded(results):
+    """Blender's own test: X-ray on below alpha 1 draws every wire (its default alpha of 0
+    included); the add-on once read alpha 0 as opaque and hid the box whose wires showed."""
+    r = results["wireframe_xray"]
+    opaque = r["1.0"]
+    assert opaque["hidden"], r                                 # nothing behind shows: culled
+    for alpha in ("0.0", "0.5"):
+        shown = r[alpha]
+        assert shown["red_before"] > opaque["red_before"] + 100, r     # the box's wires through the wall
+        assert not shown["hidden"] and shown["red_after"] > 0.9 * shown["red_before"], r

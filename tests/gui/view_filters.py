@@ -34,6 +34,8 @@ timer, whose context has no 3D view), and records whether the box was hidden.
 - ``quad_view``: Quad View's other regions draw the box the perspective region does not
   see: nothing is hidden; ``quad_after_pass``: Quad View turned on after a pass gives back
   what it hid;
+- ``wireframe_xray``: Wireframe with X-ray at alpha 0 (Blender's default) and 0.5 draws the
+  box's wires through the wall: nothing hidden; at alpha 1 the box is hidden;
 - ``two_views``: two 3D views side by side; a cull from one leaves the other drawing
   the box (its pixels on screen).
 
@@ -351,7 +353,42 @@ def run():
         yield
     yield from clip_region(c)
     yield from quad_view(c)
+    yield from wireframe_xray(c)
     yield from two_views(c)
+
+
+def wireframe_xray(c):
+    """Wireframe with X-ray below full opacity draws every wire, the box's behind the wall
+    too (its red wires on screen, Blender's default alpha of 0 included): nothing occluded
+    is hidden; at full opacity nothing behind shows and the box is hidden."""
+    clear_scene()
+    cube("wall", (0.0, 0.0, 0.0), (6.0, 0.2, 6.0)).color = (0.5, 0.5, 0.5, 1.0)
+    box = cube("box", (0.0, 5.0, 0.0), (1.0, 1.0, 1.0))
+    box.color = (1.0, 0.0, 0.0, 1.0)
+    sp = c.space
+    sp.shading.type, sp.shading.wireframe_color_type = "WIREFRAME", "OBJECT"
+    c.view((0.0, -12.0, 0.0), (0.0, 5.0, 0.0))
+    out = results["wireframe_xray"] = {}
+    for alpha in (0.0, 0.5, 1.0):
+        sp.shading.show_xray_wireframe, sp.shading.xray_alpha_wireframe = True, alpha
+        for _ in range(3):
+            yield
+        shots = []
+        for name in ("before", "after"):
+            path = os.path.join(OUT, f"wire_{alpha}_{name}.png")
+            with bpy.context.temp_override(**c.ctx):
+                bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
+                bpy.ops.screen.screenshot(filepath=path)
+            shots.append(red_pixels(path, c.area, wire=True))
+            if name == "before":
+                c.cull()
+                for _ in range(3):
+                    yield
+        out[str(alpha)] = {"red_before": shots[0], "red_after": shots[1], "hidden": hidden(box),
+                           "drawn": box.visible_get(viewport=sp)}
+        c.restore()
+        yield
+    sp.shading.type = "SOLID"
 
 
 def quad_view(c):
@@ -503,13 +540,16 @@ def changed_after_pass_of(c, box, name, change, undo):
         yield
 
 
-def red_pixels(path, area):
-    """Pixels of a window screenshot inside ``area`` that are pure red (the box's colour)."""
+def red_pixels(path, area, wire=False):
+    """Pixels of a window screenshot inside ``area`` that are pure red (the box's colour);
+    ``wire``: red clearly above green and blue (a red wire, blended with the background)."""
     img = bpy.data.images.load(path)
     w, h = img.size
     px = np.array(img.pixels[:], dtype=np.float32).reshape(h, w, 4)
     bpy.data.images.remove(img)
     part = px[area.y:area.y + area.height, area.x:area.x + area.width]
+    if wire:
+        return int(((part[..., 0] - part[..., 1] > 0.15) & (part[..., 0] - part[..., 2] > 0.15)).sum())
     return int(((part[..., 0] > 0.5) & (part[..., 1] < 0.2) & (part[..., 2] < 0.2)).sum())
 
 
