@@ -441,17 +441,25 @@ STATE = State()
 
 
 def camera_area(context):
-    """``(window, area)`` of a 3D view showing ``context.scene`` through its camera, or None."""
+    """``(window, area)`` of a 3D view showing ``context.scene`` through its camera, or None.
+    A view in Quad View (its other regions draw from other sides) or with a clipping
+    region (what it cuts hides nothing) draws more than the camera's sets hold for: none."""
     wm = context.window_manager
     for win in (wm.windows if wm is not None else ()):
         if win.scene != context.scene:
             continue
         for area in win.screen.areas:
             if area.type == "VIEW_3D":
-                rv3d = area.spaces.active.region_3d
-                if rv3d is not None and rv3d.view_perspective == "CAMERA":
+                space = area.spaces.active
+                rv3d = space.region_3d
+                if rv3d is not None and rv3d.view_perspective == "CAMERA" and not _draws_more(space, rv3d):
                     return win, area
     return None
+
+
+def _draws_more(space, rv3d) -> bool:
+    """Whether a 3D view draws more than its own camera's picture: Quad View, a clipping region."""
+    return bool(len(space.region_quadviews)) or rv3d.use_clip_planes
 
 
 def _channel(context):
@@ -878,15 +886,16 @@ def on_reset(*_args):
 
 def guard():
     """Before a redraw of the view the bake hides in: a view no longer looking through
-    the camera shows everything first (a timer: no data changes while drawing)."""
+    the camera, or now in Quad View or with a clipping region, shows everything first (a
+    timer: no data changes while drawing)."""
     if not STATE.owns() or STATE.view is None or STATE.pending:
         return
     context = bpy.context
     space = context.space_data
     if space is None or space.as_pointer() != STATE.view:
         return
-    rv3d = context.region_data
-    if rv3d is not None and rv3d.view_perspective != "CAMERA":
+    rv3d = space.region_3d
+    if rv3d is not None and (rv3d.view_perspective != "CAMERA" or _draws_more(space, rv3d)):
         _later()                              # it finds no camera view there: shows all
 
 

@@ -50,3 +50,14 @@ def test_render_keys_go_in_the_window_when_a_setting_changes(played):
     k = played[0]["render_keys_poll"]
     assert k["applied"] == ["FINISHED"] and k["keyed"] and k["stood"], k
     assert k["removed"], k
+
+
+def test_a_camera_view_that_draws_more_hides_no_baked_set(played):
+    """The view through the camera with a clipping region (what it cuts hides nothing), then
+    in Quad View (its other regions draw from other sides): the baked sets hold for the
+    camera's picture alone, so the shot hides nothing there, on the frame shown and the next."""
+    b = played[0]["beyond_the_camera"]
+    assert b["hidden_first"] > 0 and b["clip_border"] == ["FINISHED"], b
+    assert b["clipped"] == b["clipped_next_frame"] == 0, b
+    assert b["hidden_again"] > 0, b
+    assert b["quad"] == b["quad_next_frame"] == 0, b

@@ -269,6 +269,7 @@ def inside(out_path, scene_name, seconds, fps, modal=False):
         yield
         results["after_off"] = {"hidden": int(flags("occ_view_culled").sum()),
                                 "local_view": space.local_view is not None, "view_perspective": rv3d.view_perspective}
+        yield from beyond_the_camera(sc, ctx, space, bake, flags)
         # Apply to Render, then a setting Blender reports to no handler (the add-on's settings
         # have no update callbacks): the window's poll removes the keys
         with bpy.context.temp_override(**ctx):
@@ -285,6 +286,47 @@ def inside(out_path, scene_name, seconds, fps, modal=False):
         results["render_keys_poll"] = {"applied": applied, "keyed": keyed, "stood": stood,
                                        "removed": not sc.occ_bake.render_keys, "turns": waited,
                                        "note": sc.occ_bake.render_note}
+
+    def beyond_the_camera(sc, ctx, space, bake, flags):
+        """A view through the camera that also draws more (a clipping region made with
+        Alt+B's operator, then Quad View): the baked shot hides nothing there."""
+        def hidden():
+            return int(flags("occ_view_culled").sum())
+
+        def settle(frame):
+            sc.frame_set(frame)
+            ctx["area"].tag_redraw()
+            for _ in range(10):                          # the redraw guard's timer, the frame's apply
+                yield
+
+        with bpy.context.temp_override(**ctx):
+            bpy.ops.occ.bake_use()                       # on again
+        out = results["beyond_the_camera"] = {"stale": bake.STATE.stale}
+        yield from settle(sc.frame_start + 1)
+        out["hidden_first"] = hidden()
+        region = ctx["region"]
+        with bpy.context.temp_override(**ctx):
+            out["clip_border"] = sorted(bpy.ops.view3d.clip_border(
+                xmin=region.width // 4, xmax=3 * region.width // 4, ymin=region.height // 4,
+                ymax=3 * region.height // 4))
+        yield from settle(sc.frame_start + 1)
+        out["clipped"] = hidden()
+        yield from settle(sc.frame_start + 2)
+        out["clipped_next_frame"] = hidden()
+        space.region_3d.use_clip_planes = False
+        yield from settle(sc.frame_start + 3)
+        out["hidden_again"] = hidden()
+        with bpy.context.temp_override(**ctx):
+            bpy.ops.screen.region_quadview()
+        yield from settle(sc.frame_start + 3)
+        out["quad"] = hidden()
+        yield from settle(sc.frame_start + 4)
+        out["quad_next_frame"] = hidden()
+        with bpy.context.temp_override(**ctx):
+            bpy.ops.screen.region_quadview()             # back to one region, the one drawing the view
+            bpy.ops.occ.bake_use()                       # off, as before
+        ctx["region"] = next(r for r in ctx["area"].regions if r.type == "WINDOW")
+        yield
 
     drive_in_window(run, results, out_path, 0.05)
 
