@@ -872,7 +872,7 @@ def jittered_lens():
     centre's image) the crate is hidden and hiding it changes no pixel."""
     def make(jitter):
         scene = _behind_a_pillar("eevee", 0.05, 0.1)
-        scene.eevee.taa_render_samples = 16
+        scene.eevee.taa_render_samples = 8
         dof = scene.camera.data.dof
         dof.use_dof, dof.focus_distance, dof.aperture_fstop = True, 15.0, 0.2
         scene.eevee.use_bokeh_jittered = jitter
