@@ -14,7 +14,9 @@ mode, since the rule must hold in every one and a mode switch re-reads nothing:
   transparency, all of those through mix and add nodes), with nothing on its volume
   input.  Anything else (transparent, glass, refraction, a ray portal, a node group, an
   unlinked shader socket, an alpha driven by a texture) is taken as see-through.  An
-  object camera rays do not see (``visible_camera`` off) is not drawn there at all.
+  object camera rays do not see (``visible_camera`` off) is not drawn there at all.  A
+  material with true displacement (a linked Displacement output, method other than bump
+  only) may be drawn away from its mesh: it takes no part either.
 
 Workbench's Texture color draws each material's image with the image's own alpha, whatever
 its node tree does with it (measured: 4.2, 5.0): :func:`images_with_alpha` tells whether any
@@ -130,7 +132,8 @@ def _tree_opaque(tree) -> bool:
 
 
 def material_see_through(mat) -> bool:
-    """Whether ``mat`` may show what is behind it (in any mode); None material: opaque."""
+    """Whether ``mat`` may show what is behind it (in any mode), or be drawn elsewhere than
+    its mesh (true displacement); None material: opaque."""
     if mat is None:
         return False
     key = ident(mat)
@@ -138,9 +141,22 @@ def material_see_through(mat) -> bool:
     if hit is None:
         hit = bool(mat.diffuse_color[3] < 1.0 or mat.use_backface_culling)
         if not hit and getattr(mat, "use_nodes", True) and mat.node_tree is not None:
-            hit = not _tree_opaque(mat.node_tree)
+            hit = not _tree_opaque(mat.node_tree) or _displaced(mat)
         _memo[key] = hit
     return hit
+
+
+def _displaced(mat) -> bool:
+    """Whether EEVEE (from 4.2) or Cycles may draw ``mat``'s surface away from its mesh: a
+    material output's Displacement linked with a method that moves the surface (not bump
+    only).  Where it is drawn, the add-on cannot tell: such an object takes no part."""
+    method = getattr(mat, "displacement_method", None)          # 4.2 on; before, Cycles's own
+    if method is None:
+        method = getattr(getattr(mat, "cycles", None), "displacement_method", "BUMP")
+    if method == "BUMP":
+        return False
+    return any(n.type == "OUTPUT_MATERIAL" and n.inputs.get("Displacement") is not None
+               and n.inputs["Displacement"].is_linked for n in mat.node_tree.nodes)
 
 
 def see_through(obj) -> bool:

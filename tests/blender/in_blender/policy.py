@@ -550,11 +550,21 @@ def _see_through(name, how):
         mat.use_backface_culling = True
     elif how == "volume":
         links.new(nodes.new("ShaderNodeVolumePrincipled").outputs[0], out.inputs["Volume"])
+    elif how == "displacement":                        # the surface drawn 20 below the mesh (not seen
+        # moved in a bpy 5.0.1 render, EEVEE or Cycles, nor the Displacement node's: unproved)
+        move = nodes.new("ShaderNodeVectorDisplacement")
+        move.space, move.inputs["Midlevel"].default_value = "OBJECT", 0.0
+        move.inputs["Vector"].default_value = (0.0, 0.0, -20.0, 0.0)
+        links.new(move.outputs[0], out.inputs["Displacement"])
+        if hasattr(mat, "displacement_method"):       # 4.2 on (EEVEE and Cycles); before, Cycles's own
+            mat.displacement_method = "DISPLACEMENT"
+        else:
+            mat.cycles.displacement_method = "DISPLACEMENT"
     return mat
 
 
 SEE_THROUGH = ("alpha", "transmission", "glass", "mix_transparent", "viewport_alpha", "backface", "volume",
-               "object_alpha", "camera_rays")
+               "object_alpha", "camera_rays", "displacement")
 
 
 def _let_through(obj, how):
