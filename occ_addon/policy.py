@@ -43,8 +43,8 @@ def drawn_beyond_depth(view_rule, state: np.ndarray, cull_raytraced: bool) -> np
     """``(k,) bool``: what the view shows of the engine's objects beyond their depth
     (:mod:`.shading`): everything in a view that hides nothing (a Quad View) and under
     ray tracing (unless the user opted in with ``cull_raytraced``), every occluded object
-    under X-ray.  (Shadow casters under
-    scene lights are the engine's: the pass was given the lights.)"""
+    under X-ray.  (Shadow casters under scene lights are the engine's: the pass was given
+    the lights.)"""
     n = len(state)
     if view_rule.mode == "shown" or (view_rule.mode == "raytraced" and not cull_raytraced):
         return np.ones(n, dtype=bool)
