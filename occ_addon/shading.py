@@ -75,22 +75,19 @@ def rule(context, source=None):
     found = _rule(context, source or context.scene.occ.source)
     if source is not None:
         return found
-    if QUAD in quad_views(context):
-        return ViewRule("shown", f"{QUAD} draws this view's objects from three more sides", found.lights)
+    if _in_quad_view(context):
+        return ViewRule("shown", "Quad View draws this view's objects from three more sides", found.lights)
     found.clip = view_clip(context)
     return found
 
 
-QUAD = "Quad View"
-
-
-def quad_views(context) -> tuple:
-    """``("Quad View",)`` where the culled 3D view (the active viewport) is split in four
-    regions that share its hiding (background mode, no view: none)."""
+def _in_quad_view(context) -> bool:
+    """Whether the culled 3D view (the active viewport) is split in four regions that
+    share its hiding (background mode, no view: no)."""
     if bpy.app.background:
-        return ()
+        return False
     found = find_viewport(context)
-    return (QUAD,) if found is not None and len(found[0].spaces.active.region_quadviews) else ()
+    return found is not None and bool(len(found[0].spaces.active.region_quadviews))
 
 
 def _rule(context, source):
