@@ -367,23 +367,17 @@ def wireframe_xray(c):
     box.color = (1.0, 0.0, 0.0, 1.0)
     sp = c.space
     sp.shading.type, sp.shading.wireframe_color_type = "WIREFRAME", "OBJECT"
-    c.view((0.0, -12.0, 0.0), (0.0, 5.0, 0.0))
+    c.view(EYE, TARGET)
     out = results["wireframe_xray"] = {}
     for alpha in (0.0, 0.5, 1.0):
         sp.shading.show_xray_wireframe, sp.shading.xray_alpha_wireframe = True, alpha
         for _ in range(3):
             yield
-        shots = []
-        for name in ("before", "after"):
-            path = os.path.join(OUT, f"wire_{alpha}_{name}.png")
-            with bpy.context.temp_override(**c.ctx):
-                bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
-                bpy.ops.screen.screenshot(filepath=path)
-            shots.append(red_pixels(path, c.area, wire=True))
-            if name == "before":
-                c.cull()
-                for _ in range(3):
-                    yield
+        shots = [red_on_screen(c, f"wire_{alpha}_before", wire=True)]
+        c.cull()
+        for _ in range(3):
+            yield
+        shots.append(red_on_screen(c, f"wire_{alpha}_after", wire=True))
         out[str(alpha)] = {"red_before": shots[0], "red_after": shots[1], "hidden": hidden(box),
                            "drawn": box.visible_get(viewport=sp)}
         c.restore()
@@ -410,36 +404,8 @@ def quad_view(c):
                         and r.data.as_pointer() == c.rv3d.as_pointer())
         c.ctx["region"] = c.region
 
-    def shot(name):
-        path = os.path.join(OUT, f"quad_{name}.png")
-        with bpy.context.temp_override(**c.ctx):
-            bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
-            bpy.ops.screen.screenshot(filepath=path)
-        return red_pixels(path, c.area)
-
-    out = results["quad_view"] = {}
-    for how in ("operator", "live"):
-        quad(True)
-        c.view((0.0, -12.0, 0.0), (0.0, 5.0, 0.0))
-        for _ in range(3):
-            yield
-        out[f"{how}_red_before"] = shot(f"{how}_before")
-        if how == "operator":
-            out["cull_result"] = c.cull()
-        else:
-            yield from c.live_pass()
-        for _ in range(3):
-            yield
-        out[f"{how}_red_after"] = shot(f"{how}_after")
-        out[how] = hidden(box)
-        c.restore()
-        quad(False)
-        yield
-    c.view((0.0, -12.0, 0.0), (0.0, 5.0, 0.0))
-    for _ in range(3):
-        yield
-    c.cull()                      # from the view at rest (see clip_region), given back
-    c.restore()
+    yield from passes_on_screen(c, "quad_view", quad, {"box": box})
+    yield from rest_pass(c)
     yield from changed_after_pass_of(c, box, "quad_after_pass", lambda: quad(True), lambda: quad(False))
 
 
@@ -471,9 +437,23 @@ def clip_region(c):
             xmin=int(min(a.x, b.x)), xmax=int(max(a.x, b.x)), ymin=int(min(a.y, b.y)), ymax=int(max(a.y, b.y))))
     results["clip_planes"] = [tuple(p) for p in c.rv3d.clip_planes]
 
-    # a pass from where the cases look, given back: the redraw guard's motion tracker last
-    # saw the jump from the top view, which it takes for a motion going on
-    c.view((0.0, -12.0, 0.0), (0.0, 5.0, 0.0))
+    yield from rest_pass(c)
+
+    def region(on):
+        c.rv3d.use_clip_planes = on
+
+    yield from passes_on_screen(c, "clip_region", region, {"box": box, "far": far})
+    c.view(EYE, TARGET)
+    yield from changed_after_pass_of(c, box, "clip_after_pass", lambda: region(True), lambda: region(False))
+
+
+EYE, TARGET = (0.0, -12.0, 0.0), (0.0, 5.0, 0.0)      # the box behind the wall, seen from before it
+
+
+def rest_pass(c):
+    """A Cull click from where the cases look, given back: the redraw guard's motion tracker
+    last saw a jump (from a top view, a quad view), which it takes for a motion going on."""
+    c.view(EYE, TARGET)
     for _ in range(3):
         yield
     c.cull()
@@ -481,36 +461,38 @@ def clip_region(c):
         yield
     c.restore()
 
-    def region(on):
-        c.rv3d.use_clip_planes = on
 
-    def shot(name):
-        path = os.path.join(OUT, f"clip_{name}.png")
-        with bpy.context.temp_override(**c.ctx):
-            bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
-            bpy.ops.screen.screenshot(filepath=path)
-        return red_pixels(path, c.area)
+def red_on_screen(c, name, wire=False):
+    """A screenshot of the window as it draws now: the culled view's red pixels."""
+    path = os.path.join(OUT, f"{name}.png")
+    with bpy.context.temp_override(**c.ctx):
+        bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
+        bpy.ops.screen.screenshot(filepath=path)
+    return red_pixels(path, c.area, wire)
 
-    out = results["clip_region"] = {}
+
+def passes_on_screen(c, name, switch, watched):
+    """With ``switch(True)`` in force, a Cull click, then a live pass, from :data:`EYE`: the
+    red pixels on screen before and after each, and which of ``watched`` (name: object) it
+    hid; ``switch(False)`` after each."""
+    out = results[name] = {}
     for how in ("operator", "live"):
-        region(True)
-        c.view((0.0, -12.0, 0.0), (0.0, 5.0, 0.0))
+        switch(True)
+        c.view(EYE, TARGET)
         for _ in range(3):
             yield
-        out[f"{how}_red_before"] = shot(f"{how}_before")
+        out[f"{how}_red_before"] = red_on_screen(c, f"{name}_{how}_before")
         if how == "operator":
             out["cull_result"] = c.cull()
         else:
             yield from c.live_pass()
         for _ in range(3):
             yield
-        out[f"{how}_red_after"] = shot(f"{how}_after")
-        out[how] = {"box": hidden(box), "far": hidden(far)}
+        out[f"{how}_red_after"] = red_on_screen(c, f"{name}_{how}_after")
+        out[how] = {label: hidden(ob) for label, ob in watched.items()}
         c.restore()
-        region(False)
+        switch(False)
         yield
-    c.view((0.0, -12.0, 0.0), (0.0, 5.0, 0.0))
-    yield from changed_after_pass_of(c, box, "clip_after_pass", lambda: region(True), lambda: region(False))
 
 
 def changed_after_pass_of(c, box, name, change, undo):
