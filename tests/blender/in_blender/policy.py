@@ -550,11 +550,12 @@ def _see_through(name, how):
         mat.use_backface_culling = True
     elif how == "volume":
         links.new(nodes.new("ShaderNodeVolumePrincipled").outputs[0], out.inputs["Volume"])
-    elif how == "displacement":                        # the surface drawn 20 below the mesh (not seen
-        # moved in a bpy 5.0.1 render, EEVEE or Cycles, nor the Displacement node's: unproved)
-        move = nodes.new("ShaderNodeVectorDisplacement")
-        move.space, move.inputs["Midlevel"].default_value = "OBJECT", 0.0
-        move.inputs["Vector"].default_value = (0.0, 0.0, -20.0, 0.0)
+    elif how == "displacement":                        # the surface drawn off its mesh
+        # (a grid primitive's plane moved in EEVEE's and Cycles's renders, bpy 5.0.1: 780 px;
+        # this wall, a mesh from_pydata, did not move at all: not rendered here)
+        move = nodes.new("ShaderNodeDisplacement")
+        move.inputs["Height"].default_value, move.inputs["Midlevel"].default_value = 1.0, 0.0
+        move.inputs["Scale"].default_value = -6.9
         links.new(move.outputs[0], out.inputs["Displacement"])
         if hasattr(mat, "displacement_method"):       # 4.2 on (EEVEE and Cycles); before, Cycles's own
             mat.displacement_method = "DISPLACEMENT"
