@@ -64,7 +64,8 @@ def hide_view(context):
 def view_state(space) -> tuple | None:
     """What of a 3D view, beside its camera, decides which objects it draws and what shows
     beyond depth: local view, local collections, every object-type filter, the shading
-    that sets the pass's rule, the clipping region and Quad View; None without a view.  A
+    that sets the pass's rule, the clipping region, Quad View and whether it looks through
+    the scene camera (what a camera's set holds for); None without a view.  A
     pass's hidden set holds only while this stays as it was (a wall filtered out occludes
     nothing; X-ray shows what is behind)."""
     if space is None:
@@ -79,8 +80,9 @@ def view_state(space) -> tuple | None:
     look = tuple(getattr(shading, name, None) for name in SHADING_RULE)
     clip = clip_region(space.region_3d)              # a region set after a pass uncovers what it cut
     # the add-on's own local view (its hiding) draws what the view drew: not the user's
+    through = space.region_3d is not None and space.region_3d.view_perspective == "CAMERA"
     return (localview.user_local(space), bool(getattr(space, "use_local_collections", False)), filters, look,
-            None if clip is None else clip.tobytes(), len(space.region_quadviews))
+            None if clip is None else clip.tobytes(), len(space.region_quadviews), through)
 
 
 _FILTERS: list[str] = []                      # SpaceView3D's object-type filters (they vary by version)
@@ -96,16 +98,6 @@ def clip_region(rv3d) -> np.ndarray | None:
     if rv3d is None or not getattr(rv3d, "use_clip_planes", False):
         return None
     return np.array([tuple(p) for p in rv3d.clip_planes], dtype=np.float64).reshape(-1, 4)
-
-
-def view_clip(context) -> np.ndarray | None:
-    """The clipping region of the 3D view a pass's hidden set is seen in (the active 3D
-    viewport, whatever the source: the camera's set is hidden there too); None in
-    background mode or without one.  What the region cuts is drawn cut: it hides nothing."""
-    if bpy.app.background:
-        return None
-    found = find_viewport(context)
-    return None if found is None else clip_region(found[2])
 
 
 def region_camera(rv3d) -> Camera:

@@ -100,10 +100,10 @@ COUNTS = {"begun": 0, "landed": 0, "dropped_left": 0}
 
 
 def track(context):
-    """After a pass from the viewport: the 3D view it was made for is the one the redraw
-    guard watches (a Cull click culls the view it was pressed in, live mode the view a
-    timer finds)."""
-    found = find_viewport(context) if context.scene.occ.source == "VIEWPORT" else None
+    """After a pass in a window: the 3D view it hides in is the one the redraw guard
+    watches (a Cull click culls the view it was pressed in, live mode the view a timer
+    finds; from the scene camera, the view that looks through it)."""
+    found = None if bpy.app.background else find_viewport(context)
     WATCH.region = None if found is None else found[2].as_pointer()
     WATCH.view_state = None if found is None else view_state(found[0].spaces.active)
 
@@ -130,11 +130,15 @@ def guard():
     if SESSION.shown is None or WATCH.leaving:
         return
     context = bpy.context
-    if context.scene is None or context.scene.occ.source != "VIEWPORT":
+    if context.scene is None:
         return
     rv3d = context.region_data
     if rv3d is None or rv3d.as_pointer() != WATCH.region:
         return                                        # another view's redraw
+    if context.scene.occ.source != "VIEWPORT":        # the camera's set (its motion: guard_camera)
+        if _view_changed(context.space_data):         # out of the camera's view, a filter, X-ray
+            _leave_soon()
+        return
     camera = region_camera(rv3d)
     observe(camera)
     if _unsafe(camera) or _view_changed(context.space_data):
@@ -275,7 +279,7 @@ def _is_cut(passed, camera, display):
 
 
 def _watched_state(context):
-    found = find_viewport(context) if context.scene.occ.source == "VIEWPORT" else None
+    found = None if bpy.app.background else find_viewport(context)
     return None if found is None else view_state(found[0].spaces.active)
 
 
@@ -398,7 +402,7 @@ def _tick():
     observe(camera)
     try:
         _land(context, camera, display, now)
-        found = find_viewport(context) if scene.occ.source == "VIEWPORT" else None
+        found = None if bpy.app.background else find_viewport(context)
         if found is not None and _view_changed(found[0].spaces.active) and SESSION.shown is not None:
             WATCH.dirty_at = now                      # it draws other objects now: a fresh pass next
             leave()

@@ -35,7 +35,7 @@ import numpy as np
 from ..core.lights import Light
 from ..core.tolerance import tol
 from . import identity
-from .cameras import find_viewport, view_clip
+from .cameras import clip_region, find_viewport
 from .materials import images_with_alpha, material_see_through
 
 EEVEE = ("BLENDER_EEVEE", "BLENDER_EEVEE_NEXT")
@@ -52,7 +52,7 @@ class ViewRule:
     mode: str
     why: str
     lights: list = field(default_factory=list)
-    clip: np.ndarray | None = None     # the view's clipping region (:func:`.cameras.view_clip`)
+    clip: np.ndarray | None = None     # the culled view's clipping region (:func:`.cameras.clip_region`)
 
 
 def key(rule: ViewRule) -> tuple:
@@ -69,25 +69,22 @@ def key(rule: ViewRule) -> tuple:
 def rule(context, source=None):
     """The rule for what ``source`` ("VIEWPORT" or "CAMERA") draws, in the context's view
     layer (the window's: its lights, its overrides).  Without ``source`` (the setting's: a
-    pass that hides in the culled view), also for what that view draws besides: the
-    regions of a Quad View draw the same objects from three more sides, so nothing is
-    hidden there; a clipping region's planes (:func:`.cameras.view_clip`)."""
+    pass that hides in the culled view, in a window), also for what that view draws
+    besides: the regions of a Quad View draw the same objects from three more sides, and
+    a view that does not look through the scene camera shows what the camera's set hides,
+    so nothing is hidden there; a clipping region's planes (:func:`.cameras.clip_region`)."""
     found = _rule(context, source or context.scene.occ.source)
-    if source is not None:
+    view = None if source is not None or bpy.app.background else find_viewport(context)
+    if view is None:
         return found
-    if _in_quad_view(context):
+    if len(view[0].spaces.active.region_quadviews):
         return ViewRule("shown", "Quad View draws this view's objects from three more sides", found.lights)
-    found.clip = view_clip(context)
+    if context.scene.occ.source == "CAMERA" and view[2].view_perspective != "CAMERA":
+        # the camera's set, in a view that looks from elsewhere: what it hides, the view may show
+        return ViewRule("shown", "Scene Camera: a 3D view hides only while it looks through the camera "
+                                 "(Numpad 0)", found.lights)
+    found.clip = clip_region(view[2])
     return found
-
-
-def _in_quad_view(context) -> bool:
-    """Whether the culled 3D view (the active viewport) is split in four regions that
-    share its hiding (background mode, no view: no)."""
-    if bpy.app.background:
-        return False
-    found = find_viewport(context)
-    return found is not None and bool(len(found[0].spaces.active.region_quadviews))
 
 
 def _rule(context, source):

@@ -156,3 +156,13 @@ def test_wireframe_xray_below_full_opacity_hides_nothing_occluded(results):
         shown = r[alpha]
         assert shown["red_before"] > opaque["red_before"] + 100, r     # the box's wires through the wall
         assert not shown["hidden"] and shown["red_after"] > 0.9 * shown["red_before"], r
+
+
+def test_the_scene_cameras_set_hides_only_in_a_view_through_the_camera(results):
+    """A view from the side sees the box the camera does not: the camera's set hides
+    nothing there (it hid the box before); through the camera it hides the box, and a view
+    that leaves the camera's shows it again."""
+    r = results["camera_source"]
+    assert r["cull_result"] == ["FINISHED"], r
+    assert (r["operator_from_the_side"], r["live_from_the_side"]) == (False, False), r
+    assert r["through_the_camera"] and not r["after_leaving_the_camera"], r

@@ -36,6 +36,8 @@ timer, whose context has no 3D view), and records whether the box was hidden.
   what it hid;
 - ``wireframe_xray``: Wireframe with X-ray at alpha 0 (Blender's default) and 0.5 draws the
   box's wires through the wall: nothing hidden; at alpha 1 the box is hidden;
+- ``camera_source``: Source Scene Camera hides only in a view through the camera: from the
+  side nothing, through the camera the box, given back when the view leaves the camera;
 - ``two_views``: two 3D views side by side; a cull from one leaves the other drawing
   the box (its pixels on screen).
 
@@ -354,7 +356,49 @@ def run():
     yield from clip_region(c)
     yield from quad_view(c)
     yield from wireframe_xray(c)
+    yield from camera_source(c)
     yield from two_views(c)
+
+
+def camera_source(c):
+    """Source Scene Camera: the camera's set hides only in a view that looks through the
+    camera.  From the side the box (behind the wall for the camera) shows and stays drawn,
+    after a Cull click and a live pass; through the camera it is hidden; leaving the
+    camera's view gives it back."""
+    clear_scene()
+    cube("wall", (0.0, 0.0, 0.0), (6.0, 0.2, 6.0))
+    box = cube("box", (0.0, 5.0, 0.0), (1.0, 1.0, 1.0))
+    scene = bpy.context.scene
+    cam = bpy.data.objects.new("cam", bpy.data.cameras.new("cam"))
+    scene.collection.objects.link(cam)
+    cam.location, cam.rotation_euler = EYE, (np.pi / 2, 0.0, 0.0)       # looking down +y at the wall
+    scene.camera, scene.occ.source = cam, "CAMERA"
+    side = ((12.0, 5.0, 0.0), (0.0, 5.0, 0.0))
+    out = results["camera_source"] = {}
+    for how in ("operator", "live"):
+        c.view(*side)
+        for _ in range(3):
+            yield
+        if how == "operator":
+            out["cull_result"] = c.cull()
+        else:
+            yield from c.live_pass()
+        out[f"{how}_from_the_side"] = hidden(box)
+        c.restore()
+        yield
+    c.rv3d.view_perspective = "CAMERA"
+    for _ in range(3):
+        yield
+    c.cull()
+    out["through_the_camera"] = hidden(box)
+    c.view(*side)                                     # out of the camera's view
+    c.area.tag_redraw()
+    for _ in range(10):
+        yield
+    out["after_leaving_the_camera"] = hidden(box)
+    c.restore()
+    scene.occ.source = "VIEWPORT"
+    yield
 
 
 def wireframe_xray(c):
