@@ -103,9 +103,17 @@ def track(context):
     """After a pass in a window: the 3D view it hides in is the one the redraw guard
     watches (a Cull click culls the view it was pressed in, live mode the view a timer
     finds; from the scene camera, the view that looks through it)."""
-    found = None if bpy.app.background else find_viewport(context)
+    found = _culled_viewport(context)
     WATCH.region = None if found is None else found[2].as_pointer()
     WATCH.view_state = None if found is None else view_state(found[0].spaces.active)
+
+
+def _culled_viewport(context):
+    """The 3D view a pass hides in (:func:`.cameras.find_viewport`): the viewport source's,
+    and in a window the scene camera's too (the view that must look through it)."""
+    if context.scene.occ.source == "VIEWPORT" or not bpy.app.background:
+        return find_viewport(context)
+    return None
 
 
 def _view_changed(space):
@@ -279,7 +287,7 @@ def _is_cut(passed, camera, display):
 
 
 def _watched_state(context):
-    found = None if bpy.app.background else find_viewport(context)
+    found = _culled_viewport(context)
     return None if found is None else view_state(found[0].spaces.active)
 
 
@@ -402,7 +410,7 @@ def _tick():
     observe(camera)
     try:
         _land(context, camera, display, now)
-        found = None if bpy.app.background else find_viewport(context)
+        found = _culled_viewport(context)
         if found is not None and _view_changed(found[0].spaces.active) and SESSION.shown is not None:
             WATCH.dirty_at = now                      # it draws other objects now: a fresh pass next
             leave()
