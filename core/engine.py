@@ -322,8 +322,7 @@ class Culler:
         cut = self.clipped(clip)
         if cut is None or not cut.any():
             return self._cull(camera, truth, fresh, envelope, lights, probe)
-        invalid = self.scene.invalid
-        was = invalid.copy()
+        was = self.scene.invalid.copy()
         self._left_out(was | cut)
         try:
             with np.errstate(over="ignore"):          # the empty boxes' projections (never drawn)
