@@ -59,7 +59,7 @@ def test_the_envelope_and_lights_leave_cut_objects_out_too(ctx):
 
 def test_planes_with_no_normal_are_none_and_nan_planes_refused(ctx):
     with Culler(wall_and_box(), (64, 48), ctx=ctx) as c:
-        assert c.clipped(np.zeros((6, 4))) is None         # a quad view's box clip leaves two rows empty
+        assert c.clipped(np.zeros((6, 4))) is None         # Alt+B in an ortho view leaves two rows empty
         assert c.clipped(None) is None
         with pytest.raises(OccError, match="NaN"):
             c.cull(CAM, clip=[[np.nan, 0, 0, 0]])
@@ -67,9 +67,9 @@ def test_planes_with_no_normal_are_none_and_nan_planes_refused(ctx):
 
 
 def _inside_truth(c, scene, cut):
-    """What the camera sees with only the objects wholly inside drawn as occluders, each
-    object tested alone in front of them (a superset of what the clipped view shows of
-    the inside objects; the cut objects are kept anyway)."""
+    """The object-ID truth with only the objects wholly inside drawn: which of them the
+    camera sees then (a superset of what the clipped view shows of them, where the cut
+    objects' parts inside stand in front too; the cut objects are kept anyway)."""
     c._left_out(cut)
     try:
         return c.truth(CAM_CITY)
