@@ -550,12 +550,13 @@ def _see_through(name, how):
         mat.use_backface_culling = True
     elif how == "volume":
         links.new(nodes.new("ShaderNodeVolumePrincipled").outputs[0], out.inputs["Volume"])
-    elif how == "displacement":                        # the surface drawn off its mesh
-        # (a grid primitive's plane moved in EEVEE's and Cycles's renders, bpy 5.0.1: 780 px;
-        # this wall, a mesh from_pydata, did not move at all: not rendered here)
-        move = nodes.new("ShaderNodeDisplacement")
-        move.inputs["Height"].default_value, move.inputs["Midlevel"].default_value = 1.0, 0.0
-        move.inputs["Scale"].default_value = -6.9
+    elif how == "displacement":                        # the surface drawn below its mesh (a 2-unit
+        # box moved so changed 220 px of EEVEE's and Cycles's renders, bpy 5.0.1; this 12-unit
+        # wall did not visibly move: its render is not part of the check)
+        move, down = nodes.new("ShaderNodeVectorDisplacement"), nodes.new("ShaderNodeCombineXYZ")
+        move.space, move.inputs["Midlevel"].default_value = "OBJECT", 0.0
+        down.inputs["Z"].default_value = -20.0          # (a colour socket's own value would clamp it)
+        links.new(down.outputs[0], move.inputs["Vector"])
         links.new(move.outputs[0], out.inputs["Displacement"])
         if hasattr(mat, "displacement_method"):       # 4.2 on (EEVEE and Cycles); before, Cycles's own
             mat.displacement_method = "DISPLACEMENT"
