@@ -43,14 +43,16 @@ def drawn_beyond_depth(view_rule, state: np.ndarray, cull_raytraced: bool) -> np
     """``(k,) bool``: what the view shows of the engine's objects beyond their depth
     (:mod:`.shading`): everything in a view that hides nothing (a Quad View) and under
     ray tracing (unless the user opted in with ``cull_raytraced``), every occluded object
-    under X-ray.  (Shadow casters under scene lights are the engine's: the pass was given
-    the lights.)"""
+    under X-ray, and what lies outside the pass's view where the view draws beyond it (a
+    camera's passepartout).  (Shadow casters under scene lights are the engine's: the pass
+    was given the lights.)"""
     n = len(state)
     if view_rule.mode == "shown" or (view_rule.mode == "raytraced" and not cull_raytraced):
         return np.ones(n, dtype=bool)
+    keep = state == Visibility.VIEW_CULLED if view_rule.outside_shows else np.zeros(n, dtype=bool)
     if view_rule.mode == "xray":
-        return state == Visibility.OCCLUDED
-    return np.zeros(n, dtype=bool)
+        keep |= state == Visibility.OCCLUDED
+    return keep
 
 
 class Settled(NamedTuple):

@@ -53,6 +53,7 @@ class ViewRule:
     why: str
     lights: list = field(default_factory=list)
     clip: np.ndarray | None = None     # the culled view's clipping region (:func:`.cameras.clip_region`)
+    outside_shows: bool = False        # the view draws beyond the pass's frustum (a camera's passepartout)
 
 
 def key(rule: ViewRule) -> tuple:
@@ -61,7 +62,7 @@ def key(rule: ViewRule) -> tuple:
     Workbench's light turned (``scene.display``), changes the shadows while the words
     stay as they were."""
     clip = None if rule.clip is None else rule.clip.tobytes()
-    return (rule.mode, rule.why, clip, tuple((light.kind, tuple(light.position.tolist()),
+    return (rule.mode, rule.why, clip, rule.outside_shows, tuple((light.kind, tuple(light.position.tolist()),
                                               tuple(light.direction.tolist()), light.radius, light.angle,
                                               light.reach, light.in_view) for light in rule.lights))
 
@@ -84,6 +85,11 @@ def rule(context, source=None):
         return ViewRule("shown", "Scene Camera: a 3D view hides only while it looks through the camera "
                                  "(Numpad 0)", found.lights)
     found.clip = clip_region(view[2])
+    # through the camera the view also draws around its frame (the passepartout darkens it,
+    # measured: a box right of the frame, 5,709 px, was hidden as outside the camera's view)
+    cam = context.scene.camera
+    found.outside_shows = context.scene.occ.source == "CAMERA" and not (
+        cam is not None and cam.type == "CAMERA" and cam.data.show_passepartout and cam.data.passepartout_alpha >= 1.0)
     return found
 
 

@@ -166,3 +166,4 @@ def test_the_scene_cameras_set_hides_only_in_a_view_through_the_camera(results):
     assert r["cull_result"] == ["FINISHED"], r
     assert (r["operator_from_the_side"], r["live_from_the_side"]) == (False, False), r
     assert r["through_the_camera"] and not r["after_leaving_the_camera"], r
+    assert not r["beside_the_frame"], r             # drawn in the passepartout: kept (it was hidden)

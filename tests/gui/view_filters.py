@@ -373,6 +373,10 @@ def camera_source(c):
     scene.collection.objects.link(cam)
     cam.location, cam.rotation_euler = EYE, (np.pi / 2, 0.0, 0.0)       # looking down +y at the wall
     scene.camera, scene.occ.source = cam, "CAMERA"
+    # right of a square frame: through the camera the wide view draws it in the passepartout
+    aside = cube("aside", (15.0, 10.0, 0.0), (2.0, 2.0, 2.0))
+    size = scene.render.resolution_x, scene.render.resolution_y
+    scene.render.resolution_x = scene.render.resolution_y = 400
     side = ((12.0, 5.0, 0.0), (0.0, 5.0, 0.0))
     out = results["camera_source"] = {}
     for how in ("operator", "live"):
@@ -391,6 +395,7 @@ def camera_source(c):
         yield
     c.cull()
     out["through_the_camera"] = hidden(box)
+    out["beside_the_frame"] = hidden(aside)
     c.view(*side)                                     # out of the camera's view
     c.area.tag_redraw()
     for _ in range(10):
@@ -398,6 +403,7 @@ def camera_source(c):
     out["after_leaving_the_camera"] = hidden(box)
     c.restore()
     scene.occ.source = "VIEWPORT"
+    scene.render.resolution_x, scene.render.resolution_y = size
     yield
 
 
