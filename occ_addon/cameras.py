@@ -80,7 +80,10 @@ def view_state(space) -> tuple | None:
     look = tuple(getattr(shading, name, None) for name in SHADING_RULE)
     clip = clip_region(space.region_3d)              # a region set after a pass uncovers what it cut
     # the add-on's own local view (its hiding) draws what the view drew: not the user's
-    through = space.region_3d is not None and space.region_3d.view_perspective == "CAMERA"
+    # through the camera: where the frame sits in the region (zoom, pan, the region's size
+    # and the lens: its window matrix), which decides what it draws around the frame
+    rv3d = space.region_3d
+    through = None if rv3d is None or rv3d.view_perspective != "CAMERA" else tuple(map(tuple, rv3d.window_matrix))
     return (localview.user_local(space), bool(getattr(space, "use_local_collections", False)), filters, look,
             None if clip is None else clip.tobytes(), len(space.region_quadviews), through)
 
@@ -165,8 +168,43 @@ def scene_camera(context, scene=None, matrix: np.ndarray | None = None) -> tuple
     return Camera.from_matrices(view, proj), (w, h)
 
 
-def camera_for(context) -> tuple[Camera, tuple[int, int]]:
-    """The camera of the ``scene.occ.source`` setting and its display size."""
-    if context.scene.occ.source == "CAMERA":
-        return scene_camera(context)
+def camera_for(context, scene=None) -> tuple[Camera, tuple[int, int]]:
+    """The camera of the ``scene.occ.source`` setting and its display size (the scene
+    camera's as the culled view draws it, :func:`around_the_frame`)."""
+    scene = scene or context.scene
+    if scene.occ.source == "CAMERA":
+        return around_the_frame(context, scene, *scene_camera(context, scene))
     return viewport_camera(context)
+
+
+def passepartout_shows(cam) -> bool:
+    """Whether a view through camera object ``cam`` draws what lies around the camera's
+    frame: always, but under an opaque passepartout (it only darkens below alpha 1)."""
+    return not (cam is not None and cam.type == "CAMERA" and cam.data.show_passepartout
+                and cam.data.passepartout_alpha >= 1.0)
+
+
+def around_the_frame(context, scene, camera: Camera, display: tuple[int, int]) -> tuple[Camera, tuple[int, int]]:
+    """The scene camera (``camera``, ``display``: as it renders) as a window's culled view
+    that looks through it draws it: the frame sits inside the view's region, and around it
+    the region draws on (darkened by a passepartout below alpha 1), so an object occluded
+    inside the frame can show beyond it (measured: a bar's far end, 9,311 px, was hidden).
+    There the camera keeps its view and its projection is mapped from the frame to the
+    whole region (the region's own window matrix against the render's, x and y rows; zoomed
+    in, the region may show less than the frame), at the region's size; elsewhere
+    (background, no view through the camera, an opaque passepartout) it is returned as
+    given."""
+    found = None if bpy.app.background else find_viewport(context)
+    if found is None or found[2].view_perspective != "CAMERA" or not passepartout_shows(scene.camera):
+        return camera, display
+    _, region, rv3d = found
+    proj, drawn = camera.projection, np.array(rv3d.window_matrix, dtype=np.float64)
+    w_row = proj[3]                      # (0, 0, -1, 0) perspective, (0, 0, 0, 1) orthographic
+    mapped = proj.copy()
+    for axis in (0, 1):
+        scale = drawn[axis, axis] / proj[axis, axis]
+        shift = float(np.dot(drawn[axis] - scale * proj[axis], w_row))
+        if not (np.isfinite(scale) and scale > 0.0 and np.isfinite(shift)):
+            return camera, display       # (a region not drawn yet)
+        mapped[axis] = scale * proj[axis] + shift * w_row
+    return Camera(camera.view, mapped), (max(region.width, 1), max(region.height, 1))

@@ -39,7 +39,7 @@ from ..core import OccError
 from ..core.camera import camera_cut
 from ..core.motion import AT_REST, LiveLoop, MotionTracker, occluded_share
 from . import bus, identity, overlay, shading, visibility
-from .cameras import camera_for, find_viewport, region_camera, scene_camera, view_state
+from .cameras import camera_for, find_viewport, region_camera, view_state
 from .drawn import NoView, base_shown, drawn
 from .passes import shown_by
 from .props import settings_key
@@ -234,7 +234,7 @@ def _scene_holds(scene):
     if scene.occ.source != "CAMERA":
         return True                     # the view: the redraw guard checks it
     try:
-        camera, _ = scene_camera(context, scene)
+        camera, _ = camera_for(context, scene)
     except OccError:
         return False
     return np.array_equal(camera.projection, shown.camera.projection) and shown.envelope.holds(shown.camera, camera)
@@ -559,7 +559,7 @@ def guard_camera(scene):
     if SESSION.shown is None or SESSION.busy or not scene.occ.live or scene.occ.source != "CAMERA":
         return
     try:
-        camera, _ = scene_camera(bpy.context, scene)
+        camera, _ = camera_for(bpy.context, scene)
     except OccError:
         camera = None
     if camera is None:

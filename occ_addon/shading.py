@@ -35,7 +35,7 @@ import numpy as np
 from ..core.lights import Light
 from ..core.tolerance import tol
 from . import identity
-from .cameras import clip_region, find_viewport
+from .cameras import clip_region, find_viewport, passepartout_shows
 from .materials import images_with_alpha, material_see_through
 
 EEVEE = ("BLENDER_EEVEE", "BLENDER_EEVEE_NEXT")
@@ -87,9 +87,7 @@ def rule(context, source=None):
     found.clip = clip_region(view[2])
     # through the camera the view also draws around its frame (the passepartout darkens it,
     # measured: a box right of the frame, 5,709 px, was hidden as outside the camera's view)
-    cam = context.scene.camera
-    found.outside_shows = context.scene.occ.source == "CAMERA" and not (
-        cam is not None and cam.type == "CAMERA" and cam.data.show_passepartout and cam.data.passepartout_alpha >= 1.0)
+    found.outside_shows = context.scene.occ.source == "CAMERA" and passepartout_shows(context.scene.camera)
     return found
 
 

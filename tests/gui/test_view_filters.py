@@ -161,9 +161,14 @@ def test_wireframe_xray_below_full_opacity_hides_nothing_occluded(results):
 def test_the_scene_cameras_set_hides_only_in_a_view_through_the_camera(results):
     """A view from the side sees the box the camera does not: the camera's set hides
     nothing there (it hid the box before); through the camera it hides the box, and a view
-    that leaves the camera's shows it again."""
+    that leaves the camera's, or zooms out, shows it again.  What the view draws around the
+    frame is not hidden."""
     r = results["camera_source"]
     assert r["cull_result"] == ["FINISHED"], r
     assert (r["operator_from_the_side"], r["live_from_the_side"]) == (False, False), r
     assert r["through_the_camera"] and not r["after_leaving_the_camera"], r
     assert not r["beside_the_frame"], r             # drawn in the passepartout: kept (it was hidden)
+    # the bar's far end, beyond the frame, on screen before and after (it was hidden: 9,311 px to 0)
+    assert r["bar_red_before"] > 1000 and r["bar_red_after"] == r["bar_red_before"], r
+    assert not r["beyond_the_frame"] and not r["live_beyond_the_frame"], r
+    assert r["live_through_the_camera"] and not r["after_zooming_out"], r

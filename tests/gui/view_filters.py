@@ -363,8 +363,9 @@ def run():
 def camera_source(c):
     """Source Scene Camera: the camera's set hides only in a view that looks through the
     camera.  From the side the box (behind the wall for the camera) shows and stays drawn,
-    after a Cull click and a live pass; through the camera it is hidden; leaving the
-    camera's view gives it back."""
+    after a Cull click and a live pass; through the camera it is hidden (a Cull click, a
+    live pass), but not what the view draws around the frame: a box beside it, a bar's end
+    beyond it; zooming out, or leaving the camera's view, gives the set back."""
     clear_scene()
     cube("wall", (0.0, 0.0, 0.0), (6.0, 0.2, 6.0))
     box = cube("box", (0.0, 5.0, 0.0), (1.0, 1.0, 1.0))
@@ -375,6 +376,11 @@ def camera_source(c):
     scene.camera, scene.occ.source = cam, "CAMERA"
     # right of a square frame: through the camera the wide view draws it in the passepartout
     aside = cube("aside", (15.0, 10.0, 0.0), (2.0, 2.0, 2.0))
+    # a bar behind a nearer wall inside the frame that runs on beyond it, past that wall's
+    # end: the passepartout draws its far end
+    cube("wall2", (2.25, -2.0, 0.0), (4.5, 0.2, 6.0))
+    bar = cube("bar", (7.5, 5.0, 2.0), (13.0, 1.0, 1.0))
+    bar.color = (1.0, 0.0, 0.0, 1.0)
     size = scene.render.resolution_x, scene.render.resolution_y
     scene.render.resolution_x = scene.render.resolution_y = 400
     side = ((12.0, 5.0, 0.0), (0.0, 5.0, 0.0))
@@ -391,11 +397,28 @@ def camera_source(c):
         c.restore()
         yield
     c.rv3d.view_perspective = "CAMERA"
+    colour, c.space.shading.color_type = c.space.shading.color_type, "OBJECT"
     for _ in range(3):
         yield
+    out["bar_red_before"] = red_on_screen(c, "camera_bar_before")
     c.cull()
+    for _ in range(3):
+        yield
+    out["bar_red_after"] = red_on_screen(c, "camera_bar_after")
     out["through_the_camera"] = hidden(box)
     out["beside_the_frame"] = hidden(aside)
+    out["beyond_the_frame"] = hidden(bar)
+    c.space.shading.color_type = colour
+    # zoomed out after the pass: the region draws more around the frame than the pass saw
+    c.rv3d.view_camera_zoom -= 10.0
+    c.area.tag_redraw()
+    for _ in range(10):
+        yield
+    out["after_zooming_out"] = hidden(box)
+    c.rv3d.view_camera_zoom += 10.0
+    c.restore()
+    yield from c.live_pass()
+    out["live_through_the_camera"], out["live_beyond_the_frame"] = hidden(box), hidden(bar)
     c.view(*side)                                     # out of the camera's view
     c.area.tag_redraw()
     for _ in range(10):
