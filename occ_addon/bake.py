@@ -551,6 +551,8 @@ def apply_frame(context, handler: bool = False) -> int:
         STATE.playback.reset()
         return 0
     hide = frame_mask(row, numbers())
+    if hide.any():                       # the selection and the active object: never hidden
+        hide &= ~np.isin(identity.uids(), policy.chosen(context.view_layer))
     if handler and channel is not None and channel[1].spaces.active.local_view is None and hide.any():
         _later()
         hide[:] = False
@@ -833,7 +835,8 @@ def on_depsgraph_update(scene, depsgraph):
             STATE.drawn = None
             return
         try:
-            if STATE.drawn == drawn_digest(bpy.context, STATE.view):
+            if STATE.drawn == drawn_digest(bpy.context, STATE.view) \
+                    and not policy.hides_chosen(bpy.context.view_layer):
                 return
         except AttributeError:                 # no view layer in this context: unknown
             pass

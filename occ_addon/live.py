@@ -38,7 +38,7 @@ import numpy as np
 from ..core import OccError
 from ..core.camera import camera_cut
 from ..core.motion import AT_REST, LiveLoop, MotionTracker, occluded_share
-from . import bus, identity, overlay, shading, visibility
+from . import bus, identity, overlay, policy, shading, visibility
 from .cameras import camera_for, find_viewport, region_camera, view_state
 from .drawn import NoView, base_shown, drawn
 from .passes import shown_by
@@ -231,6 +231,8 @@ def _scene_holds(scene):
     space = _watched_space(context) if scene.occ.source == "VIEWPORT" else None
     if shading.key(shading.rule(context)) != last.rule_key or not _still_drawn(context.view_layer, last.drawn, space):
         return False
+    if policy.hides_chosen(context.view_layer):
+        return False                    # selected in the outliner (or by a script) while hidden
     if scene.occ.source != "CAMERA":
         return True                     # the view: the redraw guard checks it
     try:

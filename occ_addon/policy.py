@@ -13,6 +13,9 @@ Never hidden, whatever the engine answers:
   instance is larger than the engine's box of it;
 - dynamic objects (:func:`.kinds.is_dynamic`: Blender stops evaluating what is
   hidden);
+- the selection and the active object (:func:`chosen`): Blender draws a selected
+  object's outline and origin over what stands before it, and the user's tools act on
+  it only while it is drawn;
 - what the view shows beyond depth (:func:`drawn_beyond_depth`, :mod:`.shading`).
 
 Analyze counts the same instances as seen wherever they are drawn, and the members
@@ -65,11 +68,35 @@ class Settled(NamedTuple):
     instances: list
 
 
-def settled(context, objects: list, uids: np.ndarray, collection: np.ndarray) -> Settled:
+def chosen(view_layer, picked=None) -> np.ndarray:
+    """Session ids of the objects selected in ``view_layer`` and of its active object
+    (``picked``: an object the add-on selected for a moment, not the user's).  Blender
+    draws their outline and origin over what stands before them (measured in a window,
+    Blender 3.4: a selected box behind a wall showed its outline through the wall, and
+    a pass took it away), and hiding one takes it out of what the user's tools act on."""
+    objects = view_layer.objects
+    found = [identity.idents(objects.selected)]
+    if objects.active is not None:
+        found.append(identity.idents([objects.active]))
+    out = np.concatenate(found)
+    try:
+        return out if picked is None else out[out != identity.ident(picked)]
+    except ReferenceError:                    # removed since: not among them
+        return out
+
+
+def hides_chosen(view_layer) -> bool:
+    """Whether an object the add-on hides is selected or active in ``view_layer``
+    (selected in the outliner or by a script while hidden: :func:`chosen`)."""
+    culled = visibility.culled()
+    return bool(culled.any() and np.isin(chosen(view_layer), identity.uids()[culled]).any())
+
+
+def settled(context, objects: list, uids: np.ndarray, collection: np.ndarray, picked=None) -> Settled:
     """The part of :func:`never_hidden` that does not depend on the engine's answer
-    (the same arguments): read while the engine culls."""
+    (the same arguments; ``picked``: see :func:`chosen`): read while the engine culls."""
     settings = context.scene.occ
-    flagged = [identity.uids()[identity.flags("occ_never_cull")]]
+    flagged = [identity.uids()[identity.flags("occ_never_cull")], chosen(context.view_layer, picked)]
     coll = settings.exclude_collection
     if coll is not None:
         flagged.append(identity.uids(coll.all_objects if settings.exclude_children else coll.objects))

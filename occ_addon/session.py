@@ -469,7 +469,8 @@ class Session:
             try:
                 # what the policy reads whatever the engine answers, read while it culls (a
                 # Cull click finishes at once; live mode once the answer is in)
-                known = policy.settled(context, objects, held.uids, held.collection)
+                picked = None if self.picked is None else self.picked[0]
+                known = policy.settled(context, objects, held.uids, held.collection, picked)
                 result = pending.job.result()
                 state = result.state
                 culled = state != Visibility.VISIBLE

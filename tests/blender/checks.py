@@ -15,6 +15,7 @@ CHECKS = {
         "collection_member_analyzed_seen_in_instance",
         "display_wire_is_no_occluder", "display_wire_truth", "display_bounds_is_no_occluder", "display_bounds_truth",
         "display_wire_analyzed_visible", "display_bounds_analyzed_visible", "display_in_front_never_hidden",
+        "display_chosen_never_hidden",
         "nan_matrix_named", "nan_vertices_named",
         "exclude_collection_moved_into_drawn", "exclude_collection_undo_restore_drawn",
         "instance_wire_member_analyzed_seen", "instance_bounds_member_analyzed_seen",
@@ -107,7 +108,7 @@ CHECKS = {
         "bake_survives_rename", "bake_saved_file_opens_shown", "bake_survives_reload",
         *[f"bake_stale_after_{e}_{c}" for e in ("move", "hide", "delete", "camera", "hide_while_off")
           for c in ("hides_nothing", "truth")],
-        "bake_duplicate_never_hidden", "bake_duplicate_truth", "bake_use_off_shows_all",
+        "bake_active_never_hidden", "bake_duplicate_never_hidden", "bake_duplicate_truth", "bake_use_off_shows_all",
         "bake_seeded_truth", "bake_seeded_sets", "bake_seeded_had_teeth",
         *[f"bake_render_{e}_{c}" for e in ("eevee", "workbench") for c in ("no_pixel_changed", "slab_shadow_shows")],
         "bake_render_workbench_flat_no_pixel_changed", "bake_render_cycles_hides_nothing",

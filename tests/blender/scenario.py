@@ -72,7 +72,10 @@ def build_scene():
     lc.exclude = True
     # a heavy mesh (about 24k triangles: cut into chunks by the engine), behind the wall
     bpy.ops.mesh.primitive_uv_sphere_add(segments=128, ring_count=96, radius=1.0, location=(6.0, 0.0, 1.5))
-    bpy.context.active_object.name = "heavy_behind"
+    heavy = bpy.context.active_object
+    heavy.name = "heavy_behind"
+    heavy.select_set(False)                           # the add's selection given up: a selected object
+    bpy.context.view_layer.objects.active = None      # is never hidden
     scene.occ.source = "CAMERA"
     scene.occ.exclude_collection = excl_coll
     bpy.context.view_layer.update()

@@ -172,3 +172,13 @@ def test_the_scene_cameras_set_hides_only_in_a_view_through_the_camera(results):
     assert r["bar_red_before"] > 1000 and r["bar_red_after"] == r["bar_red_before"], r
     assert not r["beyond_the_frame"] and not r["live_beyond_the_frame"], r
     assert r["live_through_the_camera"] and not r["after_zooming_out"], r
+
+
+def test_a_selected_object_is_never_hidden(results):
+    """Blender draws a selected object's outline through the wall: a Cull click keeps the
+    box drawn (it hid it, and the outline went); one selected after a pass (as the outliner
+    does) is shown again at once."""
+    r = results["selection"]
+    assert r["cull_result"] == ["FINISHED"], r
+    assert r["drawn_by_selection"] > 20 and r["changed_by_cull"] == 0, r
+    assert not r["selected_hidden"] and r["unselected_hidden"] and not r["selected_after_pass_hidden"], r

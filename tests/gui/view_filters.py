@@ -146,6 +146,9 @@ class Case:
                 bpy.ops.occ.local_view("INVOKE_DEFAULT")
             else:
                 bpy.ops.view3d.localview(frame_selected=False)
+            # the entry's selection given up: a selected object is never hidden
+            bpy.ops.object.select_all(action="DESELECT")
+            bpy.context.view_layer.objects.active = None
         assert self.space.local_view is not None, "not in local view"
 
     def leave_local_view(self):
@@ -357,6 +360,7 @@ def run():
     yield from quad_view(c)
     yield from wireframe_xray(c)
     yield from camera_source(c)
+    yield from selection(c)
     yield from two_views(c)
 
 
@@ -606,6 +610,60 @@ def red_pixels(path, area, wire=False):
     if wire:
         return int(((part[..., 0] - part[..., 1] > 0.15) & (part[..., 0] - part[..., 2] > 0.15)).sum())
     return int(((part[..., 0] > 0.5) & (part[..., 1] < 0.2) & (part[..., 2] < 0.2)).sum())
+
+
+def selection(c):
+    """A selected box behind the wall: Blender draws its outline and origin through the
+    wall (pixels around the box's place that differ from the unselected view), and a Cull
+    click changes none of them; the box hidden by a pass, then selected as the outliner
+    does: shown again before the next redraw."""
+    clear_scene()
+    cube("wall", (0.0, 0.0, 0.0), (6.0, 0.2, 6.0))
+    box = cube("box", (0.0, 5.0, 0.0), (1.0, 1.0, 1.0))
+    out = results["selection"] = {}
+    c.view(EYE, TARGET)
+    for _ in range(3):
+        yield
+    shots = {"unselected": around(c, box, "unselected")}
+    box.select_set(True)
+    for _ in range(3):
+        yield
+    shots["before"] = around(c, box, "selected_before")
+    out["cull_result"] = c.cull()
+    for _ in range(3):
+        yield
+    shots["after"] = around(c, box, "selected_after")
+    out["selected_hidden"] = hidden(box)
+    out["drawn_by_selection"] = int((np.abs(shots["before"] - shots["unselected"]).max(axis=2) > 0.05).sum())
+    out["changed_by_cull"] = int((np.abs(shots["after"] - shots["before"]).max(axis=2) > 0.05).sum())
+    c.restore()
+    box.select_set(False)
+    for _ in range(3):
+        yield
+    c.cull()
+    out["unselected_hidden"] = hidden(box)
+    box.select_set(True)                              # as an outliner click selects it
+    c.area.tag_redraw()
+    for _ in range(10):
+        yield
+    out["selected_after_pass_hidden"] = hidden(box)
+    box.select_set(False)
+    c.restore()
+
+
+def around(c, ob, name, half=40):
+    """A screenshot's pixels ``(2 half, 2 half, 3)`` around ``ob``'s place in the culled view."""
+    path = os.path.join(OUT, f"{name}.png")
+    with bpy.context.temp_override(**c.ctx):
+        bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
+        bpy.ops.screen.screenshot(filepath=path)
+    img = bpy.data.images.load(path)
+    w, h = img.size
+    px = np.array(img.pixels[:], dtype=np.float32).reshape(h, w, 4)
+    bpy.data.images.remove(img)
+    x, y = location_3d_to_region_2d(c.region, c.rv3d, ob.matrix_world.translation)
+    x, y = int(x) + c.region.x, int(y) + c.region.y
+    return px[y - half:y + half, x - half:x + half, :3]
 
 
 def two_views(c):

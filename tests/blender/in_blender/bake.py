@@ -127,6 +127,21 @@ def baked_shot_workflow():
         check(f"bake_stale_after_{name}_hides_nothing", hid and not _hidden(), (hid, _hidden()))
         check(f"bake_stale_after_{name}_truth", not hidden_but_seen(), hidden_but_seen())
 
+    # a hidden object made active (an outliner click, a script): shown at once, and not
+    # hidden again while it stays so (Blender draws its origin through what is before it)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    scene = bpy.context.scene
+    scene.frame_set(f)
+    update()
+    hid = sorted(_hidden())
+    bpy.context.view_layer.objects.active = bpy.data.objects[hid[0]]
+    update()
+    shown_at_once = hid[0] not in _hidden()
+    scene.frame_set(f)
+    update()
+    check("bake_active_never_hidden", hid and shown_at_once and hid[0] not in _hidden()
+          and set(_hidden()) == set(hid[1:]), (hid, _hidden(), shown_at_once))
+
     # a duplicate made after the bake shares its original's number: neither is hidden
     bpy.ops.wm.open_mainfile(filepath=path)
     scene = bpy.context.scene

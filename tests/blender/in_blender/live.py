@@ -315,8 +315,8 @@ def shown_again_after_an_unseen_edit():
 def edits_show_the_set_on_screen():
     """A Cull click's hidden set (live mode off) stops holding at an edit that can uncover
     what it hides: the set is shown by the timer the edit's handler registers (called by
-    hand here, as the window runs it before the next redraw).  A selection keeps it; so
-    does a frame change that moves nothing.  An eye clicked (the wall's, its collection's,
+    hand here, as the window runs it before the next redraw).  A selection keeps it (but
+    one of a hidden object); so does a frame change that moves nothing.  An eye clicked (the wall's, its collection's,
     a second light's) is, as a selection, a change of the scene alone; so is a material
     override set on the view layer.  Each step fails
     on a set left standing."""
@@ -350,8 +350,16 @@ def edits_show_the_set_on_screen():
         scene.render.engine = name
 
     eevee = scene.render.engine
-    ok = [after("selection", lambda: bpy.data.objects["target"].select_set(True), True),
-          after("frame, nothing animated", lambda: scene.frame_set(scene.frame_current + 1), True),
+    def active(name):
+        bpy.context.view_layer.objects.active = None if name is None else bpy.data.objects[name]
+
+    ok = [after("selection", lambda: bpy.data.objects["wall"].select_set(True), True)]
+    bpy.data.objects["wall"].select_set(False)
+    # the hidden target made active (an outliner click, a script; headless it hides with
+    # the monitor flag, which Blender does not let a selection reach): shown
+    ok += [after("hidden target made active", lambda: active("target"), False)]
+    active(None)
+    ok += [after("frame, nothing animated", lambda: scene.frame_set(scene.frame_current + 1), True),
           after("wall moved away", lambda: move_wall(50.0), False)]
     move_wall(-50.0)
     # an eye clicked is a change of the scene alone (a selection's kind of update)

@@ -194,7 +194,8 @@ def collection_instances():
 
 def display_without_occluding():
     """Wire and bounds display never occlude (and count as seen by analyze); an object
-    drawn in front is never hidden."""
+    drawn in front is never hidden, nor a selected or the active one (Blender draws their
+    outline through what stands before them)."""
     for display in ("WIRE", "BOUNDS"):
         new_scene()
         bpy.data.objects["wall"].display_type = display
@@ -210,6 +211,23 @@ def display_without_occluding():
     update()
     cull()
     check("display_in_front_never_hidden", drawn("in_front"), "")
+    # the selection and the active object: Blender draws their outline through the wall
+    new_scene()
+    for name, y in (("selected", -3), ("active", -1), ("both", 1), ("neither", 3)):
+        box(name, (3, y - 0.5, 0), (4, y + 0.5, 1))
+    objects = bpy.data.objects
+    objects["selected"].select_set(True)
+    objects["both"].select_set(True)
+    bpy.context.view_layer.objects.active = objects["active"]
+    update()
+    cull()
+    drawn_now = {n: drawn(n) for n in ("selected", "active", "both", "neither")}
+    bpy.context.view_layer.objects.active = objects["both"]
+    update()
+    cull()
+    drawn_now["both_active"] = drawn("both")
+    check("display_chosen_never_hidden", drawn_now == {"selected": True, "active": True, "both": True,
+                                                       "neither": False, "both_active": True}, drawn_now)
 
 
 def nan_values_named():
