@@ -84,8 +84,10 @@ def view_state(space) -> tuple | None:
     # and the lens: its window matrix), which decides what it draws around the frame
     rv3d = space.region_3d
     through = None if rv3d is None or rv3d.view_perspective != "CAMERA" else tuple(map(tuple, rv3d.window_matrix))
+    overlay = space.overlay                          # the Origins (All) overlay: every origin over walls
+    origins = bool(overlay.show_overlays and overlay.show_object_origins_all)
     return (localview.user_local(space), bool(getattr(space, "use_local_collections", False)), filters, look,
-            None if clip is None else clip.tobytes(), len(space.region_quadviews), through)
+            None if clip is None else clip.tobytes(), len(space.region_quadviews), through, origins)
 
 
 _FILTERS: list[str] = []                      # SpaceView3D's object-type filters (they vary by version)

@@ -71,15 +71,20 @@ def rule(context, source=None):
     """The rule for what ``source`` ("VIEWPORT" or "CAMERA") draws, in the context's view
     layer (the window's: its lights, its overrides).  Without ``source`` (the setting's: a
     pass that hides in the culled view, in a window), also for what that view draws
-    besides: the regions of a Quad View draw the same objects from three more sides, and
-    a view that does not look through the scene camera shows what the camera's set hides,
-    so nothing is hidden there; a clipping region's planes (:func:`.cameras.clip_region`)."""
+    besides: the regions of a Quad View draw the same objects from three more sides, the
+    Origins (All) overlay every object's origin over walls, and a view that does not look
+    through the scene camera shows what the camera's set hides, so nothing is hidden there;
+    a clipping region's planes (:func:`.cameras.clip_region`)."""
     found = _rule(context, source or context.scene.occ.source)
     view = None if source is not None or bpy.app.background else find_viewport(context)
     if view is None:
         return found
-    if len(view[0].spaces.active.region_quadviews):
+    space = view[0].spaces.active
+    if len(space.region_quadviews):
         return ViewRule("shown", "Quad View draws this view's objects from three more sides", found.lights)
+    if origins_all(space):
+        # measured (Blender 3.4): a box's origin dot, 37 px, drawn through the wall before it
+        return ViewRule("shown", "the Origins (All) overlay draws every object's origin through walls", found.lights)
     if context.scene.occ.source == "CAMERA" and view[2].view_perspective != "CAMERA":
         # the camera's set, in a view that looks from elsewhere: what it hides, the view may show
         return ViewRule("shown", "Scene Camera: a 3D view hides only while it looks through the camera "
@@ -89,6 +94,13 @@ def rule(context, source=None):
     # measured: a box right of the frame, 5,709 px, was hidden as outside the camera's view)
     found.outside_shows = context.scene.occ.source == "CAMERA" and passepartout_shows(context.scene.camera)
     return found
+
+
+def origins_all(space) -> bool:
+    """Whether 3D view ``space`` draws every object's origin (the Origins (All) overlay),
+    over whatever stands before it."""
+    overlay = space.overlay
+    return bool(overlay.show_overlays and overlay.show_object_origins_all)
 
 
 def _rule(context, source):

@@ -15,7 +15,7 @@ CHECKS = {
         "collection_member_analyzed_seen_in_instance",
         "display_wire_is_no_occluder", "display_wire_truth", "display_bounds_is_no_occluder", "display_bounds_truth",
         "display_wire_analyzed_visible", "display_bounds_analyzed_visible", "display_in_front_never_hidden",
-        "display_chosen_never_hidden",
+        "display_chosen_never_hidden", "display_named_never_hidden",
         "nan_matrix_named", "nan_vertices_named",
         "exclude_collection_moved_into_drawn", "exclude_collection_undo_restore_drawn",
         "instance_wire_member_analyzed_seen", "instance_bounds_member_analyzed_seen",

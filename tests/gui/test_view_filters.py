@@ -65,6 +65,17 @@ def test_xray_turned_on_after_a_pass_gives_back_what_it_hid(results):
     assert (r["operator"], r["live"]) == (False, False), r
 
 
+def test_what_blender_draws_over_walls_is_never_hidden(results):
+    """The Origins (All) overlay draws every origin over the wall, and an object's name is
+    drawn over it: the box stays, and either turned on after a pass gives the set back."""
+    for name in ("origins_all", "named"):
+        assert results[name] == {"cull_result": ["FINISHED"], "operator": False, "live": False}, (name, results)
+    for name in ("origins_after_pass", "name_after_pass"):
+        r = results[name]
+        assert r["operator_hid_first"] and r["live_hid_first"], (name, r)
+        assert (r["operator"], r["live"]) == (False, False), (name, r)
+
+
 def test_a_wall_moved_after_a_pass_gives_back_what_it_hid(results):
     """A Cull click (and live mode) hid the box behind the wall; the wall is then moved
     away (an edit, the view unchanged): the box is drawn again before the next redraws."""

@@ -244,6 +244,20 @@ def run():
 
     yield from changed_after_pass("xray_after_pass", lambda: xray(True), lambda: xray(False))
 
+    # the Origins (All) overlay draws every object's origin through the wall (37 px of the
+    # box's, measured): nothing is hidden under it; turned on after a pass, the set comes
+    # back; so does an object's name shown after a pass (drawn over the wall too, 85 px)
+    def origins(on):
+        c.space.overlay.show_object_origins_all = on
+
+    def named(on):
+        box.show_name = on
+
+    yield from case("origins_all", lambda: origins(True), lambda: origins(False))
+    yield from changed_after_pass("origins_after_pass", lambda: origins(True), lambda: origins(False))
+    yield from case("named", lambda: named(True), lambda: named(False))
+    yield from changed_after_pass("name_after_pass", lambda: named(True), lambda: named(False))
+
     # the wall moved out of the way after a pass that hid the box behind it: an edit
     # (the depsgraph handler, a timer before the next redraw), not a view change
     def lift(z):

@@ -211,6 +211,11 @@ def display_without_occluding():
     update()
     cull()
     check("display_in_front_never_hidden", drawn("in_front"), "")
+    new_scene()
+    box("named", (3, -1, 0), (4, 1, 1)).show_name = True          # its name drawn over the wall
+    update()
+    cull()
+    check("display_named_never_hidden", drawn("named"), "")
     # the selection and the active object: Blender draws their outline through the wall
     new_scene()
     for name, y in (("selected", -3), ("active", -1), ("both", 1), ("neither", 3)):
