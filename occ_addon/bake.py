@@ -551,8 +551,6 @@ def apply_frame(context, handler: bool = False) -> int:
         STATE.playback.reset()
         return 0
     hide = frame_mask(row, numbers())
-    if hide.any():                       # the selection and the active object: never hidden
-        hide &= ~np.isin(identity.uids(), policy.chosen(context.view_layer))
     if handler and channel is not None and channel[1].spaces.active.local_view is None and hide.any():
         _later()
         hide[:] = False
@@ -560,6 +558,8 @@ def apply_frame(context, handler: bool = False) -> int:
     SESSION.applying = True
     try:
         with identity.one_pass():
+            if hide.any():               # the selection and the active object: never hidden
+                hide &= ~np.isin(identity.uids(), policy.chosen(context.view_layer))
             n = visibility.apply(hide, channel)
         context.view_layer.update()
     finally:

@@ -562,7 +562,10 @@ def child_main(args):
                                         "changed": changed}
         # a selection while the set stands: Blender's update, and in its handler the
         # add-on's check that a change of the scene alone leaves the set as it was made
-        live, picked, checks = _addon("occ_addon.live"), bpy.context.scene.objects[:5], []
+        # (objects the set leaves drawn: selecting a hidden one gives the set back, by design)
+        hid = _addon("occ_addon.visibility").culled()
+        drawn_now = [o for o, h in zip(bpy.data.objects, hid.tolist(), strict=True) if not h and o.type == "MESH"]
+        live, picked, checks = _addon("occ_addon.live"), drawn_now[:5], []
         with Phase(rows, "5 selections while the set stands", base, prof):
             for k, o in enumerate(picked):
                 o.select_set(k % 2 == 0)
