@@ -56,7 +56,7 @@ from ..core.envelope import covering
 from ..core.frustum import classify, planes_from_matrix
 from ..core.playback import PlaybackCost
 from . import analysis, identity, localview, policy, visibility
-from .cameras import scene_camera
+from .cameras import scene_camera, through_scene_camera
 from .drawn import hidden_by_own_keys, rendered_by_collections
 from .fingerprints import _mesh_fingerprint
 from .identity import ident
@@ -441,7 +441,8 @@ STATE = State()
 
 
 def camera_area(context):
-    """``(window, area)`` of a 3D view showing ``context.scene`` through its camera, or None.
+    """``(window, area)`` of a 3D view showing ``context.scene`` through its camera (not a
+    Local Camera of its own), or None.
     A view in Quad View (its other regions draw from other sides) or with a clipping
     region (what it cuts hides nothing) draws more than the camera's sets hold for: none."""
     wm = context.window_manager
@@ -452,7 +453,7 @@ def camera_area(context):
             if area.type == "VIEW_3D":
                 space = area.spaces.active
                 rv3d = space.region_3d
-                if rv3d is not None and rv3d.view_perspective == "CAMERA" and not _draws_more(space, rv3d):
+                if rv3d is not None and through_scene_camera(space, context.scene) and not _draws_more(space, rv3d):
                     return win, area
     return None
 
@@ -898,7 +899,7 @@ def guard():
     if space is None or space.as_pointer() != STATE.view:
         return
     rv3d = space.region_3d
-    if rv3d is not None and (rv3d.view_perspective != "CAMERA" or _draws_more(space, rv3d)):
+    if rv3d is not None and (not through_scene_camera(space, context.scene) or _draws_more(space, rv3d)):
         _later()                              # it finds no camera view there: shows all
 
 

@@ -86,8 +86,10 @@ def view_state(space) -> tuple | None:
     through = None if rv3d is None or rv3d.view_perspective != "CAMERA" else tuple(map(tuple, rv3d.window_matrix))
     overlay = space.overlay                          # the Origins (All) overlay: every origin over walls
     origins = bool(overlay.show_overlays and overlay.show_object_origins_all)
+    own = space.camera if getattr(space, "use_local_camera", False) else None     # a camera of its own
     return (localview.user_local(space), bool(getattr(space, "use_local_collections", False)), filters, look,
-            None if clip is None else clip.tobytes(), len(space.region_quadviews), through, origins)
+            None if clip is None else clip.tobytes(), len(space.region_quadviews), through, origins,
+            None if own is None else own.name)
 
 
 _FILTERS: list[str] = []                      # SpaceView3D's object-type filters (they vary by version)
@@ -179,6 +181,16 @@ def camera_for(context, scene=None) -> tuple[Camera, tuple[int, int]]:
     return viewport_camera(context)
 
 
+def through_scene_camera(space, scene) -> bool:
+    """Whether 3D view ``space`` looks through ``scene``'s camera (Numpad 0): in camera
+    view, and not through a camera of its own (the view's Local Camera)."""
+    rv3d = space.region_3d
+    if rv3d is None or rv3d.view_perspective != "CAMERA":
+        return False
+    own = space.camera if getattr(space, "use_local_camera", False) else None
+    return own is None or own == scene.camera
+
+
 def passepartout_shows(cam) -> bool:
     """Whether a view through camera object ``cam`` draws what lies around the camera's
     frame: always, but under an opaque passepartout (it only darkens below alpha 1)."""
@@ -197,7 +209,7 @@ def around_the_frame(context, scene, camera: Camera, display: tuple[int, int]) -
     (background, no view through the camera, an opaque passepartout) it is returned as
     given."""
     found = None if bpy.app.background else find_viewport(context)
-    if found is None or found[2].view_perspective != "CAMERA" or not passepartout_shows(scene.camera):
+    if found is None or not through_scene_camera(found[0].spaces.active, scene) or not passepartout_shows(scene.camera):
         return camera, display
     _, region, rv3d = found
     proj, drawn = camera.projection, np.array(rv3d.window_matrix, dtype=np.float64)

@@ -35,7 +35,7 @@ import numpy as np
 from ..core.lights import Light
 from ..core.tolerance import tol
 from . import identity
-from .cameras import clip_region, find_viewport, passepartout_shows
+from .cameras import clip_region, find_viewport, passepartout_shows, through_scene_camera
 from .materials import images_with_alpha, material_see_through
 
 EEVEE = ("BLENDER_EEVEE", "BLENDER_EEVEE_NEXT")
@@ -85,10 +85,10 @@ def rule(context, source=None):
     if origins_all(space):
         # measured (Blender 3.4): a box's origin dot, 37 px, drawn through the wall before it
         return ViewRule("shown", "the Origins (All) overlay draws every object's origin through walls", found.lights)
-    if context.scene.occ.source == "CAMERA" and view[2].view_perspective != "CAMERA":
+    if context.scene.occ.source == "CAMERA" and not through_scene_camera(space, context.scene):
         # the camera's set, in a view that looks from elsewhere: what it hides, the view may show
-        return ViewRule("shown", "Scene Camera: a 3D view hides only while it looks through the camera "
-                                 "(Numpad 0)", found.lights)
+        return ViewRule("shown", "Scene Camera: a 3D view hides only while it looks through the scene's "
+                                 "camera (Numpad 0)", found.lights)
     found.clip = clip_region(view[2])
     # through the camera the view also draws around its frame (the passepartout darkens it,
     # measured: a box right of the frame, 5,709 px, was hidden as outside the camera's view)

@@ -183,6 +183,9 @@ def test_the_scene_cameras_set_hides_only_in_a_view_through_the_camera(results):
     assert r["bar_red_before"] > 1000 and r["bar_red_after"] == r["bar_red_before"], r
     assert not r["beyond_the_frame"] and not r["live_beyond_the_frame"], r
     assert r["live_through_the_camera"] and not r["after_zooming_out"], r
+    # through a Local Camera of the view's own, which sees the box: nothing hidden
+    assert r["before_local_camera"] and not r["local_camera_after_pass"] and not r["local_camera"], r
+    assert r["scene_camera_kept"], r
 
 
 def test_a_selected_object_is_never_hidden(results):

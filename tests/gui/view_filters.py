@@ -443,6 +443,29 @@ def camera_source(c):
         yield
     out["after_leaving_the_camera"] = hidden(box)
     c.restore()
+    # the view through a camera of its own (Local Camera), one that sees the box from the
+    # side: the scene camera's set hides nothing there; switched to after a pass, the set
+    # comes back
+    side_cam = bpy.data.objects.new("side_cam", bpy.data.cameras.new("side_cam"))
+    scene.collection.objects.link(side_cam)
+    side_cam.matrix_world = look_at(*side).inverted()
+    c.rv3d.view_perspective = "CAMERA"
+    for _ in range(3):
+        yield
+    c.cull()
+    out["before_local_camera"] = hidden(box)
+    c.space.use_local_camera = True                    # first: else the view's camera is the scene's
+    c.space.camera = side_cam
+    c.area.tag_redraw()
+    for _ in range(10):
+        yield
+    out["local_camera_after_pass"] = hidden(box)
+    c.cull()
+    out["local_camera"] = hidden(box)
+    out["scene_camera_kept"] = scene.camera == cam
+    c.space.camera = None
+    c.space.use_local_camera = False
+    c.restore()
     scene.occ.source = "VIEWPORT"
     scene.render.resolution_x, scene.render.resolution_y = size
     yield

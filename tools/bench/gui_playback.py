@@ -289,7 +289,8 @@ def inside(out_path, scene_name, seconds, fps, modal=False):
 
     def beyond_the_camera(sc, ctx, space, bake, flags):
         """A view through the camera that also draws more (a clipping region made with
-        Alt+B's operator, then Quad View): the baked shot hides nothing there."""
+        Alt+B's operator, then Quad View), or through a Local Camera of its own: the baked
+        shot hides nothing there."""
         def hidden():
             return int(flags("occ_view_culled").sum())
 
@@ -324,8 +325,23 @@ def inside(out_path, scene_name, seconds, fps, modal=False):
         out["quad_next_frame"] = hidden()
         with bpy.context.temp_override(**ctx):
             bpy.ops.screen.region_quadview()             # back to one region, the one drawing the view
-            bpy.ops.occ.bake_use()                       # off, as before
         ctx["region"] = next(r for r in ctx["area"].regions if r.type == "WINDOW")
+        yield from settle(sc.frame_start + 3)
+        out["one_region"] = hidden()
+        # the view through a camera of its own (Local Camera: another picture than the
+        # shot's; any object can be one, and choosing it changes nothing the bake read)
+        own, shot_camera = next(o for o in sc.objects if o != sc.camera), sc.camera
+        space.use_local_camera = True                    # first: else the view's camera is the scene's
+        space.camera = own
+        yield from settle(sc.frame_start + 3)
+        out["local_camera"] = hidden()
+        yield from settle(sc.frame_start + 4)
+        out["local_camera_next_frame"] = hidden()
+        space.camera = None
+        space.use_local_camera = False
+        out["scene_camera_kept"] = sc.camera == shot_camera
+        with bpy.context.temp_override(**ctx):
+            bpy.ops.occ.bake_use()                       # off, as before
         yield
 
     drive_in_window(run, results, out_path, 0.05)
