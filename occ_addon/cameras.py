@@ -64,8 +64,9 @@ def hide_view(context):
 def view_state(space) -> tuple | None:
     """What of a 3D view, beside its camera, decides which objects it draws and what shows
     beyond depth: local view, local collections, every object-type filter, the shading
-    that sets the pass's rule, the clipping region, Quad View and whether it looks through
-    the scene camera (what a camera's set holds for); None without a view.  A
+    that sets the pass's rule, the clipping region, Quad View, the Origins (All) overlay,
+    where a camera view's frame sits (what a camera's set holds for) and the view's Local
+    Camera; None without a view.  A
     pass's hidden set holds only while this stays as it was (a wall filtered out occludes
     nothing; X-ray shows what is behind)."""
     if space is None:
@@ -84,12 +85,17 @@ def view_state(space) -> tuple | None:
     # and the lens: its window matrix), which decides what it draws around the frame
     rv3d = space.region_3d
     through = None if rv3d is None or rv3d.view_perspective != "CAMERA" else tuple(map(tuple, rv3d.window_matrix))
-    overlay = space.overlay                          # the Origins (All) overlay: every origin over walls
-    origins = bool(overlay.show_overlays and overlay.show_object_origins_all)
     own = space.camera if getattr(space, "use_local_camera", False) else None     # a camera of its own
     return (localview.user_local(space), bool(getattr(space, "use_local_collections", False)), filters, look,
-            None if clip is None else clip.tobytes(), len(space.region_quadviews), through, origins,
+            None if clip is None else clip.tobytes(), len(space.region_quadviews), through, origins_all(space),
             None if own is None else own.name)
+
+
+def origins_all(space) -> bool:
+    """Whether 3D view ``space`` draws every object's origin (the Origins (All) overlay),
+    over whatever stands before it."""
+    overlay = space.overlay
+    return bool(overlay.show_overlays and overlay.show_object_origins_all)
 
 
 _FILTERS: list[str] = []                      # SpaceView3D's object-type filters (they vary by version)

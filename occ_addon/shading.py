@@ -35,7 +35,7 @@ import numpy as np
 from ..core.lights import Light
 from ..core.tolerance import tol
 from . import identity
-from .cameras import clip_region, find_viewport, passepartout_shows, through_scene_camera
+from .cameras import clip_region, find_viewport, origins_all, passepartout_shows, through_scene_camera
 from .materials import images_with_alpha, material_see_through
 
 EEVEE = ("BLENDER_EEVEE", "BLENDER_EEVEE_NEXT")
@@ -94,13 +94,6 @@ def rule(context, source=None):
     # measured: a box right of the frame, 5,709 px, was hidden as outside the camera's view)
     found.outside_shows = context.scene.occ.source == "CAMERA" and passepartout_shows(context.scene.camera)
     return found
-
-
-def origins_all(space) -> bool:
-    """Whether 3D view ``space`` draws every object's origin (the Origins (All) overlay),
-    over whatever stands before it."""
-    overlay = space.overlay
-    return bool(overlay.show_overlays and overlay.show_object_origins_all)
 
 
 def _rule(context, source):

@@ -336,8 +336,8 @@ def run():
             if running and edit and not edited:
                 wall_curve.hide_set(True)
                 edited = True
-            if not running and (edited or not edit):
-                break
+            if not running and rendered and (edited or not edit):
+                break                                     # (a job that starts late, under load: waited for)
         for _ in range(5):                                # the leave timer, then redraws
             yield
         out[label] = {"hid_first": hid_first, "rendered": rendered, "edited_while_rendering": edited,
