@@ -359,6 +359,16 @@ def edits_show_the_set_on_screen():
     # the monitor flag, which Blender does not let a selection reach): shown
     ok += [after("hidden target made active", lambda: active("target"), False)]
     active(None)
+    # ... with a large selection beside it (the check reads every object's records in bulk)
+    crowd = [box(f"crowd{k}", (-30 - k % 50, -6 + k // 50 * 0.25, 0), (-29.9 - k % 50, -5.9 + k // 50 * 0.25, 0.1))
+             for k in range(2001)]
+    update()
+    for o in crowd:
+        o.select_set(True)
+    ok += [after("hidden target made active beside 2,001 selected", lambda: active("target"), False)]
+    active(None)
+    for o in crowd:
+        bpy.data.objects.remove(o)
     ok += [after("frame, nothing animated", lambda: scene.frame_set(scene.frame_current + 1), True),
           after("wall moved away", lambda: move_wall(50.0), False)]
     move_wall(-50.0)
