@@ -315,11 +315,11 @@ def shown_again_after_an_unseen_edit():
 def edits_show_the_set_on_screen():
     """A Cull click's hidden set (live mode off) stops holding at an edit that can uncover
     what it hides: the set is shown by the timer the edit's handler registers (called by
-    hand here, as the window runs it before the next redraw).  A selection keeps it (but
-    one of a hidden object); so does a frame change that moves nothing.  An eye clicked (the wall's, its collection's,
-    a second light's) is, as a selection, a change of the scene alone; so is a material
-    override set on the view layer.  Each step fails
-    on a set left standing."""
+    hand here, as the window runs it before the next redraw).  A selection of what is drawn
+    keeps it (a hidden object made active does not, beside a small or a large selection);
+    so does a frame change that moves nothing.  An eye clicked (the wall's, its
+    collection's, a second light's) is, as a selection, a change of the scene alone; so is
+    a material override set on the view layer.  Each step fails on a set left standing."""
     live = addon("live")
     scene = new_scene()
     box("target", (3, -1, 0), (4, 1, 1))
