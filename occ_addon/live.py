@@ -104,7 +104,10 @@ def track(context):
     watches (a Cull click culls the view it was pressed in, live mode the view a timer
     finds; from the scene camera, the view that looks through it)."""
     found = _culled_viewport(context)
-    WATCH.region = None if found is None else found[2].as_pointer()
+    region = None if found is None else found[2].as_pointer()
+    if region != WATCH.region:
+        LOOP.tracker = MotionTracker()                # what it measured was another view's motion
+    WATCH.region = region
     WATCH.view_state = None if found is None else view_state(found[0].spaces.active)
 
 
@@ -134,8 +137,10 @@ def _unsafe(camera):
 def guard():
     """Before a redraw of the culled viewport (a draw handler, so cheap): a view about
     to leave the hidden set's envelope makes :func:`leave` run at once (a timer: data
-    cannot change while drawing)."""
-    if SESSION.shown is None or WATCH.leaving:
+    cannot change while drawing).  It looks at the view while nothing is hidden too: the
+    next Cull click's set is then measured against the view's last step, not against a
+    view left long ago (taken for one step of a motion, it made that set go at once)."""
+    if WATCH.leaving:
         return
     context = bpy.context
     if context.scene is None:
@@ -144,12 +149,12 @@ def guard():
     if rv3d is None or rv3d.as_pointer() != WATCH.region:
         return                                        # another view's redraw
     if context.scene.occ.source != "VIEWPORT":        # the camera's set (its motion: guard_camera)
-        if _view_changed(context.space_data):         # out of the camera's view, a filter, X-ray
+        if SESSION.shown is not None and _view_changed(context.space_data):   # out of the camera's view, ...
             _leave_soon()
         return
     camera = region_camera(rv3d)
     observe(camera)
-    if _unsafe(camera) or _view_changed(context.space_data):
+    if SESSION.shown is not None and (_unsafe(camera) or _view_changed(context.space_data)):
         _leave_soon()
 
 
@@ -557,8 +562,10 @@ def guard_camera(scene):
     """Live from the scene camera, a new frame (playback, scrubbing) or an edit moves
     it (the depsgraph and frame-change handlers call this): where it is about to leave
     the hidden set's envelope, everything is shown before the frame is drawn (the
-    live pass that follows hides again)."""
-    if SESSION.shown is None or SESSION.busy or not scene.occ.live or scene.occ.source != "CAMERA":
+    live pass that follows hides again).  The camera is watched while nothing is hidden
+    too: a set that lands after the camera came to rest is measured against its last
+    frame, not against one seen frames back (taken for one step, it let the set go)."""
+    if SESSION.busy or not scene.occ.live or scene.occ.source != "CAMERA":
         return
     try:
         camera, _ = camera_for(bpy.context, scene)
@@ -568,7 +575,7 @@ def guard_camera(scene):
         CAMERA_TRACKER.view = None
     else:
         CAMERA_TRACKER.observe(camera, time.perf_counter())
-    if SESSION.shown is None:        # evaluating the camera ran this handler again, which showed all
+    if SESSION.shown is None:        # nothing hidden (or evaluating the camera ran this handler again: shown)
         return
     centre, envelope = SESSION.shown
     if camera is None or centre is None or not CAMERA_TRACKER.safe(POLICY, centre, envelope, camera):

@@ -38,6 +38,11 @@ timer, whose context has no 3D view), and records whether the box was hidden.
   box's wires through the wall: nothing hidden; at alpha 1 the box is hidden;
 - ``camera_source``: Source Scene Camera hides only in a view through the camera: from the
   side nothing, through the camera the box, given back when the view leaves the camera;
+- ``cull_after_navigating``: a Cull click after the view orbited away from the last
+  one's set and came to rest: its set stands;
+- ``whole_picture``: a seeded town in flat object colours, from a street, from above and
+  through the scene camera zoomed out: a pass (and a small turn after it) changes no pixel
+  of the view's region;
 - ``two_views``: two 3D views side by side; a cull from one leaves the other drawing
   the box (its pixels on screen).
 
@@ -375,6 +380,8 @@ def run():
     yield from wireframe_xray(c)
     yield from camera_source(c)
     yield from selection(c)
+    yield from cull_after_navigating(c)
+    yield from whole_picture(c)
     yield from two_views(c)
 
 
@@ -519,7 +526,6 @@ def quad_view(c):
         c.ctx["region"] = c.region
 
     yield from passes_on_screen(c, "quad_view", quad, {"box": box})
-    yield from rest_pass(c)
     yield from changed_after_pass_of(c, box, "quad_after_pass", lambda: quad(True), lambda: quad(False))
 
 
@@ -551,8 +557,6 @@ def clip_region(c):
             xmin=int(min(a.x, b.x)), xmax=int(max(a.x, b.x)), ymin=int(min(a.y, b.y)), ymax=int(max(a.y, b.y))))
     results["clip_planes"] = [tuple(p) for p in c.rv3d.clip_planes]
 
-    yield from rest_pass(c)
-
     def region(on):
         c.rv3d.use_clip_planes = on
 
@@ -564,25 +568,59 @@ def clip_region(c):
 EYE, TARGET = (0.0, -12.0, 0.0), (0.0, 5.0, 0.0)      # the box behind the wall, seen from before it
 
 
-def rest_pass(c):
-    """A Cull click from where the cases look, given back: the redraw guard's motion tracker
-    last saw a jump (from a top view, a quad view), which it takes for a motion going on."""
+def cull_after_navigating(c):
+    """A Cull click's set, then the view orbits away in steps (the set goes at the first),
+    comes to rest elsewhere, and Cull is clicked again: that set stands (the redraw guard
+    once measured the new view against the one it saw last, many steps back, took it for
+    one step of a motion going on, and let the new set go at once: after navigating,
+    every second Cull click hid nothing)."""
+    clear_scene()
+    cube("wall", (0.0, 0.0, 0.0), (6.0, 0.2, 6.0))
+    box = cube("box", (0.0, 5.0, 0.0), (1.0, 1.0, 1.0))
+    out = results["cull_after_navigating"] = {}
     c.view(EYE, TARGET)
     for _ in range(3):
         yield
     c.cull()
     for _ in range(3):
         yield
+    out["first"] = hidden(box)
+    centre = np.asarray(TARGET)
+    for k in range(1, 7):                             # orbit about the box, 4 degrees a redraw
+        a = np.radians(4.0 * k)
+        eye = centre + np.array([17.0 * np.sin(a), -17.0 * np.cos(a), 0.0])
+        c.view(tuple(eye), TARGET)
+        c.area.tag_redraw()
+        yield
+    out["while_orbiting"] = hidden(box)
+    for _ in range(3):                                # at rest
+        yield
+    c.cull()
+    for _ in range(5):
+        yield
+    out["after_navigating"] = hidden(box)
     c.restore()
+    yield
 
 
-def red_on_screen(c, name, wire=False):
-    """A screenshot of the window as it draws now: the culled view's red pixels."""
+def on_screen(c, name):
+    """A screenshot of the window as it draws now (written as ``name``.png): its pixels,
+    ``(height, width, 4)`` floats, row 0 at the bottom as Blender's regions count."""
     path = os.path.join(OUT, f"{name}.png")
     with bpy.context.temp_override(**c.ctx):
         bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
         bpy.ops.screen.screenshot(filepath=path)
-    return red_pixels(path, c.area, wire)
+    img = bpy.data.images.load(path)
+    w, h = img.size
+    px = np.empty(w * h * 4, dtype=np.float32)
+    img.pixels.foreach_get(px)
+    bpy.data.images.remove(img)
+    return px.reshape(h, w, 4)
+
+
+def red_on_screen(c, name, wire=False):
+    """A screenshot of the window as it draws now: the culled view's red pixels."""
+    return red_pixels(on_screen(c, name), c.area, wire)
 
 
 def passes_on_screen(c, name, switch, watched):
@@ -636,13 +674,10 @@ def changed_after_pass_of(c, box, name, change, undo):
         yield
 
 
-def red_pixels(path, area, wire=False):
-    """Pixels of a window screenshot inside ``area`` that are pure red (the box's colour);
-    ``wire``: red clearly above green and blue (a red wire, blended with the background)."""
-    img = bpy.data.images.load(path)
-    w, h = img.size
-    px = np.array(img.pixels[:], dtype=np.float32).reshape(h, w, 4)
-    bpy.data.images.remove(img)
+def red_pixels(px, area, wire=False):
+    """Pixels of a window screenshot's ``px`` inside ``area`` that are pure red (the box's
+    colour); ``wire``: red clearly above green and blue (a red wire, blended with the
+    background)."""
     part = px[area.y:area.y + area.height, area.x:area.x + area.width]
     if wire:
         return int(((part[..., 0] - part[..., 1] > 0.15) & (part[..., 0] - part[..., 2] > 0.15)).sum())
@@ -690,17 +725,117 @@ def selection(c):
 
 def around(c, ob, name, half=40):
     """A screenshot's pixels ``(2 half, 2 half, 3)`` around ``ob``'s place in the culled view."""
-    path = os.path.join(OUT, f"{name}.png")
-    with bpy.context.temp_override(**c.ctx):
-        bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
-        bpy.ops.screen.screenshot(filepath=path)
-    img = bpy.data.images.load(path)
-    w, h = img.size
-    px = np.array(img.pixels[:], dtype=np.float32).reshape(h, w, 4)
-    bpy.data.images.remove(img)
+    px = on_screen(c, name)
     x, y = location_3d_to_region_2d(c.region, c.rv3d, ob.matrix_world.translation)
     x, y = int(x) + c.region.x, int(y) + c.region.y
     return px[y - half:y + half, x - half:x + half, :3]
+
+
+def whole_picture(c):
+    """Hiding what is occluded changes no pixel of the picture.  A seeded town of boxes, each
+    in its own flat colour, with poles and small things between (Blender's overlays and
+    anti-aliasing off); from a street, from above and through the scene camera zoomed out
+    (its passepartout drawing the scene around the frame): the view's region with everything
+    drawn against the same region after a Cull click and after a live pass; from the street
+    and from above also after a small turn that the set outlasts, against that view with
+    everything drawn."""
+    clear_scene()
+    rng = np.random.default_rng(29)
+    objects = []
+    for i in range(14):
+        for j in range(14):
+            if rng.random() < 0.2:
+                continue
+            w, d, h = rng.uniform(1.0, 3.2), rng.uniform(1.0, 3.2), rng.uniform(1.0, 9.0)
+            ob = cube(f"block_{i}_{j}", (4.0 * i + rng.uniform(-0.4, 0.4), 4.0 * j + rng.uniform(-0.4, 0.4), h / 2),
+                      (w, d, h))
+            ob.rotation_euler.z = rng.uniform(0.0, np.pi / 2)
+            objects.append(ob)
+    for k in range(150):                    # small things and poles in the streets: some a pixel or two
+        s = rng.uniform(0.05, 0.4)
+        h = s if k % 3 else rng.uniform(1.0, 4.0)
+        objects.append(cube(f"small_{k}", (rng.uniform(-2.0, 54.0), rng.uniform(-2.0, 54.0), h / 2), (s, s, h)))
+    for ob, colour in zip(objects, rng.uniform(0.05, 1.0, (len(objects), 3)), strict=True):
+        ob.color = (*colour, 1.0)
+    scene, shading, overlay = bpy.context.scene, c.space.shading, c.space.overlay
+    system = bpy.context.preferences.system
+    saved = (shading.light, shading.color_type, overlay.show_overlays, scene.occ.show_overlay,
+             system.viewport_aa, scene.render.dither_intensity, c.space.show_region_toolbar,
+             c.space.show_region_ui)
+    shading.light, shading.color_type = "FLAT", "OBJECT"
+    overlay.show_overlays = scene.occ.show_overlay = False
+    # the same picture twice gives the same pixels: no sample accumulation, no dither noise
+    system.viewport_aa, scene.render.dither_intensity = "OFF", 0.0
+    c.space.show_region_toolbar = c.space.show_region_ui = False
+    cam = bpy.data.objects.new("town_cam", bpy.data.cameras.new("town_cam"))
+    scene.collection.objects.link(cam)
+    cam.matrix_world = look_at((-3.0, 27.0, 1.7), (60.0, 21.0, 3.0)).inverted()
+    scene.camera = cam
+    size = scene.render.resolution_x, scene.render.resolution_y
+    scene.render.resolution_x, scene.render.resolution_y = 400, 300
+    views = {"street": ((-3.0, 27.0, 1.7), (60.0, 21.0, 3.0)), "above": ((-14.0, -10.0, 26.0), (30.0, 30.0, 0.0)),
+             "camera": None}
+    out = results["whole_picture"] = {"objects": len(objects)}
+
+    def region():
+        """The view's region as the last screenshot holds it (its bottom row first)."""
+        r = c.region
+        return lambda px: px[r.y:r.y + r.height, r.x:r.x + r.width, :3]
+
+    def changed(a, b):
+        return int((np.abs(a - b).max(axis=2) > 0.5 / 255).sum())
+
+    def look(view):
+        if view is None:
+            scene.occ.source = "CAMERA"
+            c.rv3d.view_perspective = "CAMERA"
+            c.rv3d.view_camera_zoom, c.rv3d.view_camera_offset = -12.0, (0.0, 0.0)
+        else:
+            scene.occ.source = "VIEWPORT"
+            c.view(*view)
+        c.area.tag_redraw()
+
+    for label, view in views.items():
+        for how in ("operator", "live"):
+            rec = out[f"{label}_{how}"] = {}
+            look(view)
+            for _ in range(3):
+                yield
+            crop = region()
+            drawn = crop(on_screen(c, f"whole_{label}_{how}_drawn"))
+            if how == "operator":
+                c.cull()
+            else:
+                yield from c.live_pass()
+            for _ in range(3):
+                yield
+            rec["hidden"] = sum(hidden(ob) for ob in objects)
+            rec["changed"] = changed(drawn, crop(on_screen(c, f"whole_{label}_{how}_culled")))
+            if view is not None and how == "operator":
+                # a small turn about the eye: the Cull click's set stands while the view stays
+                # inside the envelope the pass covered
+                turn = mathutils.Matrix.Rotation(0.002, 4, "Y") @ c.rv3d.view_matrix
+                c.rv3d.view_matrix = turn
+                c.area.tag_redraw()
+                for _ in range(3):
+                    yield
+                rec["hidden_turned"] = sum(hidden(ob) for ob in objects)
+                culled = crop(on_screen(c, f"whole_{label}_turned_culled"))
+                c.restore()
+                c.rv3d.view_matrix = turn
+                c.area.tag_redraw()
+                for _ in range(3):
+                    yield
+                rec["changed_turned"] = changed(crop(on_screen(c, f"whole_{label}_turned_drawn")), culled)
+            c.restore()
+            yield
+    c.rv3d.view_perspective = "PERSP"
+    scene.occ.source = "VIEWPORT"
+    scene.render.resolution_x, scene.render.resolution_y = size
+    (shading.light, shading.color_type, overlay.show_overlays, scene.occ.show_overlay, system.viewport_aa,
+     scene.render.dither_intensity, c.space.show_region_toolbar, c.space.show_region_ui) = saved
+    clear_scene()
+    yield
 
 
 def two_views(c):
@@ -730,18 +865,11 @@ def two_views(c):
     rv3d.view_matrix = look_at((12.0, 5.0, 0.0), (0.0, 5.0, 0.0))
     for _ in range(3):
         yield
-    shot = os.path.join(OUT, "two_views_before.png")
-    with bpy.context.temp_override(**c.ctx):
-        bpy.ops.screen.screenshot(filepath=shot)
-    before = red_pixels(shot, other)
-    shot = os.path.join(OUT, "two_views_culled.png")
+    before = red_pixels(on_screen(c, "two_views_before"), other)
     out = results["two_views"] = {"cull_result": c.cull()}
     for _ in range(3):
         yield
-    with bpy.context.temp_override(**c.ctx):
-        bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
-        bpy.ops.screen.screenshot(filepath=shot)
-    after = red_pixels(shot, other)
+    after = red_pixels(on_screen(c, "two_views_culled"), other)
     out.update(hidden_in_culled=hidden(box) and not box.visible_get(viewport=culled.spaces.active),
                drawn_in_other=box.visible_get(viewport=other.spaces.active),
                other_red_before=before, other_red_after=after, hide_viewport=box.hide_viewport)

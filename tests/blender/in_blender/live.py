@@ -5,6 +5,7 @@ import io
 import math
 import os
 import threading
+import time
 from contextlib import redirect_stderr
 
 import bpy
@@ -142,6 +143,52 @@ def camera_moves_between_ticks():
             check("camera_moves_guarded_no_visible_hidden", hid_any and not bad, (hid_any, bad[:3]))
         else:
             check("camera_moves_unguarded_would_hide_visible", bool(bad), "")
+
+
+def camera_set_after_motion_holds():
+    """Live from the scene camera: a set made at frame 1, the camera flies on (the set
+    goes at the next frame), comes to rest, and a pass there hides again: that set stands
+    at the next frame of the resting camera.  The camera's guard once watched the camera
+    only while something was hidden, measured the resting camera against the one it saw
+    last, frames back, took the flight for one step and let the new set go at once."""
+    scene = new_scene()
+    scene.render.resolution_x, scene.render.resolution_y = 160, 90
+    for k in range(-6, 7):                               # pillars before the wall: much is hidden
+        box(f"pillar{k}", (0, 2.0 * k - 0.6, -2), (0.5, 2.0 * k + 0.6, 6))
+    cam = scene.camera
+    edit = bpy.context.preferences.edit
+    before, edit.keyframe_new_interpolation_type = edit.keyframe_new_interpolation_type, "LINEAR"
+    for frame, y in ((1, -4.0), (11, 4.0)):             # flies until frame 11, then rests
+        cam.location = (-10.0, y, 1.0)
+        cam.keyframe_insert("location", frame=frame)
+    edit.keyframe_new_interpolation_type = before
+    scene.frame_set(1)
+    update()
+    session, cameras = addon("session"), addon("cameras")
+    scene.occ.live = True                                # the flag only: headless there is no timer
+
+    def pass_here():
+        camera, display = cameras.scene_camera(bpy.context)
+        session.SESSION.cull(bpy.context, camera, display, fresh=True, restart=True, envelope=session.AT_REST)
+        return hidden_by_addon_any()
+
+    def frame(f):
+        time.sleep(0.06)                                 # frames as playback shows them, not at once
+        scene.frame_set(f)
+        update()
+
+    first = pass_here()
+    for f in range(2, 16):
+        frame(f)
+    gone = not hidden_by_addon_any()
+    at_rest = pass_here()
+    frame(16)
+    kept = hidden_by_addon_any()
+    wrong = hidden_but_seen()
+    scene.occ.live = False
+    bpy.ops.occ.restore()
+    check("camera_set_after_motion_holds", bool(first) and gone and bool(at_rest) and kept == at_rest
+          and not wrong, (len(first), gone, len(at_rest), len(kept), wrong[:3]))
 
 
 def live_cut_is_the_engines_camera_cut():
