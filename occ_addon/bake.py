@@ -33,7 +33,9 @@ frame draws) through the add-on's own channels (:mod:`.visibility`): in a window
 the 3D view that looks through the scene camera (its local-view bits); headless,
 everywhere (``hide_viewport``) unless "Hide In" is This View.  Never during a render
 (the frame-change handler runs on the render thread there), never with live mode on.
-A view that stops looking through the camera shows everything before it redraws.
+A view that stops looking through the camera shows everything before it redraws, and
+so does one whose shading changes (checked again at the next frame: a view whose own
+shading draws shadows or lights the render does not hides nothing baked).
 """
 
 import base64
@@ -56,7 +58,7 @@ from ..core.envelope import covering
 from ..core.frustum import classify, planes_from_matrix
 from ..core.playback import PlaybackCost
 from . import analysis, identity, localview, policy, visibility
-from .cameras import scene_camera, through_scene_camera
+from .cameras import scene_camera, shading_look, through_scene_camera
 from .drawn import hidden_by_own_keys, rendered_by_collections
 from .fingerprints import _mesh_fingerprint
 from .identity import ident
@@ -64,7 +66,9 @@ from .kinds import is_dynamic, render_geometry
 from .materials import see_through
 from .props import settings_key
 from .session import SESSION, rendering
+from .shading import key as shading_key
 from .shading import rule as rule_of
+from .shading import view_rule
 from .worker import Progress
 
 BAKE_ID = "occ_bake_id"
@@ -408,7 +412,8 @@ class State:
         self.drawn_view = None       # ... in this view
         self.camera_off: int | None = None   # a frame whose camera is not the baked one
         self.camera = None           # (view, projection) of the camera the applied set holds for
-        self.view = None             # the SpaceView3D pointer it hides in
+        self.view = None             # the SpaceView3D pointer it hides in ...
+        self.look = None             # ... and that view's shading then (:func:`.cameras.shading_look`)
         self.baking = False
         self.rendering = False       # Render Baked Shot runs: its own hide_render writes
         self.unsure = True           # hidden now may be a baked set nobody recorded (an undo)
@@ -443,8 +448,10 @@ STATE = State()
 def camera_area(context):
     """``(window, area)`` of a 3D view showing ``context.scene`` through its camera (not a
     Local Camera of its own), or None.
-    A view in Quad View (its other regions draw from other sides) or with a clipping
-    region (what it cuts hides nothing) draws more than the camera's sets hold for: none."""
+    A view in Quad View (its other regions draw from other sides), with a clipping region
+    (what it cuts hides nothing), or whose own shading draws more than the render the sets
+    were made for (:func:`_beyond_the_render`) draws more than the camera's sets hold for:
+    none."""
     wm = context.window_manager
     for win in (wm.windows if wm is not None else ()):
         if win.scene != context.scene:
@@ -453,9 +460,19 @@ def camera_area(context):
             if area.type == "VIEW_3D":
                 space = area.spaces.active
                 rv3d = space.region_3d
-                if rv3d is not None and through_scene_camera(space, context.scene) and not _draws_more(space, rv3d):
+                if rv3d is not None and through_scene_camera(space, context.scene) and not _draws_more(space, rv3d) \
+                        and not _beyond_the_render(context, space):
                     return win, area
     return None
+
+
+def _beyond_the_render(context, space) -> bool:
+    """Whether 3D view ``space`` draws by its own shading more than the render the bake's
+    sets were made for (:func:`.shading.rule` for the camera): Solid with shadows over a
+    Workbench render without them, Material Preview's lights over another engine's.  A
+    view that draws depth alone, or by the render's own rule, shows nothing more."""
+    mine = view_rule(context, space)
+    return mine.mode != "depth" and shading_key(mine) != shading_key(rule_of(context, "CAMERA"))
 
 
 def _draws_more(space, rv3d) -> bool:
@@ -573,6 +590,7 @@ def apply_frame(context, handler: bool = False) -> int:
     SESSION.shown = None                 # no pass's set: the live guard has nothing to watch
     STATE.applied = bool(n)
     STATE.view = channel[1].spaces.active.as_pointer() if n and channel is not None else None
+    STATE.look = shading_look(channel[1].spaces.active) if STATE.view is not None else None
     STATE.version, STATE.unsure = SESSION.version, False
     if STATE.drawn is None or STATE.drawn_view != STATE.view:
         STATE.drawn, STATE.drawn_view = drawn_digest(context, STATE.view), STATE.view
@@ -899,8 +917,9 @@ def guard():
     if space is None or space.as_pointer() != STATE.view:
         return
     rv3d = space.region_3d
-    if rv3d is not None and (not through_scene_camera(space, context.scene) or _draws_more(space, rv3d)):
-        _later()                              # it finds no camera view there: shows all
+    if rv3d is not None and (not through_scene_camera(space, context.scene) or _draws_more(space, rv3d)
+                             or shading_look(space) != STATE.look):
+        _later()                              # it finds no camera view there, or checks the new shading
 
 
 HANDLERS = (("frame_change_post", on_frame_change), ("depsgraph_update_post", on_depsgraph_update),

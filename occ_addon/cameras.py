@@ -75,10 +75,7 @@ def view_state(space) -> tuple | None:
         _FILTERS.extend(p.identifier for p in space.bl_rna.properties
                         if p.identifier.startswith("show_object_viewport_"))
     filters = tuple(getattr(space, name) for name in _FILTERS)
-    shading = space.shading
-    # what of the view's shading sets the pass's rule (:func:`.shading.rule`): X-ray, a
-    # Texture color that shows an image's alpha, scene lights hide less than depth alone
-    look = tuple(getattr(shading, name, None) for name in SHADING_RULE)
+    look = shading_look(space)
     clip = clip_region(space.region_3d)              # a region set after a pass uncovers what it cut
     # the add-on's own local view (its hiding) draws what the view drew: not the user's
     # through the camera: where the frame sits in the region (zoom, pan, the region's size
@@ -99,6 +96,14 @@ def origins_all(space) -> bool:
 
 
 _FILTERS: list[str] = []                      # SpaceView3D's object-type filters (they vary by version)
+def shading_look(space) -> tuple:
+    """What of 3D view ``space``'s shading sets a pass's rule (:func:`.shading.rule`):
+    X-ray, a Texture color that shows an image's alpha, scene lights hide less than depth
+    alone."""
+    shading = space.shading
+    return tuple(getattr(shading, name, None) for name in SHADING_RULE)
+
+
 SHADING_RULE = ("type", "show_xray", "xray_alpha", "show_xray_wireframe", "xray_alpha_wireframe",
                 "show_backface_culling", "show_shadows", "color_type", "use_scene_lights", "use_scene_world",
                 "use_scene_lights_render", "use_scene_world_render")

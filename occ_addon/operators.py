@@ -433,7 +433,9 @@ class OCC_OT_bake_use(bpy.types.Operator):
                 self.report({"WARNING"}, f"the baked shot is stale ({why}): it hides nothing; bake again")
             elif not hidden and bake.camera_area(context) is None and not bpy.app.background:
                 self.report({"INFO"}, "the baked shot hides in a 3D view that looks through the scene camera "
-                                      "(Numpad 0), not in Quad View and with no clipping region (Alt+B)")
+                                      "(Numpad 0), not in Quad View, with no clipping region (Alt+B), and "
+                                      "whose shading shows no more than the render (no shadows or lights of "
+                                      "its own)")
         else:
             bake.release()
         return {"FINISHED"}

@@ -75,11 +75,14 @@ def rule(context, source=None):
     Origins (All) overlay every object's origin over walls, and a view that does not look
     through the scene camera shows what the camera's set hides, so nothing is hidden there;
     a clipping region's planes (:func:`.cameras.clip_region`)."""
-    found = _rule(context, source or context.scene.occ.source)
     view = None if source is not None or bpy.app.background else find_viewport(context)
     if view is None:
-        return found
+        return _rule(context, source or context.scene.occ.source)
     space = view[0].spaces.active
+    # the pass hides in this view: what it draws by its own shading, through the scene
+    # camera too (measured: a Solid view with shadows through the camera lost a hidden
+    # object's shadow, 6 px, under the camera's Workbench render rule, which has none)
+    found = _view_rule(context.scene, context.view_layer, space, view[2])
     if len(space.region_quadviews):
         return ViewRule("shown", "Quad View draws this view's objects from three more sides", found.lights)
     if origins_all(space):
@@ -104,8 +107,20 @@ def _rule(context, source):
         if scene.render.use_multiview:
             return _stereo_rule()
         return _render_rule(scene, layer, engine, True, True, True)
-    shading = found[0].spaces.active.shading
-    through_camera = found[2].view_perspective == "CAMERA"
+    return _view_rule(scene, layer, found[0].spaces.active, found[2])
+
+
+def view_rule(context, space) -> ViewRule:
+    """The rule for what 3D view ``space`` draws by its own shading (through the scene
+    camera too: Solid with shadows, Material Preview, not the render's), in the context's
+    view layer."""
+    return _view_rule(context.scene, context.view_layer, space, space.region_3d)
+
+
+def _view_rule(scene, layer, space, rv3d):
+    engine = scene.render.engine
+    shading = space.shading
+    through_camera = rv3d.view_perspective == "CAMERA"
     if through_camera and scene.render.use_multiview:
         return _stereo_rule()
     kind = shading.type

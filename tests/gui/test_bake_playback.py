@@ -54,9 +54,10 @@ def test_render_keys_go_in_the_window_when_a_setting_changes(played):
 
 def test_a_camera_view_that_draws_more_hides_no_baked_set(played):
     """The view through the camera with a clipping region (what it cuts hides nothing), then
-    in Quad View (its other regions draw from other sides), then through a Local Camera: the
-    baked sets hold for the camera's picture alone, so the shot hides nothing there, on the
-    frame shown and the next."""
+    in Quad View (its other regions draw from other sides), then through a Local Camera, then
+    with Solid's shadows on (the view's own light, which the render has not): the baked sets
+    hold for the camera's picture alone, under the render's rule, so the shot hides nothing
+    there, on the frame shown and the next."""
     b = played[0]["beyond_the_camera"]
     assert b["hidden_first"] > 0 and b["clip_border"] == ["FINISHED"], b
     assert b["clipped"] == b["clipped_next_frame"] == 0, b
@@ -65,3 +66,6 @@ def test_a_camera_view_that_draws_more_hides_no_baked_set(played):
     # through a Local Camera of the view's own: another picture than the shot's
     assert b["one_region"] > 0 and b["local_camera"] == b["local_camera_next_frame"] == 0, b
     assert b["scene_camera_kept"], b
+    # Solid's shadows turned on in the view: its own light, which the shot's render has not
+    assert b["shading"] == "SOLID" and b["before_shadows"] > 0, b
+    assert b["shadows"] == b["shadows_next_frame"] == 0 and b["shadows_off"] > 0, b

@@ -41,8 +41,8 @@ timer, whose context has no 3D view), and records whether the box was hidden.
 - ``cull_after_navigating``: a Cull click after the view orbited away from the last
   one's set and came to rest: its set stands;
 - ``whole_picture``: a seeded town in flat object colours, from a street, from above and
-  through the scene camera zoomed out: a pass (and a small turn after it) changes no pixel
-  of the view's region;
+  through the scene camera zoomed out, with and without Solid's shadows: a pass (and a
+  small turn after it) changes no pixel of the view's region;
 - ``two_views``: two 3D views side by side; a cull from one leaves the other drawing
   the box (its pixels on screen).
 
@@ -732,13 +732,13 @@ def around(c, ob, name, half=40):
 
 
 def whole_picture(c):
-    """Hiding what is occluded changes no pixel of the picture.  A seeded town of boxes, each
-    in its own flat colour, with poles and small things between (Blender's overlays and
-    anti-aliasing off); from a street, from above and through the scene camera zoomed out
-    (its passepartout drawing the scene around the frame): the view's region with everything
-    drawn against the same region after a Cull click and after a live pass; from the street
-    and from above also after a small turn that the set outlasts, against that view with
-    everything drawn."""
+    """Hiding what is occluded changes no pixel of the picture.  A seeded town of boxes on a
+    ground, each in its own flat colour, with poles and small things between (Blender's
+    overlays and anti-aliasing off); from a street, from above and through the scene camera
+    zoomed out (its passepartout drawing the scene around the frame), the street and the
+    camera again with Solid's shadows: the view's region with everything drawn against the
+    same region after a Cull click and after a live pass; from the street and from above
+    also after a small turn that the set outlasts, against that view with everything drawn."""
     clear_scene()
     rng = np.random.default_rng(29)
     objects = []
@@ -755,13 +755,14 @@ def whole_picture(c):
         s = rng.uniform(0.05, 0.4)
         h = s if k % 3 else rng.uniform(1.0, 4.0)
         objects.append(cube(f"small_{k}", (rng.uniform(-2.0, 54.0), rng.uniform(-2.0, 54.0), h / 2), (s, s, h)))
+    objects.append(cube("ground", (26.0, 26.0, -0.05), (90.0, 90.0, 0.1)))
     for ob, colour in zip(objects, rng.uniform(0.05, 1.0, (len(objects), 3)), strict=True):
         ob.color = (*colour, 1.0)
     scene, shading, overlay = bpy.context.scene, c.space.shading, c.space.overlay
     system = bpy.context.preferences.system
-    saved = (shading.light, shading.color_type, overlay.show_overlays, scene.occ.show_overlay,
-             system.viewport_aa, scene.render.dither_intensity, c.space.show_region_toolbar,
-             c.space.show_region_ui)
+    saved = (shading.light, shading.color_type, shading.show_shadows, overlay.show_overlays,
+             scene.occ.show_overlay, system.viewport_aa, scene.render.dither_intensity,
+             c.space.show_region_toolbar, c.space.show_region_ui)
     shading.light, shading.color_type = "FLAT", "OBJECT"
     overlay.show_overlays = scene.occ.show_overlay = False
     # the same picture twice gives the same pixels: no sample accumulation, no dither noise
@@ -773,8 +774,9 @@ def whole_picture(c):
     scene.camera = cam
     size = scene.render.resolution_x, scene.render.resolution_y
     scene.render.resolution_x, scene.render.resolution_y = 400, 300
-    views = {"street": ((-3.0, 27.0, 1.7), (60.0, 21.0, 3.0)), "above": ((-14.0, -10.0, 26.0), (30.0, 30.0, 0.0)),
-             "camera": None}
+    street = ((-3.0, 27.0, 1.7), (60.0, 21.0, 3.0))
+    views = {"street": street, "above": ((-14.0, -10.0, 26.0), (30.0, 30.0, 0.0)), "camera": None,
+             "street_shadows": street, "camera_shadows": None}
     out = results["whole_picture"] = {"objects": len(objects)}
 
     def region():
@@ -796,6 +798,7 @@ def whole_picture(c):
         c.area.tag_redraw()
 
     for label, view in views.items():
+        shading.show_shadows = label.endswith("_shadows")     # Solid's shadows, cast on what is drawn
         for how in ("operator", "live"):
             rec = out[f"{label}_{how}"] = {}
             look(view)
@@ -811,7 +814,7 @@ def whole_picture(c):
                 yield
             rec["hidden"] = sum(hidden(ob) for ob in objects)
             rec["changed"] = changed(drawn, crop(on_screen(c, f"whole_{label}_{how}_culled")))
-            if view is not None and how == "operator":
+            if view is not None and how == "operator" and not shading.show_shadows:
                 # a small turn about the eye: the Cull click's set stands while the view stays
                 # inside the envelope the pass covered
                 turn = mathutils.Matrix.Rotation(0.002, 4, "Y") @ c.rv3d.view_matrix
@@ -832,8 +835,8 @@ def whole_picture(c):
     c.rv3d.view_perspective = "PERSP"
     scene.occ.source = "VIEWPORT"
     scene.render.resolution_x, scene.render.resolution_y = size
-    (shading.light, shading.color_type, overlay.show_overlays, scene.occ.show_overlay, system.viewport_aa,
-     scene.render.dither_intensity, c.space.show_region_toolbar, c.space.show_region_ui) = saved
+    (shading.light, shading.color_type, shading.show_shadows, overlay.show_overlays, scene.occ.show_overlay,
+     system.viewport_aa, scene.render.dither_intensity, c.space.show_region_toolbar, c.space.show_region_ui) = saved
     clear_scene()
     yield
 

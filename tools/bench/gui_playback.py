@@ -289,8 +289,8 @@ def inside(out_path, scene_name, seconds, fps, modal=False):
 
     def beyond_the_camera(sc, ctx, space, bake, flags):
         """A view through the camera that also draws more (a clipping region made with
-        Alt+B's operator, then Quad View), or through a Local Camera of its own: the baked
-        shot hides nothing there."""
+        Alt+B's operator, then Quad View), or through a Local Camera of its own, or with
+        shadows of its own (Solid's): the baked shot hides nothing there."""
         def hidden():
             return int(flags("occ_view_culled").sum())
 
@@ -340,6 +340,20 @@ def inside(out_path, scene_name, seconds, fps, modal=False):
         space.camera = None
         space.use_local_camera = False
         out["scene_camera_kept"] = sc.camera == shot_camera
+        # the view's own shading draws shadows the shot's render does not: turned on while a
+        # frame's set is shown, the set goes before the next redraw, and no frame hides there
+        yield from settle(sc.frame_start + 3)
+        out["before_shadows"], out["shading"] = hidden(), space.shading.type
+        space.shading.show_shadows = True
+        ctx["area"].tag_redraw()
+        for _ in range(10):                              # redraws, the guard's timer: no new frame
+            yield
+        out["shadows"] = hidden()
+        yield from settle(sc.frame_start + 4)
+        out["shadows_next_frame"] = hidden()
+        space.shading.show_shadows = False
+        yield from settle(sc.frame_start + 3)
+        out["shadows_off"] = hidden()
         with bpy.context.temp_override(**ctx):
             bpy.ops.occ.bake_use()                       # off, as before
         yield
