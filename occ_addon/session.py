@@ -510,11 +510,20 @@ class Session:
             self.last = LastPass(state, protected, scene.mesh_bounds[scene.mesh_of[hidden]], scene.matrices[hidden],
                                  result.occupancy, result.stats,
                                  1e3 * (time.perf_counter() - pending.started), 1e3 * blender_s, changed,
-                                 int(self.culler.scene.triangle_counts[hidden].sum()), pending.rule.why,
+                                 int(self.culler.scene.triangle_counts[hidden].sum()), _rule_words(pending, result),
                                  shading.key(pending.rule), held.uids[~(culled & ~protected)])
             self.shown = shown_by(result, pending.camera)
             self.version += 1
             return result, objects
+
+
+def _rule_words(pending, result) -> str:
+    """What the panel says of the pass's rule; an orthographic view under an envelope
+    also says why nothing occluded went (:mod:`..core.envelope`: a parallel view that may
+    turn proves nothing hidden), lest 0 read as nothing being behind anything."""
+    if result.envelope is not None and pending.camera.is_orthographic:
+        return f"{pending.rule.why}; orthographic: a set that holds while the view may turn hides nothing here"
+    return pending.rule.why
 
 
 def _built(scene, resolution, strategy, chunks, display):

@@ -220,6 +220,8 @@ def test_a_pass_changes_no_pixel_of_the_picture(results):
     # rest still go; through the camera by the view's own shading, not the render's
     # (which has no shadows: 6 pixels of a hidden box's shadow went)
     assert r["street_shadows_operator"]["hidden"] > 0 and r["camera_shadows_operator"]["hidden"] > 0, r
+    # a parallel view hides nothing occluded under the rest envelope, and the panel says why
+    assert "orthographic" in r["ortho_operator"]["rule"] and "orthographic" not in r["street_operator"]["rule"], r
 
 
 def test_a_cull_click_after_navigating_holds(results):

@@ -823,6 +823,7 @@ def whole_picture(c):
             for _ in range(3):
                 yield
             rec["hidden"] = sum(hidden(ob) for ob in objects)
+            rec["rule"] = c.session.last.rule
             rec["changed"] = changed(drawn, crop(on_screen(c, f"whole_{label}_{how}_culled")))
             if view is not None and how == "operator" and not shading.show_shadows:
                 # a small turn about the eye: the Cull click's set stands while the view stays
