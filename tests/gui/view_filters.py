@@ -44,7 +44,9 @@ timer, whose context has no 3D view), and records whether the box was hidden.
   through the scene camera zoomed out, with and without Solid's shadows: a pass (and a
   small turn after it) changes no pixel of the view's region;
 - ``two_views``: two 3D views side by side; a cull from one leaves the other drawing
-  the box (its pixels on screen).
+  the box (its pixels on screen);
+- ``moving_picture``: the town walked through with live mode on: at every step the culled
+  view is, pixel for pixel, a view beside it that hides nothing.
 
 Writes OUT_DIR/view_filters.json and quits.
 """
@@ -383,6 +385,7 @@ def run():
     yield from cull_after_navigating(c)
     yield from whole_picture(c)
     yield from two_views(c)
+    yield from moving_picture(c)
 
 
 def camera_source(c):
@@ -731,16 +734,9 @@ def around(c, ob, name, half=40):
     return px[y - half:y + half, x - half:x + half, :3]
 
 
-def whole_picture(c):
-    """Hiding what is occluded changes no pixel of the picture.  A seeded town of boxes on a
-    ground, each in its own flat colour, with poles and small things between (Blender's
-    overlays and anti-aliasing off); from a street, from above, through the scene
-    camera zoomed out (its passepartout drawing the scene around the frame), a Front
-    orthographic view (where a pass at rest hides nothing occluded: the engine's envelope
-    does not cover parallel views), the street and the camera again with Solid's shadows:
-    the view's region with everything drawn against the same region after a Cull click and
-    after a live pass; from the street and from above also after a small turn that the set
-    outlasts, against that view with everything drawn."""
+def town():
+    """A seeded town of boxes over a ground, each in its own flat colour, with poles and
+    small things between: its objects."""
     clear_scene()
     rng = np.random.default_rng(29)
     objects = []
@@ -763,6 +759,20 @@ def whole_picture(c):
     objects.append(cube("ground", (26.0, 26.0, -0.35), (90.0, 90.0, 0.1)))
     for ob, colour in zip(objects, rng.uniform(0.05, 1.0, (len(objects), 3)), strict=True):
         ob.color = (*colour, 1.0)
+    return objects
+
+
+def whole_picture(c):
+    """Hiding what is occluded changes no pixel of the picture.  A seeded town of boxes on a
+    ground, each in its own flat colour, with poles and small things between (Blender's
+    overlays and anti-aliasing off); from a street, from above, through the scene
+    camera zoomed out (its passepartout drawing the scene around the frame), a Front
+    orthographic view (where a pass at rest hides nothing occluded: the engine's envelope
+    does not cover parallel views), the street and the camera again with Solid's shadows:
+    the view's region with everything drawn against the same region after a Cull click and
+    after a live pass; from the street and from above also after a small turn that the set
+    outlasts, against that view with everything drawn."""
+    objects = town()
     scene, shading, overlay = bpy.context.scene, c.space.shading, c.space.overlay
     system = bpy.context.preferences.system
     saved = (shading.light, shading.color_type, shading.show_shadows, overlay.show_overlays,
@@ -889,5 +899,85 @@ def two_views(c):
                other_red_before=before, other_red_after=after, hide_viewport=box.hide_viewport)
     c.restore()
 
+
+def moving_picture(c):
+    """While the view walks down the town's street, slowly, then faster, turning, with live
+    mode on: at every step the culled view, drawn offscreen at its region's size with its
+    own view and projection, is pixel for pixel the second view (which hides nothing) drawn
+    the same way; and again once the view rests.  The comparison can fail: the set drawn
+    from above differs, and so does a block the view sees hidden by its monitor flag."""
+    import gpu
+
+    objects = town()
+    other = next(a for a in c.win.screen.areas if a.type == "VIEW_3D" and a != c.area)
+    scene, system = bpy.context.scene, bpy.context.preferences.system
+    saved = (system.viewport_aa, scene.render.dither_intensity, scene.occ.show_overlay)
+    system.viewport_aa, scene.render.dither_intensity, scene.occ.show_overlay = "OFF", 0.0, False
+    for area in (c.area, other):
+        sp = area.spaces.active
+        sp.shading.type, sp.shading.light, sp.shading.color_type = "SOLID", "FLAT", "OBJECT"
+        sp.overlay.show_overlays = sp.show_gizmo = False
+    other_region = next(r for r in other.regions if r.type == "WINDOW")
+    views = (c.rv3d, other.spaces.active.region_3d)
+    for rv3d in views:
+        rv3d.view_perspective = "PERSP"
+    scene.occ.source = "VIEWPORT"
+    out = results["moving_picture"] = {"steps": []}
+    offscreen = gpu.types.GPUOffScreen(c.region.width, c.region.height)
+
+    def drawn(area, region, view):
+        """The view of ``area`` drawn offscreen from ``view`` with the culled view's
+        projection and size."""
+        offscreen.draw_view3d(scene, bpy.context.view_layer, area.spaces.active, region, view,
+                              c.rv3d.window_matrix, do_color_management=True)
+        px = np.asarray(offscreen.texture_color.read().to_list(), dtype=np.float32)
+        return px.reshape(c.region.height, c.region.width, 4)[..., :3]
+
+    def compare(label, view=None):
+        view = c.rv3d.view_matrix if view is None else view
+        a, b = drawn(c.area, c.region, view), drawn(other, other_region, view)
+        out["steps"].append([label, sum(hidden(ob) for ob in objects),
+                             int((np.abs(a - b).max(axis=2) > 0.5 / 255).sum())])
+
+    def show(eye, yaw):
+        target = (eye[0] + 60.0 * np.cos(yaw), eye[1] + 60.0 * np.sin(yaw), 3.0)
+        m = look_at(eye, target)
+        for rv3d in views:
+            rv3d.view_matrix = m
+        c.area.tag_redraw()
+        other.tag_redraw()
+
+    x, y, yaw = -3.0, 27.0, -0.1
+    show((x, y, 1.7), yaw)
+    for _ in range(3):
+        yield
+    yield from c.start_live()
+    compare("rest")
+    for k in range(36):
+        step = 0.05 if k < 12 or k >= 26 else 0.45            # slow, then fast, then slow again
+        x, yaw = x + step, -0.1 + 0.15 * np.sin(k / 5.0)
+        show((x, y, 1.7), yaw)
+        yield                                                 # live's ticks, the redraw guard
+        compare(f"step {k}")
+    for _ in range(15):                                       # at rest: a pass lands
+        yield
+    compare("rest again")
+    c.stop_live()
+    # the check can fail: the set drawn from above (where it shows) differs, so the culled
+    # view's offscreen draw leaves out what the add-on hides there; and the nearest block
+    # the view sees, hidden by its monitor flag, differs too
+    compare("the set from above", look_at((-14.0, -10.0, 26.0), (30.0, 30.0, 0.0)))
+    seen = [ob for ob in objects if not hidden(ob) and ob.name.startswith("block_")]
+    near = min(seen, key=lambda ob: (ob.location - mathutils.Vector((x, y, 1.7))).length)
+    near.hide_viewport = True
+    c.area.tag_redraw()
+    yield
+    compare("a seen block hidden")
+    near.hide_viewport = False
+    offscreen.free()
+    c.restore()
+    system.viewport_aa, scene.render.dither_intensity, scene.occ.show_overlay = saved
+    clear_scene()
+    yield
 
 drive_in_window(run, results, os.path.join(OUT, "view_filters.json"), 0.2)
