@@ -902,7 +902,8 @@ def two_views(c):
 
 def moving_picture(c):
     """While the view walks down the town's street, slowly, then faster, turning, with live
-    mode on: at every step the culled view, drawn offscreen at its region's size with its
+    mode on (and back with Solid's shadows): at every step the culled view, drawn offscreen
+    at its region's size with its
     own view and projection, is pixel for pixel the second view (which hides nothing) drawn
     the same way; and again once the view rests.  The comparison can fail: the set drawn
     from above differs, and so does a block the view sees hidden by its monitor flag."""
@@ -948,20 +949,29 @@ def moving_picture(c):
         other.tag_redraw()
 
     x, y, yaw = -3.0, 27.0, -0.1
-    show((x, y, 1.7), yaw)
-    for _ in range(3):
-        yield
-    yield from c.start_live()
-    compare("rest")
-    for k in range(36):
-        step = 0.05 if k < 12 or k >= 26 else 0.45            # slow, then fast, then slow again
-        x, yaw = x + step, -0.1 + 0.15 * np.sin(k / 5.0)
+    for lit in (False, True):                                 # then with Solid's shadows, walking back
+        tag = " lit" if lit else ""
+        for area in (c.area, other):
+            area.spaces.active.shading.show_shadows = lit
         show((x, y, 1.7), yaw)
-        yield                                                 # live's ticks, the redraw guard
-        compare(f"step {k}")
-    for _ in range(15):                                       # at rest: a pass lands
-        yield
-    compare("rest again")
+        for _ in range(3):
+            yield
+        yield from c.start_live()
+        compare("rest" + tag)
+        for k in range(36):
+            step = 0.05 if k < 12 or k >= 26 else 0.45        # slow, then fast, then slow again
+            x, yaw = x + (-step if lit else step), -0.1 + 0.15 * np.sin(k / 5.0)
+            show((x, y, 1.7), yaw)
+            yield                                             # live's ticks, the redraw guard
+            compare(f"step {k}{tag}")
+        for _ in range(15):                                   # at rest: a pass lands
+            yield
+        compare("rest again" + tag)
+        c.stop_live()
+        c.restore()
+    for area in (c.area, other):
+        area.spaces.active.shading.show_shadows = False
+    yield from c.start_live()
     c.stop_live()
     # the check can fail: the set drawn from above (where it shows) differs, so the culled
     # view's offscreen draw leaves out what the add-on hides there; and the nearest block
