@@ -303,40 +303,37 @@ def inside(out_path, scene_name, seconds, fps, modal=False):
         with bpy.context.temp_override(**ctx):
             bpy.ops.occ.bake_use()                       # on again
         out = results["beyond_the_camera"] = {"stale": bake.STATE.stale}
-        yield from settle(sc.frame_start + 1)
-        out["hidden_first"] = hidden()
+
+        def record(label, frame):
+            """At ``frame``, once settled: how many the bake hides, as ``label``."""
+            yield from settle(frame)
+            out[label] = hidden()
+
+        yield from record("hidden_first", sc.frame_start + 1)
         region = ctx["region"]
         with bpy.context.temp_override(**ctx):
             out["clip_border"] = sorted(bpy.ops.view3d.clip_border(
                 xmin=region.width // 4, xmax=3 * region.width // 4, ymin=region.height // 4,
                 ymax=3 * region.height // 4))
-        yield from settle(sc.frame_start + 1)
-        out["clipped"] = hidden()
-        yield from settle(sc.frame_start + 2)
-        out["clipped_next_frame"] = hidden()
+        yield from record("clipped", sc.frame_start + 1)
+        yield from record("clipped_next_frame", sc.frame_start + 2)
         space.region_3d.use_clip_planes = False
-        yield from settle(sc.frame_start + 3)
-        out["hidden_again"] = hidden()
+        yield from record("hidden_again", sc.frame_start + 3)
         with bpy.context.temp_override(**ctx):
             bpy.ops.screen.region_quadview()
-        yield from settle(sc.frame_start + 3)
-        out["quad"] = hidden()
-        yield from settle(sc.frame_start + 4)
-        out["quad_next_frame"] = hidden()
+        yield from record("quad", sc.frame_start + 3)
+        yield from record("quad_next_frame", sc.frame_start + 4)
         with bpy.context.temp_override(**ctx):
             bpy.ops.screen.region_quadview()             # back to one region, the one drawing the view
         ctx["region"] = next(r for r in ctx["area"].regions if r.type == "WINDOW")
-        yield from settle(sc.frame_start + 3)
-        out["one_region"] = hidden()
+        yield from record("one_region", sc.frame_start + 3)
         # the view through a camera of its own (Local Camera: another picture than the
         # shot's; any object can be one, and choosing it changes nothing the bake read)
         own, shot_camera = next(o for o in sc.objects if o != sc.camera), sc.camera
         space.use_local_camera = True                    # first: else the view's camera is the scene's
         space.camera = own
-        yield from settle(sc.frame_start + 3)
-        out["local_camera"] = hidden()
-        yield from settle(sc.frame_start + 4)
-        out["local_camera_next_frame"] = hidden()
+        yield from record("local_camera", sc.frame_start + 3)
+        yield from record("local_camera_next_frame", sc.frame_start + 4)
         space.camera = None
         space.use_local_camera = False
         out["scene_camera_kept"] = sc.camera == shot_camera
@@ -349,11 +346,9 @@ def inside(out_path, scene_name, seconds, fps, modal=False):
         for _ in range(10):                              # redraws, the guard's timer: no new frame
             yield
         out["shadows"] = hidden()
-        yield from settle(sc.frame_start + 4)
-        out["shadows_next_frame"] = hidden()
+        yield from record("shadows_next_frame", sc.frame_start + 4)
         space.shading.show_shadows = False
-        yield from settle(sc.frame_start + 3)
-        out["shadows_off"] = hidden()
+        yield from record("shadows_off", sc.frame_start + 3)
         with bpy.context.temp_override(**ctx):
             bpy.ops.occ.bake_use()                       # off, as before
         yield
