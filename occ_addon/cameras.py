@@ -96,6 +96,8 @@ def origins_all(space) -> bool:
 
 
 _FILTERS: list[str] = []                      # SpaceView3D's object-type filters (they vary by version)
+
+
 def shading_look(space) -> tuple:
     """What of 3D view ``space``'s shading sets a pass's rule (:func:`.shading.rule`):
     X-ray, a Texture color that shows an image's alpha, scene lights hide less than depth

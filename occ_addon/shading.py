@@ -80,8 +80,8 @@ def rule(context, source=None):
         return _rule(context, source or context.scene.occ.source)
     space = view[0].spaces.active
     # the pass hides in this view: what it draws by its own shading, through the scene
-    # camera too (measured: a Solid view with shadows through the camera lost a hidden
-    # object's shadow, 6 px, under the camera's Workbench render rule, which has none)
+    # camera too (measured: through the camera with Solid's shadows, hidden boxes' shadows
+    # went, 25 px, under the render's rule, EEVEE with no lights)
     found = _view_rule(context.scene, context.view_layer, space, view[2])
     if len(space.region_quadviews):
         return ViewRule("shown", "Quad View draws this view's objects from three more sides", found.lights)
