@@ -129,7 +129,7 @@ class Culler:
         self.max_children = max_children
         self.chunking = (chunk_triangles, chunk_min_triangles)
         self.chunk_cache = chunk_cache if chunk_cache is not None else ChunkCache()
-        self._unit_bounds_memo = None
+        self._unit_bounds_memo: tuple | None = None
         self._build(scene, ctx)
 
     def _build(self, scene, ctx, previous=None):
