@@ -203,15 +203,15 @@ def test_a_selected_object_is_never_hidden(results):
 def test_a_pass_changes_no_pixel_of_the_picture(results):
     """A seeded town in flat object colours, Blender's anti-aliasing off: from a street,
     from above and through the scene camera zoomed out (the passepartout drawing the town
-    around the frame), with and without Solid's shadows, the view's region after a Cull
-    click and after a live pass is the region with everything drawn, pixel for pixel; so
-    after a small turn the Cull click's set outlasts."""
+    around the frame) and zoomed in and panned, with and without Solid's shadows, the
+    view's region after a Cull click and after a live pass is the region with everything
+    drawn, pixel for pixel; so after a small turn the Cull click's set outlasts."""
     r = results["whole_picture"]
-    for label in ("street", "above", "camera", "ortho", "street_shadows", "camera_shadows"):
+    for label in ("street", "above", "camera", "camera_close", "ortho", "street_shadows", "camera_shadows"):
         for how in ("operator", "live"):
             rec = r[f"{label}_{how}"]
             assert rec["changed"] == 0, (label, how, r)
-            if label in ("street", "above", "camera"):
+            if label in ("street", "above", "camera", "camera_close"):
                 assert rec["hidden"] >= 50, (label, how, r)      # (of 315: the pass hides much)
         if label in ("street", "above"):
             rec = r[f"{label}_operator"]

@@ -41,7 +41,7 @@ timer, whose context has no 3D view), and records whether the box was hidden.
 - ``cull_after_navigating``: a Cull click after the view orbited away from the last
   one's set and came to rest: its set stands;
 - ``whole_picture``: a seeded town in flat object colours, from a street, from above and
-  through the scene camera zoomed out, with and without Solid's shadows: a pass (and a
+  through the scene camera zoomed out and in, with and without Solid's shadows: a pass (and a
   small turn after it) changes no pixel of the view's region;
 - ``two_views``: two 3D views side by side; a cull from one leaves the other drawing
   the box (its pixels on screen);
@@ -766,7 +766,8 @@ def whole_picture(c):
     """Hiding what is occluded changes no pixel of the picture.  A seeded town of boxes on a
     ground, each in its own flat colour, with poles and small things between (Blender's
     overlays and anti-aliasing off); from a street, from above, through the scene
-    camera zoomed out (its passepartout drawing the scene around the frame), a Front
+    camera zoomed out (its passepartout drawing the scene around the frame) and zoomed in
+    and panned (the region showing a part of the frame), a Front
     orthographic view (where a pass at rest hides nothing occluded: the engine's envelope
     does not cover parallel views), the street and the camera again with Solid's shadows:
     the view's region with everything drawn against the same region after a Cull click and
@@ -791,7 +792,7 @@ def whole_picture(c):
     scene.render.resolution_x, scene.render.resolution_y = 400, 300
     street = ((-3.0, 27.0, 1.7), (60.0, 21.0, 3.0))
     views = {"street": street, "above": ((-14.0, -10.0, 26.0), (30.0, 30.0, 0.0)), "camera": None,
-             "ortho": "ortho", "street_shadows": street, "camera_shadows": None}
+             "camera_close": "camera_close", "ortho": "ortho", "street_shadows": street, "camera_shadows": None}
     out = results["whole_picture"] = {"objects": len(objects)}
 
     def region():
@@ -803,10 +804,13 @@ def whole_picture(c):
         return int((np.abs(a - b).max(axis=2) > 0.5 / 255).sum())
 
     def look(view):
-        if view is None:
+        if view is None or view == "camera_close":
             scene.occ.source = "CAMERA"
             c.rv3d.view_perspective = "CAMERA"
-            c.rv3d.view_camera_zoom, c.rv3d.view_camera_offset = -12.0, (0.0, 0.0)
+            # zoomed out (the passepartout around the frame), or in and panned (the region
+            # shows a part of the frame)
+            c.rv3d.view_camera_zoom, c.rv3d.view_camera_offset = (-12.0, (0.0, 0.0)) if view is None \
+                else (25.0, (0.15, -0.1))
         elif view == "ortho":                         # Front (Numpad 1), orthographic
             scene.occ.source = "VIEWPORT"
             c.rv3d.view_perspective = "ORTHO"
@@ -835,7 +839,7 @@ def whole_picture(c):
             rec["hidden"] = sum(hidden(ob) for ob in objects)
             rec["rule"] = c.session.last.rule
             rec["changed"] = changed(drawn, crop(on_screen(c, f"whole_{label}_{how}_culled")))
-            if view is not None and how == "operator" and not shading.show_shadows:
+            if isinstance(view, tuple) and how == "operator" and not shading.show_shadows:
                 # a small turn about the eye: the Cull click's set stands while the view stays
                 # inside the envelope the pass covered
                 turn = mathutils.Matrix.Rotation(0.002, 4, "Y") @ c.rv3d.view_matrix
