@@ -82,7 +82,7 @@ def view_state(space) -> tuple | None:
     # and the lens: its window matrix), which decides what it draws around the frame
     rv3d = space.region_3d
     through = None if rv3d is None or rv3d.view_perspective != "CAMERA" else tuple(map(tuple, rv3d.window_matrix))
-    own = space.camera if getattr(space, "use_local_camera", False) else None     # a camera of its own
+    own = local_camera(space)
     return (localview.user_local(space), bool(getattr(space, "use_local_collections", False)), filters, look,
             None if clip is None else clip.tobytes(), len(space.region_quadviews), through, origins_all(space),
             None if own is None else own.name)
@@ -200,8 +200,14 @@ def through_scene_camera(space, scene) -> bool:
     rv3d = space.region_3d
     if rv3d is None or rv3d.view_perspective != "CAMERA":
         return False
-    own = space.camera if getattr(space, "use_local_camera", False) else None
+    own = local_camera(space)
     return own is None or own == scene.camera
+
+
+def local_camera(space):
+    """The camera object 3D view ``space`` looks through of its own (View > Local Camera),
+    or None: it looks through the scene's."""
+    return space.camera if getattr(space, "use_local_camera", False) else None
 
 
 def passepartout_shows(cam) -> bool:
