@@ -42,14 +42,17 @@ A grown box is OCCLUDED when its nearest depth is beyond the farthest such depth
 its pixel rectangle (rounded outward).  Limits, stated as the point pass states its
 own: the surface is sampled at pixel centres, so a slit narrower than a pixel of this
 image between two pixels that lie on one slope (inside one object, or between two
-surfaces in one plane) is not seen; orthographic views hide no occluded object under an envelope (only what the
-grown frustum leaves out, and only with ``A = 0``); a lens wider than ``MAX_HALF_DEG``
-with the turn hides nothing.
+surfaces in one plane) is not seen; a lens wider than ``MAX_HALF_DEG`` with the turn
+hides nothing.
+
+Orthographic views have a proof of their own (:class:`_ParallelProof`): their rays do not
+depend on the eye, so only the turn moves them, and a point is hidden while it lies behind
+a continuous surface by no more than the surface's width over the turn's tangent allows.
 """
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -79,7 +82,8 @@ class Envelope:
     roll); with ``any_roll=False``, the camera's whole frame turned by at most
     ``angle_deg`` (roll included: what live mode measures), a narrower view to test.
 
-    ``floor``: ``(nx, ny, nz, c)``, the eye also stays on the side ``n . eye >= c`` of a
+    ``also``: cameras whose envelopes (the same distance and angle) the hidden set must
+    hold for too.  ``floor``: ``(nx, ny, nz, c)``, the eye also stays on the side ``n . eye >= c`` of a
     plane (world space, ``n`` a unit vector), or None.  ``above_floor``: the pass may set
     ``floor`` itself (:func:`floor_cut`: a little short of the nearest face the ball
     reaches through, a ground or a wall) and returns the envelope it used
@@ -95,6 +99,10 @@ class Envelope:
     any_roll: bool = True
     above_floor: bool = False
     floor: tuple | None = None
+    # other cameras (:class:`core.camera.Camera`) the hidden set must hold for too, each with
+    # this distance and angle around it (no floor): the perspective view Blender turns an
+    # orthographic one into, before a redraw the caller could act in
+    also: tuple = ()
 
     def __post_init__(self):
         d, a = float(self.distance), float(self.angle_deg)
@@ -296,7 +304,7 @@ def slope_tolerance(near, far):
     return tol.depth_guard_steps * (far - near) / (near * far * 2.0 ** tol.depth_bits)
 
 
-def _jumps(z, ok, w_tol):
+def _jumps(z, ok, w_tol, linear=False):
     """Pixels beside a depth jump that no continuous surface makes.
 
     Two neighbouring pixels lie on one continuous surface when the step between them
@@ -307,9 +315,11 @@ def _jumps(z, ok, w_tol):
     surfaces narrower than a pixel can lie between the two centres, and a view of the
     envelope whose pixel centres fall elsewhere sees through it (a rule that let steps
     smaller than half a pixel of parallax pass for slopes hid objects that 1-3 pixels of
-    such views showed: ``tools/checks/fuzz_truth.py --envelope``, seeds 88, 122, 163, 237)."""
+    such views showed: ``tools/checks/fuzz_truth.py --envelope``, seeds 88, 122, 163, 237).
+    ``linear``: a parallel view, where ``z`` itself is linear across the screen on a plane
+    (``w_tol`` then in depth units)."""
     with np.errstate(divide="ignore"):
-        w = np.where(ok, 1.0 / np.where(ok, z, 1.0), np.nan).astype(np.float32)
+        w = np.where(ok, z if linear else 1.0 / np.where(ok, z, 1.0), np.nan).astype(np.float32)
     out = np.zeros(z.shape, dtype=bool)
     for axis in (0, 1):
         a = np.swapaxes(w, 0, axis)
@@ -773,6 +783,7 @@ class _Tester:
         self.polygons = self.units = None
         self.orthographic = camera.is_orthographic
         if self.orthographic:
+            self.parallel = _ParallelProof(culler, camera, envelope, height, stats, occluders, image)
             return
         # an eye of the envelope clips what its near plane cuts: a point at distance r from
         # the centre eye lies at least (r - D) cos(theta) deep in the view of any eye that
@@ -827,15 +838,14 @@ class _Tester:
         """VISIBLE, OCCLUDED or VIEW_CULLED for world boxes ``(k, 2, 3)`` (``rel``: their
         grown camera-relative boxes; ``outside``: those known to miss the render frustum)."""
         env = self.envelope
+        if self.orthographic:
+            state = self.parallel.states(boxes)
+            if self.parallel.levels is not None:
+                self.stats.envelope_image_hidden += int((state == Visibility.OCCLUDED).sum())
+            return state
         if rel is None:
             rel = grown_boxes(boxes, self.eye, env.distance, self.culler.scene_size)
         state = np.full(len(boxes), Visibility.VISIBLE, dtype=np.uint8)
-        if self.orthographic:
-            if env.angle_deg == 0.0:
-                # a parallel view moved by D sees the frustum moved by D: grown boxes test it
-                outside, _ = classify(planes_from_matrix(self.camera.relative_view_projection()), rel)
-                state[outside] = Visibility.VIEW_CULLED
-            return state
         if self.view is None:
             return state
         near, far, _ = _lens(self.view.render)
@@ -863,6 +873,183 @@ class _Tester:
                 cut = (up, env.floor[3] - float(up @ self.eye))
             hidden = hidden_by_polygons(rel_test, self.polygons, env.distance, self.near_eff, guard, cut)
             state[test[hidden]] = Visibility.OCCLUDED
+        return state
+
+
+def ortho_lens(camera):
+    """``(near, far, (l, r, b, t))`` of an orthographic projection: the view-space depths of
+    its clip planes and its window in view-space units (lens shift included)."""
+    p = camera.projection
+    near, far = (p[2, 3] + 1.0) / p[2, 2], (p[2, 3] - 1.0) / p[2, 2]
+    xs = sorted(((-1.0 - p[0, 3]) / p[0, 0], (1.0 - p[0, 3]) / p[0, 0]))
+    ys = sorted(((-1.0 - p[1, 3]) / p[1, 1], (1.0 - p[1, 3]) / p[1, 1]))
+    return float(min(near, far)), float(max(near, far)), (float(xs[0]), float(xs[1]), float(ys[0]), float(ys[1]))
+
+
+def _ortho_matrix(left, r, b, t, near, far):
+    """glOrtho of the view-space window ``left .. r`` by ``b .. t``."""
+    p = np.eye(4)
+    p[0, 0], p[0, 3] = 2.0 / (r - left), -(r + left) / (r - left)
+    p[1, 1], p[1, 3] = 2.0 / (t - b), -(t + b) / (t - b)
+    p[2, 2], p[2, 3] = -2.0 / (far - near), -(far + near) / (far - near)
+    return p
+
+
+def parallel_near(near, distance, lateral, turn):
+    """The view-space depth (in the centre view) that a surface must pass to be drawn by
+    every view of a parallel envelope: a view whose eye moved by ``distance`` and whose
+    direction turned by ``theta <= turn`` (radians) sees a point at depth ``z`` and
+    ``lateral`` from the axis at least ``z cos(theta) - lateral sin(theta) - distance``
+    deep, which must pass ``near``: ``z >= (c + lateral sin(theta)) / cos(theta)`` with ``c
+    = near + distance``, largest at ``theta = turn`` or, for ``c < 0``, where its slope
+    ``lateral + c sin(theta)`` turns (``sin(theta) = lateral / -c``), at ``-sqrt(c^2 - lateral^2)``."""
+    c = near + distance
+    best = max(c, (c + lateral * math.sin(turn)) / math.cos(turn))
+    if c < 0.0 and lateral < -c and lateral / -c < math.sin(turn):
+        best = max(best, -math.sqrt(c * c - lateral * lateral))
+    return best
+
+
+class _ParallelProof:
+    """The envelope's proof for an orthographic view.  Rays of a parallel view do not
+    depend on its eye: a view of the envelope (eye moved by ``D``, direction turned by
+    ``theta <= A``) sees a point ``x`` along the ray from ``x`` in a direction within ``A``
+    of the centre view's, which drifts across the centre image by ``tan(theta)`` per unit
+    of depth.  Where the first-hit surface is continuous (no break, :func:`_jumps`) over a
+    window of half-size ``h`` pixels around ``x``'s pixel, the ray from ``x`` stays inside
+    the window until it is ``(h - 1/2) px / tan(A)`` nearer than ``x``; a point behind the
+    surface (beyond the farthest depth of its pixel's 3 x 3 window) and no farther than
+    that beyond the window's nearest depth is blocked: its ray starts behind the surface
+    and is in front of it before it leaves the window.  So per pixel the image gives an
+    interval of depths a point is hidden in, and a box is hidden when its depth range lies
+    inside the interval of every pixel its rectangle touches.  The eye's move changes no
+    ray: it moves the frustum and the near plane (:func:`parallel_near`).  A box outside
+    every view's frustum (grown by ``D`` and what the turn moves its farthest corner) is
+    VIEW_CULLED; one whose rectangle leaves the image is VISIBLE."""
+
+    def __init__(self, culler, camera, envelope, height, stats, occluders=None, image=True):
+        self.culler, self.envelope, self.stats = culler, envelope, stats
+        self.eye = camera.eye
+        self.rot = camera.view[:3, :3]
+        self.levels = None
+        near, far, (left, r, b, t) = ortho_lens(camera)
+        self.near, self.far = near, far
+        turn = math.radians(envelope.angle_deg)
+        self.chord = 2.0 * math.sin(0.5 * turn)            # how far a turn moves a point, per unit of its distance
+        if envelope.any_roll:                               # rolled about the axis: the window's disc
+            reach = max(math.hypot(x, y) for x in (left, r) for y in (b, t))
+            self.frame = (-reach, reach, -reach, reach)
+        else:
+            self.frame = (left, r, b, t)
+        self.orthonormal = bool(np.allclose(self.rot @ self.rot.T, np.eye(3), atol=1e-9))
+        if not (image and self.orthonormal) or not (far > near) or not (t > b and r > left):
+            return
+        px = (t - b) / max(int(height), 1)                 # the query's pixel, in view-space units
+        margin = px * max(MARGIN_PX, math.ceil(MARGIN_REL * height))
+        left, r, b, t = left - margin, r + margin, b - margin, t + margin
+        px = max(px, (r - left) / MAX_SIDE, (t - b) / MAX_SIDE)
+        w, h = max(1, math.ceil((r - left) / px)), max(1, math.ceil((t - b) / px))
+        r, t = left + w * px, b + h * px                    # whole pixels
+        self.window, self.px, self.size = (left, r, b, t), px, (w, h)
+        lateral = max(math.hypot(x, y) for x in (left, r) for y in (b, t))
+        n_eff = parallel_near(near, envelope.distance, lateral, turn)
+        self.near_eff = n_eff + tol.near_guard_rel * (abs(n_eff) + (far - near))
+        self.step = tol.depth_guard_steps * (far - near) / 2.0 ** tol.depth_bits
+        image_cam = Camera(camera.view, _ortho_matrix(left, r, b, t, near, far))
+        scene = culler.scene
+        ub = culler.unit_bounds()
+        out_units, _ = classify(planes_from_matrix(image_cam.relative_view_projection()), ub - self.eye)
+        shown = np.zeros(len(scene), dtype=bool)
+        shown[culler.units.object[~out_units]] = True
+        if occluders is not None:
+            shown &= occluders
+        objects = np.flatnonzero(shown & ~scene.invalid)
+        stats.envelope_occluders = int(len(objects))
+        stats.envelope_image_hidden = 0
+        renderer = culler.renderer
+        depth = renderer.read_texture_depth(renderer.envelope_depth(image_cam, (w, h), objects))
+        stats.gl_calls = renderer.counters["gl_calls"]
+        stats.blocking_reads = renderer.counters["blocking_reads"]
+        stats.query_rect_pixels = int(w * h)
+        lo, hi = self._intervals(depth, turn)
+        if (hi > lo).any():
+            self.levels = (_pyramid(lo), _pyramid(-hi))
+
+    def _intervals(self, depth, turn):
+        """Per pixel ``(lo, hi)``: a point of the pixel deeper than ``lo`` and no deeper
+        than ``hi`` is hidden from every view of the envelope (``lo = inf``: none is)."""
+        near, far = self.near, self.far
+        rows, cols = depth.shape
+        d = depth.astype(np.float64)
+        ok = d < 1.0
+        z = near + d * (far - near)                        # linear in the window depth
+        ok &= z > self.near_eff                            # clipped by a near plane of the envelope: a hole
+        # a turned ray, or a pixel centre of another grid (a rolled or moved view), may pass
+        # between two surfaces that meet at a jump
+        brk = ~ok | _jumps(z, ok, self.step, linear=True)
+        per_px = self.px / math.tan(turn) if turn > 0.0 else math.inf
+        far_ = np.where(brk, np.inf, z).astype(np.float32)   # a window's farthest depth, inf where it breaks
+        near_ = np.where(ok, -z, -np.inf).astype(np.float32)  # a window's nearest depth, negated
+        lo, hi = None, np.full(z.shape, -np.inf)
+        for h in HALF_SIZES:
+            if h >= min(rows, cols):
+                break
+            far_ = _grow(far_, h, np.inf)
+            near_ = _grow(near_, h, np.inf)
+            if lo is None:
+                lo = far_.astype(np.float64)                 # the 3 x 3 window: the surface at the pixel
+            free = far_ != np.inf
+            if not free.any():
+                break
+            with np.errstate(invalid="ignore"):
+                cover = -near_.astype(np.float64) + (h - 0.5) * per_px
+            np.maximum(hi, np.where(free, cover, -np.inf), out=hi)
+            if per_px == math.inf:
+                break                                      # no turn: any unbroken window covers every depth
+        if lo is None:
+            lo = np.full(z.shape, np.inf)
+        return lo, hi
+
+    def states(self, boxes, splits=SPLITS):
+        """VISIBLE, OCCLUDED or VIEW_CULLED for world boxes ``(k, 2, 3)``."""
+        k = len(boxes)
+        state = np.full(k, Visibility.VISIBLE, dtype=np.uint8)
+        if not k or not self.orthonormal:
+            return state
+        env = self.envelope
+        rel = boxes - self.eye
+        c = corners(rel) @ self.rot.T                      # view space: x, y across, -z deep
+        mag = np.abs(rel).max(axis=(1, 2))
+        grow = tol.box_grow_rel * mag + tol.box_grow_scene * self.culler.scene_size
+        lo = c.min(axis=1) - grow[:, None]
+        hi = c.max(axis=1) + grow[:, None]
+        d0, d1 = -hi[:, 2], -lo[:, 2]
+        # every view of the envelope: the eye moved by D, the frame turned by A
+        g = env.distance + self.chord * (np.linalg.norm(c, axis=2).max(axis=1) + env.distance) + grow
+        fl, fr, fb, ft = self.frame
+        outside = (hi[:, 0] + g < fl) | (lo[:, 0] - g > fr) | (hi[:, 1] + g < fb) | (lo[:, 1] - g > ft) \
+            | (d1 + g < self.near) | (d0 - g > self.far)
+        state[outside] = Visibility.VIEW_CULLED
+        if self.levels is None:
+            return state
+        left, _, b, _ = self.window
+        w, h = self.size
+        u0 = np.floor((lo[:, :2] - (left, b)) / self.px).astype(np.int64)
+        u1 = np.floor((hi[:, :2] - (left, b)) / self.px).astype(np.int64)
+        inside = ~outside & (u0 >= 0).all(axis=1) & (u1[:, 0] < w) & (u1[:, 1] < h)
+        idx = np.flatnonzero(inside)
+        rects = np.concatenate([u0[idx], u1[idx]], axis=1)
+        behind = _rect_max(self.levels[0], rects)           # the surface's farthest depth over the box
+        within = -_rect_max(self.levels[1], rects)          # how deep behind it every pixel still hides
+        guard = 2.0 * self.step                             # this image's rounding and the display's
+        hidden = (d0[idx] > behind + guard) & (d1[idx] <= within - guard)
+        state[idx[hidden]] = Visibility.OCCLUDED
+        if splits > 0:
+            retry = idx[~hidden & np.isfinite(behind) & (within > -np.inf)]
+            if len(retry):
+                halves = self.states(_split8(boxes[retry]), splits - 1)
+                gone = (halves != Visibility.VISIBLE).reshape(-1, 8).all(axis=1)
+                state[retry[gone]] = Visibility.OCCLUDED
         return state
 
 
@@ -938,6 +1125,9 @@ def envelope_pass(culler, camera, envelope, display=None, lights=None, occluders
         state[casters] = Visibility.VISIBLE
         stats.shadow_boxes = int(len(boxes))
         stats.shadow_casters_kept = int(len(casters))
+    for other in envelope.also:                # hidden only where hidden for each camera
+        twin = replace(envelope, also=(), floor=None, above_floor=False)
+        state = np.minimum(state, envelope_pass(culler, other, twin, display, lights, occluders, image)[0])
     stats.total_ms = stats.cpu_ms = 1e3 * (time.perf_counter() - t0)
     stats.invalid_objects = int(scene.invalid.sum())
     stats.envelope_distance = envelope.distance

@@ -3,10 +3,13 @@ the scene camera as it renders (its scale ignored).  Each returns a
 :class:`..core.Camera` and the display size it is drawn at, ``(W, H)`` pixels, or
 raises an :class:`..core.OccError` the user can act on."""
 
+import math
+
 import bpy
 import numpy as np
 
 from ..core import Camera, OccError
+from ..core.camera import perspective
 from . import localview
 
 
@@ -134,6 +137,38 @@ def viewport_camera(context) -> tuple[Camera, tuple[int, int]]:
         raise OccError("no 3D viewport to cull for: use the scene camera as the source")
     _, region, rv3d = found
     return region_camera(rv3d), (region.width, region.height)
+
+
+# Blender's viewport lens: 36 mm of sensor at a zoom of 2 across the region's longer side
+VIEWPORT_SENSOR_MM = 72.0
+TWIN_SLACK = 1.01            # the twin's lens a hair wider than Blender's (a wider one is conservative)
+
+
+def perspective_twin(context) -> Camera | None:
+    """The perspective camera an orthographic 3D view turns into without a redraw between
+    (the add-on acts only at a redraw): at the start of an orbit from a view aligned to an
+    axis (Front, Top, ...) under the Auto Perspective preference, and at Numpad 5.  The
+    same pivot, rotation and distance (its eye stands the view's distance behind the
+    pivot; an orthographic view's matrix has its eye at the pivot), the view's lens and
+    clipping, a hair wider.  None where the pass is not of such a view (the scene camera's
+    source, a view through a camera, a perspective view, background mode)."""
+    if bpy.app.background or context.scene.occ.source != "VIEWPORT":
+        return None
+    found = find_viewport(context)
+    if found is None:
+        return None
+    area, region, rv3d = found
+    if rv3d.view_perspective != "ORTHO":
+        return None
+    space = area.spaces.active
+    w, h = max(region.width, 1), max(region.height, 1)
+    tan = VIEWPORT_SENSOR_MM / 2.0 / space.lens * TWIN_SLACK       # half the longer side, in tangent
+    tx, ty = (tan, tan * h / w) if w >= h else (tan * w / h, tan)
+    proj = perspective(math.degrees(2.0 * math.atan(ty)), tx / ty, space.clip_start, space.clip_end)
+    world = np.eye(4)
+    world[:3, :3] = np.array(rv3d.view_rotation.to_matrix(), dtype=np.float64)
+    world[:3, 3] = np.array(rv3d.view_location, dtype=np.float64) + world[:3, 2] * rv3d.view_distance
+    return Camera(np.linalg.inv(world), proj)
 
 
 def camera_view(cam, matrix: np.ndarray | None = None) -> np.ndarray:

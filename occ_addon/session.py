@@ -12,7 +12,7 @@ query resolution or the strategy changed.
 import threading
 import time
 from collections.abc import Callable, Generator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import bpy
 import numpy as np
@@ -23,7 +23,7 @@ from ..core.motion import AT_REST, AtRest, LivePolicy
 from ..core.settings import MAX_RESOLUTION, preset, query_resolution
 from ..core.units import ChunkCache
 from . import identity, localview, policy, shading, visibility, worker
-from .cameras import hide_view
+from .cameras import hide_view, perspective_twin
 from .extract import Candidates, Extractor
 from .kinds import Kind
 from .passes import LastPass, Shown, shown_by
@@ -332,6 +332,10 @@ class Session:
         probe = envelope is None or envelope is AT_REST
         if envelope is AT_REST:
             envelope = POLICY.rest(culler.scene_size)
+        if isinstance(envelope, Envelope) and camera.is_orthographic:
+            twin = perspective_twin(context)         # the view may turn perspective before a redraw
+            if twin is not None:
+                envelope = replace(envelope, also=(twin,))
         lights = lights or None
         if restart:
             culler.forget(everything=True)
@@ -518,11 +522,12 @@ class Session:
 
 
 def _rule_words(pending, result) -> str:
-    """What the panel says of the pass's rule; an orthographic view under an envelope
-    also says why nothing occluded went (:mod:`..core.envelope`: a parallel view that may
-    turn proves nothing hidden), lest 0 read as nothing being behind anything."""
+    """What the panel says of the pass's rule; an orthographic view under an envelope also
+    says why it hides less than a perspective one (:mod:`..core.envelope`: what stands
+    close behind a continuous surface, for the parallel view and the perspective one it may
+    turn into), lest few read as nothing being behind anything."""
     if result.envelope is not None and pending.camera.is_orthographic:
-        return f"{pending.rule.why}; orthographic: a set that holds while the view may turn hides nothing here"
+        return f"{pending.rule.why}; orthographic: hides what stays hidden from this view and its perspective twin"
     return pending.rule.why
 
 

@@ -207,7 +207,8 @@ def test_a_pass_changes_no_pixel_of_the_picture(results):
     view's region after a Cull click and after a live pass is the region with everything
     drawn, pixel for pixel; so after a small turn the Cull click's set outlasts."""
     r = results["whole_picture"]
-    for label in ("street", "above", "camera", "camera_close", "ortho", "street_shadows", "camera_shadows"):
+    for label in ("street", "above", "camera", "camera_close", "ortho", "ortho_top", "street_shadows",
+                  "camera_shadows"):
         for how in ("operator", "live"):
             rec = r[f"{label}_{how}"]
             assert rec["changed"] == 0, (label, how, r)
@@ -220,7 +221,12 @@ def test_a_pass_changes_no_pixel_of_the_picture(results):
     # rest still go; through the camera by the view's own shading, not the render's
     # (which has no shadows: 6 pixels of a hidden box's shadow went)
     assert r["street_shadows_operator"]["hidden"] > 0 and r["camera_shadows_operator"]["hidden"] > 0, r
-    # a parallel view hides nothing occluded under the rest envelope, and the panel says why
+    # a parallel view hides what stays hidden for it and for its perspective twin (the twin's
+    # lens a hair wider than the one Blender draws, the same eye), and the panel says so
+    assert r["ortho_top_operator"]["hidden"] > 0, r
+    for label in ("ortho", "ortho_top"):
+        rec = r[f"{label}_operator"]
+        assert all(1.0 < k < 1.03 for k in rec["twin_wider"]) and rec["twin_eye"] < 1e-4, (label, rec)
     assert "orthographic" in r["ortho_operator"]["rule"] and "orthographic" not in r["street_operator"]["rule"], r
 
 

@@ -131,6 +131,7 @@ class Case:
         self.ctx = {"window": self.win, "area": self.area, "region": self.region}
         self.live = sys.modules[f"{ADDON}.occ_addon.live"]
         self.session = sys.modules[f"{ADDON}.occ_addon.session"].SESSION
+        self.cameras = sys.modules[f"{ADDON}.occ_addon.cameras"]
 
     def view(self, eye, target):
         self.rv3d.view_perspective = "PERSP"
@@ -767,9 +768,10 @@ def whole_picture(c):
     ground, each in its own flat colour, with poles and small things between (Blender's
     overlays and anti-aliasing off); from a street, from above, through the scene
     camera zoomed out (its passepartout drawing the scene around the frame) and zoomed in
-    and panned (the region showing a part of the frame), a Front
-    orthographic view (where a pass at rest hides nothing occluded: the engine's envelope
-    does not cover parallel views), the street and the camera again with Solid's shadows:
+    and panned (the region showing a part of the frame), a Front and a Top orthographic
+    view (whose set also holds for the perspective view Blender turns them into at an
+    orbit's start: the twin's lens against the one Blender draws), the street and the
+    camera again with Solid's shadows:
     the view's region with everything drawn against the same region after a Cull click and
     after a live pass; from the street and from above also after a small turn that the set
     outlasts, against that view with everything drawn."""
@@ -792,7 +794,8 @@ def whole_picture(c):
     scene.render.resolution_x, scene.render.resolution_y = 400, 300
     street = ((-3.0, 27.0, 1.7), (60.0, 21.0, 3.0))
     views = {"street": street, "above": ((-14.0, -10.0, 26.0), (30.0, 30.0, 0.0)), "camera": None,
-             "camera_close": "camera_close", "ortho": "ortho", "street_shadows": street, "camera_shadows": None}
+             "camera_close": "camera_close", "ortho": "ortho", "ortho_top": "ortho_top", "street_shadows": street,
+             "camera_shadows": None}
     out = results["whole_picture"] = {"objects": len(objects)}
 
     def region():
@@ -811,10 +814,11 @@ def whole_picture(c):
             # shows a part of the frame)
             c.rv3d.view_camera_zoom, c.rv3d.view_camera_offset = (-12.0, (0.0, 0.0)) if view is None \
                 else (25.0, (0.15, -0.1))
-        elif view == "ortho":                         # Front (Numpad 1), orthographic
+        elif view in ("ortho", "ortho_top"):          # Front (Numpad 1) or Top (Numpad 7), orthographic
             scene.occ.source = "VIEWPORT"
             c.rv3d.view_perspective = "ORTHO"
-            c.rv3d.view_rotation = mathutils.Euler((np.pi / 2, 0.0, 0.0)).to_quaternion()
+            c.rv3d.view_rotation = mathutils.Euler((np.pi / 2, 0.0, 0.0) if view == "ortho" else (0.0, 0.0, 0.0)) \
+                .to_quaternion()
             c.rv3d.view_location, c.rv3d.view_distance = (26.0, 26.0, 4.0), 40.0
         else:
             scene.occ.source = "VIEWPORT"
@@ -839,6 +843,23 @@ def whole_picture(c):
             rec["hidden"] = sum(hidden(ob) for ob in objects)
             rec["rule"] = c.session.last.rule
             rec["changed"] = changed(drawn, crop(on_screen(c, f"whole_{label}_{how}_culled")))
+            if view in ("ortho", "ortho_top") and how == "operator":
+                # the perspective twin the pass also held for, against the view Blender draws
+                # once it turns perspective (what Auto Perspective does at an orbit's start)
+                with bpy.context.temp_override(**c.ctx):
+                    twin = c.cameras.perspective_twin(bpy.context)
+                c.rv3d.view_perspective = "PERSP"
+                c.area.tag_redraw()
+                for _ in range(3):
+                    yield
+                drawn_persp = np.array(c.rv3d.window_matrix, dtype=np.float64)
+                rec["twin_wider"] = [float(drawn_persp[i, i] / twin.projection[i, i]) for i in (0, 1)]
+                rec["twin_eye"] = float(np.abs(np.array(c.rv3d.view_matrix) - twin.view).max())
+                c.restore()
+                c.rv3d.view_perspective = "ORTHO"
+                c.area.tag_redraw()
+                for _ in range(3):
+                    yield
             if isinstance(view, tuple) and how == "operator" and not shading.show_shadows:
                 # a small turn about the eye: the Cull click's set stands while the view stays
                 # inside the envelope the pass covered
