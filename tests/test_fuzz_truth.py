@@ -34,6 +34,15 @@ def test_seeded_envelope_passes_hide_nothing_a_view_of_the_envelope_sees(ctx):
     assert passes == len(seeds) * 8 and hidden > 0
 
 
+def test_orthographic_envelope_passes_hide_nothing_their_views_see(ctx):
+    """Every view of the walks parallel (half of them clipped as Blender clips its own, by a
+    slab around the eye), each envelope pass against seeded views of its envelope."""
+    seeds = [0, 1, 2, 3, 5, 8]
+    passes, hidden, failures = fuzz_truth.envelope_search(seeds, 8, ctx, report=lambda line: None, ortho_share=1.0)
+    assert failures == []
+    assert passes == len(seeds) * 8 and hidden > 0
+
+
 def test_the_scenes_reach_the_extremes():
     """Far offsets, very thin slabs, tiny objects, one-sided triangles, rotations."""
     offsets, thin, tiny, rotated, tris = [], 0, 0, 0, 0

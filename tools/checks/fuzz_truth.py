@@ -4,6 +4,7 @@ with ``display=``, at the display resolution.
 
     .venv/bin/python tools/checks/fuzz_truth.py --seeds 0-99 --strategies gpu,auto,om_coherent
     .venv/bin/python tools/checks/fuzz_truth.py --seeds 0-99 --envelope     (envelope passes)
+    .venv/bin/python tools/checks/fuzz_truth.py --seeds 0-99 --envelope --ortho 1   (every view parallel)
 
 Each seed draws a scene (rotated slabs and boxes of random size, some thin, some
 tiny, some far; a ground; a world offset up to 1e6), a query resolution (odd sizes
@@ -72,9 +73,11 @@ def scene_for(seed):
     return scene, offset, size
 
 
-def walk_for(seed, offset, size, frames, far_range=(3, 8)):
-    """A seeded camera walk: small steps and turns, cuts, now and then an orthographic view;
-    the far plane ``far_range`` times the scene's size (below 2: it cuts the scene)."""
+def walk_for(seed, offset, size, frames, far_range=(3, 8), ortho_share=0.1):
+    """A seeded camera walk: small steps and turns, cuts, now and then (``ortho_share`` of
+    the views) an orthographic view, half of them clipped as Blender clips its own (a slab
+    from half the far distance behind the eye); the far plane ``far_range`` times the
+    scene's size (below 2: it cuts the scene)."""
     rng = np.random.default_rng(seed + 10_000)
     fov, aspect = rng.uniform(20, 110), rng.uniform(0.5, 2.5)
     near = size * 10.0 ** rng.uniform(-5, -2)
@@ -92,9 +95,10 @@ def walk_for(seed, offset, size, frames, far_range=(3, 8)):
             yaw += rng.normal(0, 0.03)
         pitch = rng.uniform(-0.4, 0.2)
         d = np.array([np.cos(yaw) * np.cos(pitch), np.sin(yaw) * np.cos(pitch), np.sin(pitch)])
-        ortho = size * rng.uniform(0.05, 0.5) if rng.random() < 0.1 else None
+        ortho = size * rng.uniform(0.05, 0.5) if rng.random() < ortho_share else None
+        slab = ortho is not None and rng.random() < 0.5
         cams.append(Camera.look_at(eye, eye + d, up=(0, 0, 1), fov_y_deg=fov, aspect=aspect,
-                                   near=near, far=far, ortho_height=ortho))
+                                   near=-0.5 * far if slab else near, far=far, ortho_height=ortho))
     return cams
 
 
@@ -106,7 +110,7 @@ def parse_seeds(text):
     return out
 
 
-def search(seeds, strategies, frames, ctx, report=print):
+def search(seeds, strategies, frames, ctx, report=print, ortho_share=0.1):
     """Every strategy over every seed's walk: ``(passes, truly visible, culled as
     occluded, [(seed, strategy, pass, resolution, display, missed names), ...])``."""
     passes, seen, occluded, failures = 0, 0, 0, []
@@ -115,7 +119,7 @@ def search(seeds, strategies, frames, ctx, report=print):
         res = (int(rng.integers(31, 330)), int(rng.integers(23, 200)))
         display = (res[0] * 2 + 1, res[1] * 2 + 1) if rng.random() < 0.3 else None
         scene, offset, size = scene_for(seed)
-        cams = walk_for(seed, offset, size, frames)
+        cams = walk_for(seed, offset, size, frames, ortho_share=ortho_share)
         for name in strategies:
             with Culler(scene, res, strategy=name, ctx=ctx, display=display) as c:
                 for k, cam in enumerate(cams):
@@ -131,7 +135,7 @@ def search(seeds, strategies, frames, ctx, report=print):
     return passes, seen, occluded, failures
 
 
-def envelope_search(seeds, frames, ctx, views=8, report=print):
+def envelope_search(seeds, frames, ctx, views=8, report=print, ortho_share=0.1):
     """Envelope passes over every seed's walk (a seeded envelope per seed, far planes that
     may cut the scene; half of them may keep their eyes above a floor, as live mode's do),
     each against the object-ID truth of ``views`` seeded views of the envelope the pass
@@ -142,7 +146,7 @@ def envelope_search(seeds, frames, ctx, views=8, report=print):
         rng = np.random.default_rng(seed + 30_000)
         res = (int(rng.integers(31, 330)), int(rng.integers(23, 200)))
         scene, offset, size = scene_for(seed)
-        cams = walk_for(seed, offset, size, frames, far_range=(0.3, 4))
+        cams = walk_for(seed, offset, size, frames, far_range=(0.3, 4), ortho_share=ortho_share)
         env = Envelope(size * 10.0 ** rng.uniform(-4, -1.5), rng.uniform(0, 20), any_roll=bool(rng.random() < 0.5),
                        above_floor=bool(rng.random() < 0.5))
         with Culler(scene, res, ctx=ctx) as c:
@@ -168,16 +172,19 @@ def main(argv=None):
     ap.add_argument("--frames", type=int, default=12)
     ap.add_argument("--envelope", action="store_true",
                     help="envelope passes (a seeded envelope per seed) against seeded views of it")
+    ap.add_argument("--ortho", type=float, default=0.1, help="the share of orthographic views in the walks")
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
     if args.envelope:
         passes, hidden, failures = envelope_search(parse_seeds(args.seeds), args.frames, create_context(),
-                                                   report=lambda line: print(line, flush=True))
+                                                   report=lambda line: print(line, flush=True),
+                                                   ortho_share=args.ortho)
         print(f"{passes} envelope passes ({hidden} objects hidden), {len(failures)} with false negatives, "
               f"{time.perf_counter() - t0:.0f} s")
         return 1 if failures else 0
     passes, seen, occluded, failures = search(parse_seeds(args.seeds), args.strategies.split(","), args.frames,
-                                              create_context(), report=lambda line: print(line, flush=True))
+                                              create_context(), report=lambda line: print(line, flush=True),
+                                              ortho_share=args.ortho)
     print(f"{passes} passes ({seen} truly visible, {occluded} culled as occluded), "
           f"{len(failures)} with false negatives, {time.perf_counter() - t0:.0f} s")
     return 1 if failures else 0
