@@ -86,7 +86,7 @@ CHECKS = {
         "live_survives_undo",
         "live_reload_flag_matches_timer",
         "camera_moves_guarded_no_visible_hidden", "camera_moves_unguarded_would_hide_visible",
-        "camera_set_after_motion_holds",
+        "camera_set_after_motion_holds", "ortho_camera_set_holds_its_envelope",
         "live_cut_is_the_engines_camera_cut", "live_passes_land_only_unchanged",
         "live_keeps_no_set_made_for_another_view", "live_shown_again_after_an_unseen_edit",
         "edits_show_the_set_on_screen", "render_thread_announcements_ignored",

@@ -22,6 +22,7 @@ from .common import (
     hidden_by_addon_any,
     new_scene,
     promise,
+    seen_names,
     update,
 )
 
@@ -189,6 +190,42 @@ def camera_set_after_motion_holds():
     bpy.ops.occ.restore()
     check("camera_set_after_motion_holds", bool(first) and gone and bool(at_rest) and kept == at_rest
           and not wrong, (len(first), gone, len(at_rest), len(kept), wrong[:3]))
+
+
+def ortho_camera_set_holds_its_envelope():
+    """Live from an orthographic scene camera (the parallel envelope at rest): a pass hides
+    crates close behind the wall and keeps one far behind it (a camera turned 8 degrees sees
+    it past the wall's edge); the set stands against renders of the camera turned 3 and 8
+    degrees either way (inside the rest envelope's 10: the guard lets such a set stand),
+    and the far crate is seen at 8 (the case is real)."""
+    scene = new_scene()
+    scene.render.resolution_x, scene.render.resolution_y = 160, 90
+    cam = scene.camera
+    cam.data.type, cam.data.ortho_scale = "ORTHO", 30.0
+    cam.data.clip_start, cam.data.clip_end = 0.1, 200.0
+    for k in range(-4, 5):
+        box(f"crate{k}", (1.0, 1.2 * k - 0.4, 0.0), (1.8, 1.2 * k + 0.4, 2.0))
+    box("deep", (60.0, -1.0, 0.0), (62.0, 1.0, 2.0))
+    update()
+    session, cameras = addon("session"), addon("cameras")
+    scene.occ.live = True                                # the flag only: headless there is no timer
+    camera, display = cameras.scene_camera(bpy.context)
+    session.SESSION.cull(bpy.context, camera, display, fresh=True, restart=True, envelope=session.AT_REST)
+    hidden = hidden_by_addon_any()
+    crates = sum(f"crate{k}" in hidden for k in range(-4, 5))
+    yaw = cam.rotation_euler[2]
+    wrong, deep_seen = {}, False
+    for deg in (-8.0, -3.0, 3.0, 8.0):                   # the set stays on screen (headless: no guard timer)
+        cam.rotation_euler[2] = yaw + math.radians(deg)
+        update()
+        names = seen_names()
+        wrong[deg] = sorted(n for n in names if n in hidden)
+        deep_seen |= abs(deg) == 8.0 and "deep" in names
+    cam.rotation_euler[2] = yaw
+    scene.occ.live = False
+    bpy.ops.occ.restore()
+    check("ortho_camera_set_holds_its_envelope", crates >= 5 and "deep" not in hidden and deep_seen
+          and not any(wrong.values()), (crates, sorted(hidden), deep_seen, wrong))
 
 
 def live_cut_is_the_engines_camera_cut():
