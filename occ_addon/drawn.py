@@ -107,11 +107,10 @@ def bystanders(view_layer, held: np.ndarray) -> list:
     clouds, volumes, grease pencil, hair, vertex-instanced children, NaN values.
     Never culled, so counted visible by analyze.  The held ones are told apart in
     bulk (one ``foreach_get``); only the others are looked at one by one."""
-    layer = view_layer.objects
-    rest = np.flatnonzero(~np.isin(identity.uids(layer), held))
+    uids, items = identity.layer_objects(view_layer)    # (a list: indexing the collection is O(i))
+    rest = np.flatnonzero(~np.isin(uids, held))
     if not len(rest):
         return []
-    items = layer.values()                        # one list; indexing the collection is O(i)
     return [o for o in (items[i] for i in rest)
             if (o.type in DRAWN_TYPES or is_collection_instance(o)) and o.visible_get()]
 

@@ -135,7 +135,7 @@ class Candidates:
         :meth:`Extractor.fresh_matrices`; ``every``: of every evaluated candidate)."""
         self.view_layer = view_layer
         layer = view_layer.objects
-        uids_all = identity.uids(layer)
+        uids_all, items = identity.layer_objects(view_layer)
         stale_all = identity.layer_flags("occ_culled", uids_all, layer)     # hidden everywhere: not evaluated
         culled_all = stale_all | identity.layer_flags(identity.VIEW_RECORD, uids_all, layer)
         info = extractor.info
@@ -145,7 +145,6 @@ class Candidates:
         shown = drawn(view_layer, uids_all, space)
         # hidden in one view only, what the user shows is what the view layer shows
         base = drawn(view_layer, uids_all, NoView.BASE) if (culled_all & ~stale_all).any() else None
-        items = layer.values()                        # one list; indexing the collection is O(i)
         sel = np.flatnonzero(shown | culled_all)
         codes = info.codes_of(uids_all[sel])
         culled_sel, stale_sel = culled_all[sel], stale_all[sel]

@@ -86,10 +86,26 @@ def evaluate(view_layer) -> None:
 
 def after_update() -> None:
     """Something ran that may have run handlers (an update, an operator): :func:`count`
-    walks the list again at its next call."""
+    walks the list again at its next call, and a view layer's list is read again."""
     if _memo is not None:
         _memo.pop("n", None)
         _memo.pop("items", None)
+        _memo.pop("layers", None)
+
+
+def layer_objects(view_layer) -> tuple[np.ndarray, list]:
+    """``(uids, items)`` of ``view_layer.objects``: their identities (:func:`uids`) and one
+    list of them (indexing the collection walks it), read once within :func:`one_pass`
+    (the candidates and the policy's bystanders both ask) and again after each update in
+    it (handlers may add or remove objects: :func:`after_update`)."""
+    if _memo is None:
+        return uids(view_layer.objects), view_layer.objects.values()
+    layers = _memo.setdefault("layers", {})
+    key = view_layer.as_pointer()
+    hit = layers.get(key)
+    if hit is None:
+        hit = layers[key] = (uids(view_layer.objects), view_layer.objects.values())
+    return hit[0].copy(), hit[1]
 
 
 def forget() -> None:
