@@ -770,6 +770,17 @@ def floor_cut(culler, eye, distance):
     return (float(up[0]), float(up[1]), float(up[2]), c)
 
 
+def _image_objects(culler, out_units, occluders):
+    """The objects an envelope's image draws: those with a unit in its view (``out_units``:
+    the units outside it), of ``occluders`` where given (``(n,) bool``), no invalid one."""
+    scene = culler.scene
+    shown = np.zeros(len(scene), dtype=bool)
+    shown[culler.units.object[~out_units]] = True
+    if occluders is not None:
+        shown &= occluders
+    return np.flatnonzero(shown & ~scene.invalid)
+
+
 class _Tester:
     """The envelope's proof for any world boxes: the frustum of the square view, the
     extended depth image and the big polygons (built once a pass, asked twice: the
@@ -795,7 +806,6 @@ class _Tester:
         self.view = envelope_camera(camera, envelope, height)
         if self.view is None:
             return
-        scene = culler.scene
         ub = culler.unit_bounds()
         rel = grown_boxes(ub, self.eye, envelope.distance, culler.scene_size)
         # only what can show in the square view: the same picture, less to draw
@@ -805,11 +815,7 @@ class _Tester:
             stats.envelope_occluders = 0
             return
         stats.envelope_image_hidden = 0
-        shown = np.zeros(len(scene), dtype=bool)
-        shown[culler.units.object[~out_units]] = True
-        if occluders is not None:
-            shown &= occluders
-        objects = np.flatnonzero(shown & ~scene.invalid)
+        objects = _image_objects(culler, out_units, occluders)
         stats.envelope_occluders = int(len(objects))
         w, h = self.view.size
         renderer = culler.renderer
@@ -956,14 +962,9 @@ class _ParallelProof:
         self.near_eff = n_eff + tol.near_guard_rel * (abs(n_eff) + (far - near))
         self.step = tol.depth_guard_steps * (far - near) / 2.0 ** tol.depth_bits
         image_cam = Camera(camera.view, _ortho_matrix(left, r, b, t, near, far))
-        scene = culler.scene
-        ub = culler.unit_bounds()
-        out_units, _ = classify(planes_from_matrix(image_cam.relative_view_projection()), ub - self.eye)
-        shown = np.zeros(len(scene), dtype=bool)
-        shown[culler.units.object[~out_units]] = True
-        if occluders is not None:
-            shown &= occluders
-        objects = np.flatnonzero(shown & ~scene.invalid)
+        out_units, _ = classify(planes_from_matrix(image_cam.relative_view_projection()),
+                                culler.unit_bounds() - self.eye)
+        objects = _image_objects(culler, out_units, occluders)
         stats.envelope_occluders = int(len(objects))
         stats.envelope_image_hidden = 0
         renderer = culler.renderer
