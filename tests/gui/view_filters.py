@@ -930,8 +930,11 @@ def moving_picture(c):
     mode on (and back with Solid's shadows): at every step the culled view, drawn offscreen
     at its region's size with its
     own view and projection, is pixel for pixel the second view (which hides nothing) drawn
-    the same way; and again once the view rests.  The comparison can fail: the set drawn
-    from above differs, and so does a block the view sees hidden by its monitor flag."""
+    the same way; and again once the view rests.  Then an orthographic Top view's Cull
+    click, drawn as Blender draws before the add-on can act: turned perspective and a
+    little, or turned staying orthographic.  The comparison can fail: the set drawn from
+    above differs, so does a block the view sees hidden by its monitor flag, and so does
+    the Top view's set turned 60 degrees."""
     import gpu
 
     objects = town()
@@ -996,6 +999,34 @@ def moving_picture(c):
         c.restore()
     for area in (c.area, other):
         area.spaces.active.shading.show_shadows = False
+    # an orthographic Top view's Cull click, then what Blender draws before the add-on can act
+    # (no redraw between, so the guard has not run): the view turned perspective (an orbit's
+    # start under Auto Perspective, Numpad 5) and turned a little, or turned staying
+    # orthographic.  (From straight above the parallel proof finds nothing under the blocks;
+    # what the set hides is outside the view, or hidden for the twin and outside the view.)
+    def top(persp, turn_deg):
+        q = mathutils.Euler((np.radians(turn_deg), 0.0, 0.0)).to_quaternion()
+        for rv3d in views:
+            rv3d.view_perspective = "PERSP" if persp else "ORTHO"
+            rv3d.view_rotation = q
+            rv3d.view_location, rv3d.view_distance = (26.0, 26.0, 4.0), 20.0
+            rv3d.update()                                     # its matrices now, not at its redraw
+
+    top(False, 0.0)
+    c.area.tag_redraw()
+    other.tag_redraw()
+    for _ in range(3):
+        yield
+    c.cull()
+    for _ in range(3):
+        yield
+    for persp, turn in ((False, 0.0), (True, 0.0), (True, 3.0), (True, -8.0), (False, 8.0), (True, 60.0)):
+        top(persp, turn)
+        compare(f"top {'perspective' if persp else 'orthographic'} {turn:g}")
+    c.restore()
+    for rv3d in views:
+        rv3d.view_perspective = "PERSP"
+    show((x, y, 1.7), yaw)                                    # back in the street
     yield from c.start_live()
     c.stop_live()
     # the check can fail: the set drawn from above (where it shows) differs, so the culled
