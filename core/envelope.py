@@ -787,7 +787,7 @@ class _Tester:
     objects' units, then the shadows of those found hidden)."""
 
     def __init__(self, culler, camera, envelope, height, stats, occluders=None, image=True):
-        self.culler, self.camera, self.envelope = culler, camera, envelope
+        self.culler, self.envelope = culler, envelope
         self.eye = camera.eye
         self.stats = stats
         self.view = self.ext = self.levels = None
@@ -934,7 +934,7 @@ class _ParallelProof:
     VIEW_CULLED; one whose rectangle leaves the image is VISIBLE."""
 
     def __init__(self, culler, camera, envelope, height, stats, occluders=None, image=True):
-        self.culler, self.envelope, self.stats = culler, envelope, stats
+        self.culler, self.envelope = culler, envelope
         self.eye = camera.eye
         self.rot = camera.view[:3, :3]
         self.levels = None
